@@ -1,0 +1,294 @@
+#include "control/controller.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace pamc::control {
+
+const char* toString(Kind k) {
+  switch (k) {
+    case Kind::OpenLoop: return "open";
+    case Kind::PI: return "pi";
+    case Kind::PidEso: return "eso";
+    case Kind::PiAmc: return "amc";
+  }
+  return "?";
+}
+
+Kind kindFromString(const std::string& s) {
+  if (s == "open" || s == "openloop" || s == "open-loop") return Kind::OpenLoop;
+  if (s == "pi" || s == "pid") return Kind::PI;
+  if (s == "eso" || s == "pid+eso" || s == "pideso") return Kind::PidEso;
+  if (s == "amc" || s == "pi+amc" || s == "pid+amc" || s == "piamc") return Kind::PiAmc;
+  throw std::invalid_argument("unknown controller '" + s + "' (known: open, pi, eso, amc)");
+}
+
+// ---------------------------------------------------------------- inverse static characteristic
+void InverseStatic::build(const model::Model& m, double u_min, double u_max, double Ts) {
+  constexpr int kGrid = 201;
+  const double period = 200.0;  // s: slow against every dynamic effect of a PAM
+  const double dt = std::max(Ts, 5e-3);
+  const auto n = static_cast<size_t>(period / dt);
+  model::Model::State st;
+  model::StepContext c;
+  c.Ts = dt;
+  m.init(st, u_min, c);
+  std::vector<double> up(kGrid, NAN), dn(kGrid, NAN);
+  const double du = (u_max - u_min) / (kGrid - 1);
+  // Two full cycles; record the second so the loop is settled.
+  for (int cycle = 0; cycle < 2; ++cycle) {
+    for (size_t i = 0; i < n; ++i) {
+      const double ph = static_cast<double>(i) / static_cast<double>(n);
+      const double u = ph < 0.5 ? u_min + (u_max - u_min) * 2.0 * ph : u_max - (u_max - u_min) * (2.0 * ph - 1.0);
+      const double y = m.step(st, u, c);
+      if (cycle == 1) {
+        const int g = std::clamp(static_cast<int>(std::lround((u - u_min) / du)), 0, kGrid - 1);
+        (ph < 0.5 ? up : dn)[static_cast<size_t>(g)] = y;
+      }
+    }
+  }
+  u_.clear();
+  y_.clear();
+  double last = -INFINITY;
+  for (int g = 0; g < kGrid; ++g) {
+    const double a = up[static_cast<size_t>(g)], b = dn[static_cast<size_t>(g)];
+    double y = std::isnan(a) ? b : std::isnan(b) ? a : 0.5 * (a + b);
+    if (std::isnan(y)) continue;
+    if (y <= last) y = last + 1e-9;  // monotonic so the inverse is a function
+    last = y;
+    u_.push_back(u_min + g * du);
+    y_.push_back(y);
+  }
+  if (u_.size() < 2) throw std::invalid_argument("model has no usable static characteristic");
+}
+
+double InverseStatic::operator()(double y) const noexcept {
+  if (y <= y_.front()) return u_.front();
+  if (y >= y_.back()) return u_.back();
+  const auto it = std::upper_bound(y_.begin(), y_.end(), y);
+  const size_t i = static_cast<size_t>(it - y_.begin());
+  const double t = (y - y_[i - 1]) / (y_[i] - y_[i - 1]);
+  return u_[i - 1] + t * (u_[i] - u_[i - 1]);
+}
+
+double InverseStatic::forward(double u) const noexcept {
+  if (u <= u_.front()) return y_.front();
+  if (u >= u_.back()) return y_.back();
+  const auto it = std::upper_bound(u_.begin(), u_.end(), u);
+  const size_t i = static_cast<size_t>(it - u_.begin());
+  const double t = (u - u_[i - 1]) / (u_[i] - u_[i - 1]);
+  return y_[i - 1] + t * (y_[i] - y_[i - 1]);
+}
+
+namespace {
+
+void validate(const ControllerConfig& c) {
+  auto bad = [](const std::string& what) { throw std::invalid_argument("controller configuration: " + what); };
+  if (!(c.Ts > 0 && std::isfinite(c.Ts))) bad("Ts must be positive");
+  if (!(c.u_min < c.u_max)) bad("u_min must be below u_max");
+  for (double g : {c.kp, c.ki, c.kc, c.beta1, c.beta2, c.beta3})
+    if (!std::isfinite(g) || g < 0) bad("gains must be finite and non-negative");
+  if (!(c.delta > 0) || !(c.b0 > 0)) bad("ESO delta and b0 must be positive");
+  if (c.delay_cycles < 0 || c.delay_cycles > 7) bad("delay_cycles must be 0..7");
+}
+
+// The commands of the last few cycles, to tell the estimators which one was in effect when a
+// measurement was taken.
+class CommandHistory {
+ public:
+  void fill(double u) noexcept { buf_.fill(u); }
+  void push(double u) noexcept {
+    head_ = (head_ + 1) & 7u;
+    buf_[head_] = u;
+  }
+  // ago = 0: the latest command.
+  double get(int ago) const noexcept { return buf_[(head_ - static_cast<unsigned>(ago)) & 7u]; }
+
+ private:
+  std::array<double, 8> buf_{};
+  unsigned head_ = 0;
+};
+
+// PI of eq. (16) with conditional integration as anti-windup.
+class PiCore {
+ public:
+  void configure(const ControllerConfig& c) {
+    kp_ = c.kp;
+    ki_ts_ = c.ki * c.Ts;  // continuous-time Ki [V/(mm s)], integral as sum of e*Ts
+    u_min_ = c.u_min;
+    u_max_ = c.u_max;
+  }
+  void reset(double integral) noexcept { integ_ = std::clamp(integral, u_min_, u_max_); }
+  // Nominal output with this cycle's error integrated (tentatively).
+  double nominal(double e) noexcept {
+    e_ = e;
+    pending_ = std::clamp(integ_ + ki_ts_ * e, u_min_, u_max_);
+    return kp_ * e + pending_;
+  }
+  // Saturates u_n + extra; keeps the integration only if it does not push further into the limit.
+  double finish(double u_n, double extra, bool& saturated, double& u_n_out) noexcept {
+    const double raw = u_n + extra;
+    const double u = std::clamp(raw, u_min_, u_max_);
+    saturated = u != raw;
+    if (saturated && (raw - u) * e_ > 0.0) {
+      u_n_out = u_n - pending_ + integ_;  // integration undone
+      return std::clamp(u_n_out + extra, u_min_, u_max_);
+    }
+    integ_ = pending_;
+    u_n_out = u_n;
+    return u;
+  }
+  double integral() const noexcept { return integ_; }
+
+ private:
+  double kp_ = 0, ki_ts_ = 0, u_min_ = -5, u_max_ = 5;
+  double integ_ = 0, pending_ = 0, e_ = 0;
+};
+
+class OpenLoop final : public Controller {
+ public:
+  explicit OpenLoop(const ControllerConfig& c) : cfg_(c) { inv_.build(c.model, c.u_min, c.u_max, c.Ts); }
+  Kind kind() const override { return Kind::OpenLoop; }
+  void activate(double, double) noexcept override {}
+  ControlOutput update(double yd, double, double, double) noexcept override {
+    ControlOutput o;
+    o.u = o.u_n = std::clamp(inv_(yd), cfg_.u_min, cfg_.u_max);
+    o.y_hat = inv_.forward(o.u);
+    return o;
+  }
+
+ private:
+  ControllerConfig cfg_;
+  InverseStatic inv_;
+};
+
+class Pi final : public Controller {
+ public:
+  explicit Pi(const ControllerConfig& c) { pi_.configure(c); }
+  Kind kind() const override { return Kind::PI; }
+  void activate(double u0, double) noexcept override { pi_.reset(u0); }
+  ControlOutput update(double yd, double, double y, double) noexcept override {
+    ControlOutput o;
+    const double un = pi_.nominal(yd - y);
+    o.u = pi_.finish(un, 0.0, o.saturated, o.u_n);
+    o.y_hat = y;
+    return o;
+  }
+
+ private:
+  PiCore pi_;
+};
+
+// PI + active model compensation, eqs. (14)-(19).
+class PiAmc final : public Controller {
+ public:
+  explicit PiAmc(const ControllerConfig& c) : cfg_(c) {
+    pi_.configure(c);
+    am_.configure(c.model, c.ukf, c.Ts);
+  }
+  Kind kind() const override { return Kind::PiAmc; }
+  void activate(double u0, double) noexcept override {
+    pi_.reset(u0);
+    am_.reset(u0);
+    hist_.fill(u0);
+    model::StepContext ctx;
+    ctx.Ts = cfg_.Ts;
+    cfg_.model.init(nom_, u0, ctx);
+    un_eff_prev_ = nom_.u_eff_prev;
+  }
+  ControlOutput update(double yd, double yd_next, double y, double load) noexcept override {
+    ControlOutput o;
+    // Latch -> estimate: the command in effect when y was sampled.
+    const auto est = am_.update(hist_.get(cfg_.delay_cycles), y, load);
+    o.y_hat = est.y_post;
+    o.estimator_reset = est.status == estimation::UkfStatus::Reset;
+    // Nominal PI, eq. (16).
+    const double un = pi_.nominal(yd - y);
+    // Prediction, eq. (17): the nominal command's own increment drives the hysteresis.
+    model::StepContext ctx;
+    ctx.Ts = cfg_.Ts;
+    ctx.load = load;
+    const double un_eff = cfg_.model.inputStage(nom_, un, ctx);
+    const double y_next = am_.predictNext(un_eff_prev_, un_eff, load);
+    un_eff_prev_ = un_eff;
+    // Compensation, eq. (18), and total command, eqs. (14)/(19).
+    o.u_c = std::isfinite(y_next) ? cfg_.kc * (yd_next - y_next) : 0.0;
+    o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
+    hist_.push(o.u);
+    return o;
+  }
+
+ private:
+  ControllerConfig cfg_;
+  PiCore pi_;
+  estimation::ActiveModel am_;
+  CommandHistory hist_;
+  model::Model::State nom_;
+  double un_eff_prev_ = 0.0;
+};
+
+// PID + extended state observer, eqs. (22)-(25).
+class PidEso final : public Controller {
+ public:
+  explicit PidEso(const ControllerConfig& c) : cfg_(c) { pi_.configure(c); }
+  Kind kind() const override { return Kind::PidEso; }
+  void activate(double u0, double y0) noexcept override {
+    pi_.reset(u0);
+    hist_.fill(u0);
+    x1_ = y0;
+    x2_ = 0.0;
+    x3_ = 0.0;
+  }
+  static double fal(double e, double a, double delta) noexcept {
+    const double ae = std::fabs(e);
+    return ae <= delta ? e / std::pow(delta, 1.0 - a) : std::copysign(std::pow(ae, a), e);
+  }
+  ControlOutput update(double yd, double, double y, double) noexcept override {
+    ControlOutput o;
+    // Observer, eq. (24), explicit Euler at Ts with the command in effect.
+    const double Ts = cfg_.Ts;
+    const double u_applied = hist_.get(cfg_.delay_cycles);
+    const double e = x1_ - y;
+    const double x1 = x1_ + Ts * (x2_ - cfg_.beta1 * e);
+    const double x2 = x2_ + Ts * (cfg_.b0 * u_applied + x3_ - cfg_.beta2 * fal(e, 0.5, cfg_.delta));
+    const double x3 = x3_ + Ts * (-cfg_.beta3 * fal(e, 0.25, cfg_.delta));
+    if (std::isfinite(x1) && std::isfinite(x2) && std::isfinite(x3)) {
+      x1_ = x1;
+      x2_ = x2;
+      x3_ = x3;
+    } else {
+      x1_ = y;
+      x2_ = x3_ = 0.0;
+      o.estimator_reset = true;
+    }
+    o.y_hat = x1_;
+    const double un = pi_.nominal(yd - y);
+    // Eq. (25): u = u_n - x3_hat (divided by the observer's input gain b0).
+    o.u_c = -x3_ / cfg_.b0;
+    o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
+    hist_.push(o.u);
+    return o;
+  }
+
+ private:
+  ControllerConfig cfg_;
+  PiCore pi_;
+  CommandHistory hist_;
+  double x1_ = 0, x2_ = 0, x3_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<Controller> makeController(Kind kind, const ControllerConfig& cfg) {
+  validate(cfg);
+  switch (kind) {
+    case Kind::OpenLoop: return std::make_unique<OpenLoop>(cfg);
+    case Kind::PI: return std::make_unique<Pi>(cfg);
+    case Kind::PidEso: return std::make_unique<PidEso>(cfg);
+    case Kind::PiAmc: return std::make_unique<PiAmc>(cfg);
+  }
+  throw std::invalid_argument("unknown controller kind");
+}
+
+}  // namespace pamc::control

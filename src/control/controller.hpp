@@ -1,0 +1,83 @@
+// Position controllers of the paper: open loop (inverse static characteristic), PI (eq. 16),
+// PI + active model compensation (eqs. 14-19) and PID + extended state observer (eqs. 22-25).
+//
+// Lifecycle: configure() may allocate and throw; activate() resets state; update() runs once per
+// cycle, is noexcept, allocation-free and returns the valve command with its parts.
+//
+// Units and the interpretation of the paper's gains (written down once, here):
+//  - position in mm, command u in V relative to the valve's mid-range (valve voltage = 5 V + u,
+//    so the real 0-10 V range is u in [-5, 5] V);
+//  - all gains are continuous-time, as the ESO's observer gains of eq. (24) are: kp [V/mm],
+//    ki [V/(mm s)] multiplying the integral of the error, taken as the sum of e_i * Ts. Read
+//    literally (ki times the bare sum at 1 kHz, i.e. 150 V/(mm s)) the integral would close the
+//    loop near 900 rad/s, unstable against a valve-and-muscle lag of tens of milliseconds and the
+//    one-cycle bus delay (docs/CONTROL.md has the numbers);
+//  - kc [V/mm] multiplies the predicted error of eq. (18).
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "estimation/active_model.hpp"
+#include "model/model.hpp"
+
+namespace pamc::control {
+
+enum class Kind { OpenLoop = 0, PI = 1, PidEso = 2, PiAmc = 3 };
+const char* toString(Kind k);
+Kind kindFromString(const std::string& s);  // "open", "pi", "eso", "amc" (throws)
+
+struct ControllerConfig {
+  double Ts = 1e-3;
+  double u_min = -5.0, u_max = 5.0;  // valve command range [V]
+  double kp = 0.1;                   // [V/mm]
+  double ki = 0.15;                  // [V/(mm s)], see above
+  double kc = 0.06;                  // [V/mm]
+  // ESO, eq. (24): fal() with delta in mm; b0 [mm/(s^2 V)] is the input gain the observer
+  // assumes (the paper's eq. (22) has b0 = 1).
+  double beta1 = 100.0, beta2 = 100.0, beta3 = 100.0, delta = 500.0, b0 = 1.0;
+  // Samples between issuing a command and the first measurement that reflects it, beyond
+  // the one sample of any sampled loop (1 on the CANopen bus: the valve applies a synchronous
+  // RPDO at the next SYNC).
+  int delay_cycles = 1;
+  model::Model model;  // identified reference model (open loop, AMC)
+  estimation::ActiveModelSettings ukf;
+};
+
+struct ControlOutput {
+  double u = 0.0;    // saturated command sent to the valve [V]
+  double u_n = 0.0;  // nominal controller part [V]
+  double u_c = 0.0;  // compensation part (AMC u_c, or -x3_hat for ESO) [V]
+  double y_hat = 0.0;  // estimator output (AMC posterior / ESO x1_hat) [mm]
+  bool saturated = false;
+  bool estimator_reset = false;
+};
+
+class Controller {
+ public:
+  virtual ~Controller() = default;
+  virtual Kind kind() const = 0;
+  // Rest at command u0 with measured position y0.
+  virtual void activate(double u0, double y0) noexcept = 0;
+  // One cycle: setpoint now and one cycle ahead, measured position (and load if measured).
+  virtual ControlOutput update(double yd, double yd_next, double y, double load = 0.0) noexcept = 0;
+};
+
+// Throws std::invalid_argument on a bad configuration.
+std::unique_ptr<Controller> makeController(Kind kind, const ControllerConfig& cfg);
+
+// Inverse of a model's static characteristic: the centre line between the ascending and
+// descending branches of a slow full-range sweep, made monotonic and inverted by table.
+class InverseStatic {
+ public:
+  void build(const model::Model& m, double u_min, double u_max, double Ts);
+  double operator()(double y) const noexcept;
+  double forward(double u) const noexcept;
+
+ private:
+  std::vector<double> u_, y_;  // y_ increasing with u_
+};
+
+}  // namespace pamc::control

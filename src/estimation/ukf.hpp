@@ -1,0 +1,202 @@
+// A generic unscented Kalman filter over fixed-size Eigen types.
+//
+// The filter knows only the sizes, a transition f(x) and a measurement h(x) passed as callables;
+// all physics lives in the model. Standard scaled unscented transform:
+//   lambda = a^2 (n + kappa) - n,  Wm0 = lambda / (n + lambda),  Wc0 = Wm0 + 1 - a^2 + b,
+//   Wi = 1 / (2 (n + lambda)).
+// (The paper's eq. (13) swaps these; its settings a = 1e-3, kappa = 3 - n, b = 2 give
+// Wm0 ~ -1e6, so sums are taken about the central sigma point and the covariance is guarded:
+// symmetrised, checked by Cholesky, repaired by an eigenvalue floor, reset when that fails.)
+// predict() and update() are noexcept and allocation-free; they return a status, never throw.
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#include <cmath>
+
+namespace pamc::estimation {
+
+struct UkfSettings {
+  double alpha = 1e-3;   // sigma-point spread (the paper's sigma)
+  double beta = 2.0;     // prior-distribution term (the paper's theta); 2 is optimal for Gaussians
+  double kappa = -1.0;   // secondary scaling; < -0.5 means "3 - n"
+};
+
+enum class UkfStatus : unsigned {
+  Ok = 0,
+  CovarianceRepaired = 1,  // P lost definiteness and was floored
+  Reset = 2,               // P or x became non-finite: x kept if finite, P back to P0
+  MeasurementRejected = 3, // non-finite measurement: the prior is kept
+};
+
+inline const char* toString(UkfStatus s) {
+  switch (s) {
+    case UkfStatus::Ok: return "ok";
+    case UkfStatus::CovarianceRepaired: return "covariance repaired";
+    case UkfStatus::Reset: return "reset";
+    case UkfStatus::MeasurementRejected: return "measurement rejected";
+  }
+  return "?";
+}
+
+template <int N, int M>
+class Ukf {
+ public:
+  static constexpr int kSigma = 2 * N + 1;
+  using Vec = Eigen::Matrix<double, N, 1>;
+  using Mat = Eigen::Matrix<double, N, N>;
+  using MVec = Eigen::Matrix<double, M, 1>;
+  using MMat = Eigen::Matrix<double, M, M>;
+  using Sigmas = Eigen::Matrix<double, N, kSigma>;
+  using MSigmas = Eigen::Matrix<double, M, kSigma>;
+
+  explicit Ukf(const UkfSettings& s = UkfSettings{}) { configure(s); }
+
+  void configure(const UkfSettings& s) {
+    settings_ = s;
+    const double n = N;
+    const double kappa = s.kappa < -0.5 ? 3.0 - n : s.kappa;
+    lambda_ = s.alpha * s.alpha * (n + kappa) - n;
+    gamma_ = std::sqrt(n + lambda_);
+    wm0_ = lambda_ / (n + lambda_);
+    wc0_ = wm0_ + 1.0 - s.alpha * s.alpha + s.beta;
+    wi_ = 1.0 / (2.0 * (n + lambda_));
+  }
+
+  void reset(const Vec& x0, const Mat& P0) noexcept {
+    x_ = x0;
+    P_ = P0;
+    P0_ = P0;
+  }
+
+  // x <- E[f(x)], P <- Cov[f(x)] + Q. f: Vec (const&) -> Vec.
+  template <class F>
+  UkfStatus predict(F&& f, const Mat& Q) noexcept {
+    UkfStatus st = UkfStatus::Ok;
+    if (!sigmaPoints(st)) return UkfStatus::Reset;
+    for (int i = 0; i < kSigma; ++i) Xp_.col(i) = f(static_cast<const Vec&>(X_.col(i)));
+    x_ = weightedMean(Xp_);
+    Mat P = Mat::Zero();
+    for (int i = 0; i < kSigma; ++i) {
+      const Vec d = Xp_.col(i) - x_;
+      P.noalias() += (i == 0 ? wc0_ : wi_) * d * d.transpose();
+    }
+    P_ = P + Q;
+    return worst(st, guard());
+  }
+
+  // Measurement update with z = h(x) + v, v ~ N(0, R). h: Vec (const&) -> MVec.
+  // Sigma points are drawn afresh from the predicted (x, P).
+  template <class H>
+  UkfStatus update(H&& h, const MVec& z, const MMat& R) noexcept {
+    UkfStatus st = UkfStatus::Ok;
+    if (!sigmaPoints(st)) return UkfStatus::Reset;
+    for (int i = 0; i < kSigma; ++i) Z_.col(i) = h(static_cast<const Vec&>(X_.col(i)));
+    z_pred_ = weightedMean(Z_);
+    if (!z.allFinite()) return UkfStatus::MeasurementRejected;
+    MMat S = MMat::Zero();
+    Eigen::Matrix<double, N, M> C = Eigen::Matrix<double, N, M>::Zero();
+    for (int i = 0; i < kSigma; ++i) {
+      const double w = i == 0 ? wc0_ : wi_;
+      const MVec dz = Z_.col(i) - z_pred_;
+      const Vec dx = X_.col(i) - x_;
+      S.noalias() += w * dz * dz.transpose();
+      C.noalias() += w * dx * dz.transpose();
+    }
+    S += R;
+    Eigen::LLT<MMat> llt(S);
+    if (llt.info() != Eigen::Success) return worst(st, hardReset());
+    const Eigen::Matrix<double, N, M> K = llt.solve(C.transpose()).transpose();
+    innovation_ = z - z_pred_;
+    x_ += K * innovation_;
+    P_ -= K * S * K.transpose();
+    return worst(st, guard());
+  }
+
+  const Vec& x() const noexcept { return x_; }
+  Vec& x() noexcept { return x_; }
+  const Mat& P() const noexcept { return P_; }
+  // Predicted measurement of the last update (before the measurement was used).
+  const MVec& predictedMeasurement() const noexcept { return z_pred_; }
+  const MVec& innovation() const noexcept { return innovation_; }
+  double lambda() const noexcept { return lambda_; }
+  double wm0() const noexcept { return wm0_; }
+  double wc0() const noexcept { return wc0_; }
+  double wi() const noexcept { return wi_; }
+
+ private:
+  static UkfStatus worst(UkfStatus a, UkfStatus b) noexcept {
+    return static_cast<unsigned>(a) > static_cast<unsigned>(b) ? a : b;
+  }
+
+  // Mean as central point plus weighted offsets: with Wm0 ~ -1e6 the plain weighted sum
+  // would cancel catastrophically.
+  template <class S>
+  auto weightedMean(const S& X) const noexcept {
+    Eigen::Matrix<double, S::RowsAtCompileTime, 1> m = Eigen::Matrix<double, S::RowsAtCompileTime, 1>::Zero();
+    for (int i = 1; i < kSigma; ++i) m += X.col(i) - X.col(0);
+    return (X.col(0) + wi_ * m).eval();
+  }
+
+  bool sigmaPoints(UkfStatus& st) noexcept {
+    Eigen::LLT<Mat> llt(P_);
+    if (llt.info() != Eigen::Success) {
+      st = worst(st, repair());
+      llt.compute(P_);
+      if (llt.info() != Eigen::Success) {
+        st = worst(st, hardReset());
+        llt.compute(P_);
+        if (llt.info() != Eigen::Success) return false;
+      }
+    }
+    const Mat L = gamma_ * llt.matrixL().toDenseMatrix();
+    X_.col(0) = x_;
+    for (int i = 0; i < N; ++i) {
+      X_.col(1 + i) = x_ + L.col(i);
+      X_.col(1 + N + i) = x_ - L.col(i);
+    }
+    return true;
+  }
+
+  // Symmetric, finite, positive definite - or repaired.
+  UkfStatus guard() noexcept {
+    if (!x_.allFinite() || !P_.allFinite()) return hardReset();
+    P_ = 0.5 * (P_ + P_.transpose()).eval();
+    Eigen::LLT<Mat> llt(P_);
+    if (llt.info() == Eigen::Success) return UkfStatus::Ok;
+    return repair();
+  }
+
+  // Floors the eigenvalues of P at a small fraction of its scale.
+  UkfStatus repair() noexcept {
+    Eigen::SelfAdjointEigenSolver<Mat> es(P_);
+    if (es.info() != Eigen::Success) return hardReset();
+    Vec ev = es.eigenvalues();
+    const double scale = std::max(ev.cwiseAbs().maxCoeff(), 1e-12);
+    for (int i = 0; i < N; ++i) ev(i) = std::max(ev(i), 1e-9 * scale);
+    P_ = es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
+    P_ = 0.5 * (P_ + P_.transpose()).eval();
+    if (!P_.allFinite()) return hardReset();
+    return UkfStatus::CovarianceRepaired;
+  }
+
+  UkfStatus hardReset() noexcept {
+    if (!x_.allFinite()) x_.setZero();
+    P_ = P0_;
+    return UkfStatus::Reset;
+  }
+
+  UkfSettings settings_;
+  double lambda_ = 0, gamma_ = 0, wm0_ = 0, wc0_ = 0, wi_ = 0;
+  Vec x_ = Vec::Zero();
+  Mat P_ = Mat::Identity();
+  Mat P0_ = Mat::Identity();
+  Sigmas X_ = Sigmas::Zero();
+  Sigmas Xp_ = Sigmas::Zero();
+  MSigmas Z_ = MSigmas::Zero();
+  MVec z_pred_ = MVec::Zero();
+  MVec innovation_ = MVec::Zero();
+};
+
+}  // namespace pamc::estimation

@@ -1,0 +1,51 @@
+// Identification of a model (Bouc-Wen core and any effects) from a measurement:
+// fitness = MSE of eq. (20) between the measured and the simulated output, minimised by the GA
+// over box bounds scaled to the data, then refined by Nelder-Mead.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "ident/optimize.hpp"
+#include "io/measurement.hpp"
+#include "model/model.hpp"
+
+namespace pamc::ident {
+
+struct FitSettings {
+  GaSettings ga{};
+  bool refine = true;
+  int refine_evals = 1500;
+};
+
+struct FitResult {
+  model::Model model;
+  double mse = 0.0;
+  double rmse = 0.0;
+  int generations = 0;
+  int evaluations = 0;
+  double seconds = 0.0;
+};
+
+struct Bounds {
+  std::vector<double> lo, hi;
+};
+
+// Bounds of the search, scaled to the ranges of u and y in the data (so the same search works on
+// volts/millimetres or newtons/metres). The search vector is the model's parameter vector with
+// (k, rho) replaced by (k rho, k (1 - rho)); alpha is fixed at 1 (see bouc_wen.hpp).
+Bounds dataBounds(const model::Model& structure, const io::Measurement& data);
+
+// Search vector -> model parameter vector.
+void searchToModel(const std::vector<double>& x, std::vector<double>& p);
+
+// MSE of the model's simulated output against y.
+double mse(const model::Model& m, const io::Measurement& data);
+
+// Fits the parameters of `structure` (its effects decide what is fitted) to the data.
+// progress(stage, iteration, rmse) with stage "ga" or "refine".
+FitResult fit(const model::Model& structure, const io::Measurement& data, const FitSettings& s,
+              const std::function<void(const char*, int, double)>& progress = {});
+
+}  // namespace pamc::ident

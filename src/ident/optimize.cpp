@@ -1,0 +1,241 @@
+#include "ident/optimize.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <thread>
+
+namespace pamc::ident {
+
+int defaultThreads() {
+  const unsigned n = std::thread::hardware_concurrency();
+  return n == 0 ? 1 : static_cast<int>(n);
+}
+
+namespace {
+
+double safe(double c) { return std::isfinite(c) ? c : std::numeric_limits<double>::max(); }
+
+// Evaluates f on every row, split over `threads` workers.
+void evaluateAll(const CostFn& f, const std::vector<std::vector<double>>& pop, std::vector<double>& cost,
+                 int threads) {
+  const int n = static_cast<int>(pop.size());
+  threads = std::max(1, std::min(threads, n));
+  if (threads == 1) {
+    for (int i = 0; i < n; ++i) cost[static_cast<size_t>(i)] = safe(f(pop[static_cast<size_t>(i)], 0));
+    return;
+  }
+  std::vector<std::thread> ts;
+  for (int w = 0; w < threads; ++w) {
+    ts.emplace_back([&, w] {
+      for (int i = w; i < n; i += threads) cost[static_cast<size_t>(i)] = safe(f(pop[static_cast<size_t>(i)], w));
+    });
+  }
+  for (auto& t : ts) t.join();
+}
+
+}  // namespace
+
+OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const std::vector<double>& hi,
+                           const GaSettings& s, const std::function<void(int, double)>& progress) {
+  const size_t d = lo.size();
+  const int P = std::max(4, s.population);
+  const int threads = s.threads > 0 ? s.threads : defaultThreads();
+  std::mt19937_64 rng(s.seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  std::normal_distribution<double> N01(0.0, 1.0);
+
+  // Genes live in [0,1]^d and are mapped to the box, so every parameter gets the same resolution.
+  auto toX = [&](const std::vector<double>& g) {
+    std::vector<double> x(d);
+    for (size_t i = 0; i < d; ++i) x[i] = lo[i] + g[i] * (hi[i] - lo[i]);
+    return x;
+  };
+  std::vector<std::vector<double>> genes(static_cast<size_t>(P), std::vector<double>(d));
+  // Latin-hypercube start: every parameter's range is covered evenly.
+  for (size_t i = 0; i < d; ++i) {
+    std::vector<int> perm(static_cast<size_t>(P));
+    std::iota(perm.begin(), perm.end(), 0);
+    std::shuffle(perm.begin(), perm.end(), rng);
+    for (int p = 0; p < P; ++p) genes[static_cast<size_t>(p)][i] = (perm[static_cast<size_t>(p)] + U(rng)) / P;
+  }
+  std::vector<std::vector<double>> xs(static_cast<size_t>(P));
+  std::vector<double> cost(static_cast<size_t>(P));
+  auto evaluate = [&] {
+    for (int p = 0; p < P; ++p) xs[static_cast<size_t>(p)] = toX(genes[static_cast<size_t>(p)]);
+    evaluateAll(f, xs, cost, threads);
+  };
+  evaluate();
+  OptResult r;
+  r.evaluations = P;
+  double best = std::numeric_limits<double>::max();
+  std::vector<double> best_g;
+  int stall = 0;
+  int gen = 0;
+  for (gen = 1; gen <= s.max_generations; ++gen) {
+    std::vector<int> order(static_cast<size_t>(P));
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return cost[static_cast<size_t>(a)] < cost[static_cast<size_t>(b)]; });
+    const double gb = cost[static_cast<size_t>(order[0])];
+    if (gb < best * (1.0 - 1e-6) || best_g.empty()) {
+      stall = 0;
+    } else {
+      ++stall;
+    }
+    if (gb < best) {
+      best = gb;
+      best_g = genes[static_cast<size_t>(order[0])];
+    }
+    if (progress) progress(gen, best);
+    if (stall >= s.stall_generations) break;
+    if (gen == s.max_generations) break;
+    // Tournament selection of parents.
+    auto pick = [&]() -> const std::vector<double>& {
+      const int a = static_cast<int>(U(rng) * P) % P, b = static_cast<int>(U(rng) * P) % P;
+      return genes[static_cast<size_t>(cost[static_cast<size_t>(a)] < cost[static_cast<size_t>(b)] ? a : b)];
+    };
+    std::vector<std::vector<double>> next;
+    next.reserve(static_cast<size_t>(P));
+    for (int e = 0; e < std::min(s.elite, P); ++e) next.push_back(genes[static_cast<size_t>(order[static_cast<size_t>(e)])]);
+    // Mutation shrinks over the run: explore first, then polish.
+    const double sigma = 0.15 * std::pow(0.97, gen) + 0.005;
+    while (static_cast<int>(next.size()) < P) {
+      const auto& a = pick();
+      const auto& b = pick();
+      std::vector<double> c1 = a, c2 = b;
+      if (U(rng) < s.crossover_rate) {
+        // BLX-0.5 blend crossover.
+        for (size_t i = 0; i < d; ++i) {
+          const double lo_ = std::min(a[i], b[i]), hi_ = std::max(a[i], b[i]), w = hi_ - lo_;
+          c1[i] = lo_ - 0.5 * w + U(rng) * 2.0 * w;
+          c2[i] = lo_ - 0.5 * w + U(rng) * 2.0 * w;
+        }
+      }
+      for (auto* c : {&c1, &c2}) {
+        for (size_t i = 0; i < d; ++i) {
+          if (U(rng) < s.mutation_rate) (*c)[i] += sigma * N01(rng);
+          (*c)[i] = std::clamp((*c)[i], 0.0, 1.0);
+        }
+        if (static_cast<int>(next.size()) < P) next.push_back(*c);
+      }
+    }
+    genes.swap(next);
+    evaluate();
+    r.evaluations += P;
+  }
+  r.x = toX(best_g);
+  r.cost = best;
+  r.iterations = std::min(gen, s.max_generations);
+  return r;
+}
+
+OptResult nelderMead(const CostFn& f, const std::vector<double>& x0, const std::vector<double>& lo,
+                     const std::vector<double>& hi, int max_evals, double rel_tol) {
+  const size_t d = x0.size();
+  // Work in the unit box; fixed parameters (lo == hi) are left out.
+  std::vector<size_t> freeIdx;
+  for (size_t i = 0; i < d; ++i)
+    if (hi[i] > lo[i]) freeIdx.push_back(i);
+  const size_t n = freeIdx.size();
+  OptResult r;
+  auto toX = [&](const std::vector<double>& g) {
+    std::vector<double> x = x0;
+    for (size_t k = 0; k < n; ++k) {
+      const size_t i = freeIdx[k];
+      x[i] = lo[i] + std::clamp(g[k], 0.0, 1.0) * (hi[i] - lo[i]);
+    }
+    return x;
+  };
+  auto cost = [&](const std::vector<double>& g) {
+    ++r.evaluations;
+    return safe(f(toX(g), 0));
+  };
+  std::vector<double> g0(n);
+  for (size_t k = 0; k < n; ++k) {
+    const size_t i = freeIdx[k];
+    g0[k] = (x0[i] - lo[i]) / (hi[i] - lo[i]);
+  }
+  if (n == 0) {
+    r.x = x0;
+    r.cost = safe(f(x0, 0));
+    return r;
+  }
+  double step = 0.02;
+  std::vector<double> bestg = g0;
+  double bestc = cost(g0);
+  // Restarts with a fresh simplex around the best point guard against a collapsed simplex.
+  for (int restart = 0; restart < 4 && r.evaluations < max_evals; ++restart) {
+    std::vector<std::vector<double>> S(n + 1, bestg);
+    std::vector<double> C(n + 1, bestc);
+    for (size_t k = 0; k < n; ++k) {
+      S[k + 1][k] += (bestg[k] + step <= 1.0 ? step : -step);
+      C[k + 1] = cost(S[k + 1]);
+    }
+    while (r.evaluations < max_evals) {
+      ++r.iterations;
+      std::vector<size_t> o(n + 1);
+      std::iota(o.begin(), o.end(), 0);
+      std::sort(o.begin(), o.end(), [&](size_t a, size_t b) { return C[a] < C[b]; });
+      const size_t bi = o[0], wi = o[n], si = o[n - 1];
+      if (std::fabs(C[wi] - C[bi]) <= rel_tol * (std::fabs(C[bi]) + 1e-300)) break;
+      double spread = 0;
+      for (size_t k = 0; k < n; ++k) spread = std::max(spread, std::fabs(S[wi][k] - S[bi][k]));
+      if (spread < 1e-10) break;
+      std::vector<double> c(n, 0.0);
+      for (size_t j = 0; j <= n; ++j)
+        if (j != wi)
+          for (size_t k = 0; k < n; ++k) c[k] += S[j][k] / static_cast<double>(n);
+      auto along = [&](double t) {
+        std::vector<double> p(n);
+        for (size_t k = 0; k < n; ++k) p[k] = std::clamp(c[k] + t * (S[wi][k] - c[k]), 0.0, 1.0);
+        return p;
+      };
+      auto xr = along(-1.0);
+      const double cr = cost(xr);
+      if (cr < C[bi]) {
+        auto xe = along(-2.0);
+        const double ce = cost(xe);
+        if (ce < cr) {
+          S[wi] = xe;
+          C[wi] = ce;
+        } else {
+          S[wi] = xr;
+          C[wi] = cr;
+        }
+      } else if (cr < C[si]) {
+        S[wi] = xr;
+        C[wi] = cr;
+      } else {
+        auto xc = along(cr < C[wi] ? -0.5 : 0.5);
+        const double cc = cost(xc);
+        if (cc < std::min(cr, C[wi])) {
+          S[wi] = xc;
+          C[wi] = cc;
+        } else {
+          for (size_t j = 0; j <= n; ++j) {
+            if (j == bi) continue;
+            for (size_t k = 0; k < n; ++k) S[j][k] = S[bi][k] + 0.5 * (S[j][k] - S[bi][k]);
+            C[j] = cost(S[j]);
+          }
+        }
+      }
+    }
+    size_t b = 0;
+    for (size_t j = 1; j <= n; ++j)
+      if (C[j] < C[b]) b = j;
+    const bool improved = C[b] < bestc * (1.0 - 1e-9);
+    if (C[b] < bestc) {
+      bestc = C[b];
+      bestg = S[b];
+    }
+    if (!improved && restart > 0) break;
+    step *= 0.25;
+  }
+  r.x = toX(bestg);
+  r.cost = bestc;
+  return r;
+}
+
+}  // namespace pamc::ident

@@ -1,0 +1,43 @@
+// Bounded global and local minimisation: a real-coded genetic algorithm (the paper's
+// identification method) whose population is evaluated in parallel on all cores, and a
+// Nelder-Mead simplex for the local refinement after it. Both work in the box [lo, hi].
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace pamc::ident {
+
+// Must be safe to call from several threads at once; `worker` is the calling thread's index
+// (0..threads-1) so it can use per-thread scratch space.
+using CostFn = std::function<double(const std::vector<double>& x, int worker)>;
+
+struct GaSettings {
+  int population = 48;
+  int max_generations = 150;
+  int stall_generations = 30;  // stop when the best has not improved by 1e-6 relatively for this long
+  double crossover_rate = 0.9;
+  double mutation_rate = 0.2;  // per gene
+  int elite = 2;
+  std::uint64_t seed = 1;
+  int threads = 0;  // 0: all cores
+};
+
+struct OptResult {
+  std::vector<double> x;
+  double cost = 0.0;
+  int iterations = 0;   // generations or simplex iterations
+  int evaluations = 0;
+};
+
+// progress(generation, best cost) after each generation; may be empty.
+OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const std::vector<double>& hi,
+                           const GaSettings& s, const std::function<void(int, double)>& progress = {});
+
+OptResult nelderMead(const CostFn& f, const std::vector<double>& x0, const std::vector<double>& lo,
+                     const std::vector<double>& hi, int max_evals, double rel_tol = 1e-12);
+
+int defaultThreads();
+
+}  // namespace pamc::ident

@@ -1,0 +1,46 @@
+// Measurement files: CSV with a header naming at least t,u,y (seconds, command, position in
+// the file's own units) and any further columns (load, p, ...).
+#pragma once
+
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace pamc::io {
+
+// One-line error naming the place: "file:line:column: problem".
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct Measurement {
+  std::string source;
+  std::vector<double> t, u, y;
+  std::map<std::string, std::vector<double>> extra;  // further columns by header name
+  double Ts = 0.0;                                    // sampling step read from the time column
+  std::string warning;                                // e.g. a truncated last line that was dropped
+
+  size_t size() const { return t.size(); }
+  bool has(const std::string& col) const { return extra.count(col) > 0; }
+  const std::vector<double>* column(const std::string& col) const {
+    auto it = extra.find(col);
+    return it == extra.end() ? nullptr : &it->second;
+  }
+  // Sub-range [begin, end) as a new measurement.
+  Measurement slice(size_t begin, size_t end) const;
+};
+
+// Reads and validates a measurement CSV; throws InputError.
+Measurement readMeasurementCsv(const std::string& path);
+// Parses CSV text (source names it in errors).
+Measurement parseMeasurementCsv(const std::string& text, const std::string& source);
+
+// Writes columns as CSV atomically (temporary file, then rename). Throws std::runtime_error.
+void writeCsvAtomic(const std::string& path, const std::vector<std::string>& header,
+                    const std::vector<const std::vector<double>*>& columns, int precision = 9);
+// Writes a text file atomically.
+void writeFileAtomic(const std::string& path, const std::string& content);
+
+}  // namespace pamc::io

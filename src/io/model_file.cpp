@@ -1,0 +1,90 @@
+#include "io/model_file.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "io/measurement.hpp"
+
+namespace pamc::io {
+
+nlohmann::json modelToJson(const model::Model& m) {
+  nlohmann::json j;
+  j["format"] = "pamc-model/1";
+  const auto& p = m.core();
+  j["core"] = {{"k", p.k}, {"rho", p.rho}, {"b", p.b}, {"alpha", p.alpha}, {"beta", p.beta}, {"gamma", p.gamma}};
+  nlohmann::json e = nlohmann::json::array();
+  for (int i = 0; i < m.numEffects(); ++i) {
+    nlohmann::json ps = nlohmann::json::object();
+    const auto& spec = m.effect(i).params();
+    for (size_t q = 0; q < spec.size(); ++q) ps[spec[q].name] = m.effectParams(i)[q];
+    e.push_back({{"name", m.effect(i).name()}, {"params", ps}});
+  }
+  j["effects"] = e;
+  return j;
+}
+
+model::Model modelFromJson(const nlohmann::json& j, const std::string& where) {
+  auto fail = [&](const std::string& what) -> void { throw InputError(where + ": " + what); };
+  auto num = [&](const nlohmann::json& v, const std::string& key) {
+    if (!v.is_number()) fail("'" + key + "' must be a number");
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) fail("'" + key + "' must be finite");
+    return d;
+  };
+  if (!j.is_object()) fail("a model file must be a JSON object");
+  if (!j.contains("format") || j["format"] != "pamc-model/1") fail("'format' must be \"pamc-model/1\"");
+  if (!j.contains("core") || !j["core"].is_object()) fail("missing object 'core'");
+  const auto& c = j["core"];
+  model::BoucWenParams p;
+  const char* names[] = {"k", "rho", "b", "alpha", "beta", "gamma"};
+  double* dst[] = {&p.k, &p.rho, &p.b, &p.alpha, &p.beta, &p.gamma};
+  for (int i = 0; i < 6; ++i) {
+    if (!c.contains(names[i])) fail(std::string("core: missing '") + names[i] + "'");
+    *dst[i] = num(c[names[i]], std::string("core.") + names[i]);
+  }
+  for (auto it = c.begin(); it != c.end(); ++it) {
+    bool known = false;
+    for (auto* n : names) known = known || it.key() == n;
+    if (!known) fail("core: unknown parameter '" + it.key() + "'");
+  }
+  model::Model m(p);
+  if (j.contains("effects")) {
+    if (!j["effects"].is_array()) fail("'effects' must be an array");
+    for (const auto& e : j["effects"]) {
+      if (!e.is_object() || !e.contains("name") || !e["name"].is_string()) fail("each effect needs a 'name'");
+      const std::string name = e["name"];
+      try {
+        m.addEffect(name);
+        if (e.contains("params")) {
+          if (!e["params"].is_object()) fail("effect " + name + ": 'params' must be an object");
+          for (auto it = e["params"].begin(); it != e["params"].end(); ++it)
+            m.setEffectParam(name, it.key(), num(it.value(), name + "." + it.key()));
+        }
+      } catch (const std::invalid_argument& ex) {
+        fail(ex.what());
+      }
+    }
+  }
+  return m;
+}
+
+model::Model readModelFile(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw InputError(path + ": cannot open model file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(path + ": byte " + std::to_string(e.byte) + ": not valid JSON");
+  }
+  return modelFromJson(j, path);
+}
+
+void writeModelFile(const std::string& path, const model::Model& m, const nlohmann::json& fit) {
+  nlohmann::json j = modelToJson(m);
+  if (!fit.is_null()) j["fit"] = fit;
+  writeFileAtomic(path, j.dump(2) + "\n");
+}
+
+}  // namespace pamc::io

@@ -1,0 +1,22 @@
+// Model files (JSON): the reference model's parameters, its effects and how it was fitted.
+//   {"format": "pamc-model/1", "core": {"k":..,"rho":..,"b":..,"alpha":..,"beta":..,"gamma":..},
+//    "effects": [{"name": "pressure_lag", "params": {"tau": 0.05, "slew": 1000}}, ...],
+//    "fit": {...free-form provenance...}}
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "model/model.hpp"
+
+namespace pamc::io {
+
+nlohmann::json modelToJson(const model::Model& m);
+// Throws InputError naming `where` and the bad key.
+model::Model modelFromJson(const nlohmann::json& j, const std::string& where);
+model::Model readModelFile(const std::string& path);
+// Atomic write; `fit` is stored under "fit".
+void writeModelFile(const std::string& path, const model::Model& m, const nlohmann::json& fit = {});
+
+}  // namespace pamc::io

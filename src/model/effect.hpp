@@ -1,0 +1,72 @@
+// A physical effect: one self-contained extension of the reference model.
+//
+// An effect is a small block in the model's signal chain
+//
+//   command u --[input effects]--> u_eff --[Bouc-Wen core]--> y_core --[output effects]--> y
+//
+// Input effects act on the command before the hysteresis (valve, pressure, delays);
+// output effects act on the displacement after it (payload, stroke limits, creep).
+// Each effect owns its parameters (with bounds), its few states and one step function.
+// The same effect code runs in the identification, the estimator, the compensator's
+// prediction and the plant emulator.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace pamc::model {
+
+enum class Stage { Input, Output };
+
+struct ParamSpec {
+  std::string name;
+  double lo;    // identification bound
+  double hi;    // identification bound
+  double def;   // default value
+  std::string unit;
+};
+
+// Per-sample signals besides the command that some effects need.
+struct StepContext {
+  double Ts = 1e-3;     // sample time [s]
+  double load = 0.0;    // measured external load (file units, e.g. N) - 0 when absent
+};
+
+constexpr int kMaxEffectStates = 64;  // per effect; storage is fixed so a step never allocates
+
+class Effect {
+ public:
+  virtual ~Effect() = default;
+  virtual const char* name() const = 0;
+  // One line: the physics this effect stands for.
+  virtual const char* explanation() const = 0;
+  virtual Stage stage() const = 0;
+  // Order within its stage (lower runs first), so effects compose the same way whatever
+  // order a user lists them in.
+  virtual int rank() const = 0;
+  virtual const std::vector<ParamSpec>& params() const = 0;
+  virtual int numStates() const = 0;
+  // Put the states at rest for a constant stage input `in0`.
+  virtual void init(const double* p, double* s, double in0, const StepContext& c) const noexcept = 0;
+  // One sample: takes the stage input at sample k, returns the stage output at sample k and
+  // advances the states to k+1. Must not allocate or throw.
+  virtual double step(const double* p, double* s, double in, const StepContext& c) const noexcept = 0;
+  // Whether the effect reads StepContext::load (the data must then carry a load column).
+  virtual bool needsLoad() const { return false; }
+};
+
+using EffectFactory = std::unique_ptr<Effect> (*)();
+
+struct CatalogueEntry {
+  const char* name;
+  EffectFactory make;
+};
+
+// All registered effects (src/model/effects/catalogue.inc lists them, one line each).
+const std::vector<CatalogueEntry>& catalogue();
+// Throws std::invalid_argument listing the known names when `name` is unknown.
+std::unique_ptr<Effect> makeEffect(const std::string& name);
+std::string knownEffectNames();
+
+}  // namespace pamc::model

@@ -1,0 +1,41 @@
+// pressure_lag: the proportional valve and the muscle volume fill and vent through a restriction,
+// so the pressure (and with it the effective command) follows the valve command with a first-order
+// lag and a limited slew rate. Makes the hysteresis loop rate-dependent.
+#include <algorithm>
+#include <cmath>
+
+#include "model/effect.hpp"
+
+namespace pamc::model {
+namespace {
+
+class PressureLag final : public Effect {
+ public:
+  const char* name() const override { return "pressure_lag"; }
+  const char* explanation() const override {
+    return "valve and muscle volume pressure dynamics: the pressure lags the command, so the loop widens with rate";
+  }
+  Stage stage() const override { return Stage::Input; }
+  int rank() const override { return 30; }
+  const std::vector<ParamSpec>& params() const override {
+    static const std::vector<ParamSpec> p = {
+        {"tau", 1e-3, 2.0, 0.05, "s"},
+        {"slew", 1.0, 1000.0, 1000.0, "V/s"},
+    };
+    return p;
+  }
+  int numStates() const override { return 1; }
+  void init(const double*, double* s, double in0, const StepContext&) const noexcept override { s[0] = in0; }
+  double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
+    const double tau = std::max(p[0], 1e-6);
+    double d = (in - s[0]) * (1.0 - std::exp(-c.Ts / tau));
+    const double lim = std::max(p[1], 0.0) * c.Ts;
+    d = std::clamp(d, -lim, lim);
+    s[0] += d;
+    return s[0];
+  }
+};
+
+}  // namespace
+std::unique_ptr<Effect> make_pressure_lag() { return std::make_unique<PressureLag>(); }
+}  // namespace pamc::model

@@ -1,0 +1,99 @@
+// The one PAM model: the Bouc-Wen reference model plus any physical effects from the catalogue.
+//
+// Used unchanged by the identification (simulate), the UKF (inputStage / core / outputPeek),
+// the AMC compensator's one-step prediction and the plant emulator. Configuration (adding
+// effects, setting parameters) may allocate and throw; everything taking a State is
+// noexcept and allocation-free.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "model/bouc_wen.hpp"
+#include "model/effect.hpp"
+
+namespace pamc::model {
+
+constexpr int kMaxModelStates = 256;
+
+class Model {
+ public:
+  struct State {
+    double h = 0.0;           // Bouc-Wen hysteresis state [V when alpha = 1]
+    double u_eff_prev = 0.0;  // effective input of the previous sample (for u_delta)
+    std::array<double, kMaxModelStates> s{};  // effect states, concatenated
+  };
+
+  Model() = default;
+  explicit Model(const BoucWenParams& core) : core_(core) {}
+  Model(const Model& o);
+  Model& operator=(const Model& o);
+  Model(Model&&) noexcept = default;
+  Model& operator=(Model&&) noexcept = default;
+
+  // Adds an effect from the catalogue with its default parameters (throws on unknown names
+  // or a duplicate). Effects are kept in signal-chain order (stage, then rank).
+  void addEffect(const std::string& name);
+  void setEffectParam(const std::string& effect, const std::string& param, double value);
+
+  const BoucWenParams& core() const { return core_; }
+  BoucWenParams& core() { return core_; }
+
+  int numEffects() const { return static_cast<int>(effects_.size()); }
+  const Effect& effect(int i) const { return *effects_[static_cast<size_t>(i)].impl; }
+  const double* effectParams(int i) const;
+  std::vector<std::string> effectNames() const;
+  bool hasEffect(const std::string& name) const;
+  bool hasInputEffects() const { return n_input_ > 0; }
+  bool hasOutputEffects() const { return static_cast<int>(effects_.size()) > n_input_; }
+  bool needsLoad() const;
+
+  // Flat parameter vector: k, rho, b, alpha, beta, gamma, then each effect's parameters
+  // (named "effect.param").
+  std::vector<ParamSpec> paramSpecs() const;
+  std::vector<double> params() const;
+  void setParams(const std::vector<double>& p);
+  int numParams() const { return kBoucWenParams + static_cast<int>(eff_params_.size()); }
+
+  // --- runtime (noexcept, no allocation) ---
+  // State at rest under the constant command u0 (and load in c).
+  void init(State& st, double u0, const StepContext& c) const noexcept;
+  // Runs the input effects on command u, returns the effective input.
+  double inputStage(State& st, double u, const StepContext& c) const noexcept;
+  // Core output for effective input and hysteresis state.
+  double coreOutput(double u_eff, double h) const noexcept { return boucWenOutput(core_, u_eff, h); }
+  // Runs the output effects on y_core, advancing their states.
+  double outputStage(State& st, double y_core, const StepContext& c) const noexcept;
+  // Same without touching st (for sigma points and predictions).
+  double outputPeek(const State& st, double y_core, const StepContext& c) const noexcept;
+  // One whole sample: returns y_k for command u_k and advances st to k+1. f_h is the
+  // modelling-error input of eq. (4) (0 for the reference model).
+  double step(State& st, double u, const StepContext& c, double f_h = 0.0) const noexcept;
+
+  // Simulates a whole record from rest at u[0]. `load` may be empty.
+  void simulate(const double* u, const double* load, size_t n, double Ts, double* y_out) const noexcept;
+  std::vector<double> simulate(const std::vector<double>& u, double Ts,
+                               const std::vector<double>& load = {}) const;
+
+  // Human-readable one-line description ("bouc_wen + pressure_lag + creep").
+  std::string describe() const;
+
+ private:
+  struct Slot {
+    std::unique_ptr<Effect> impl;
+    int param_offset = 0;  // into eff_params_
+    int state_offset = 0;  // into State::s
+  };
+  void relayout();
+
+  BoucWenParams core_{};
+  std::vector<Slot> effects_;
+  std::vector<double> eff_params_;
+  int n_input_ = 0;
+  int out_state_begin_ = 0;  // first state index of the output effects
+  int out_state_end_ = 0;
+};
+
+}  // namespace pamc::model

@@ -1,0 +1,338 @@
+#include "sim/experiments.hpp"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <sstream>
+
+#include "estimation/active_model.hpp"
+#include "io/measurement.hpp"
+#include "io/model_file.hpp"
+#include "sim/figures.hpp"
+#include "sim/lockstep.hpp"
+
+namespace pamc::sim {
+
+namespace {
+
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+bool wanted(const ExperimentSettings& s, const std::string& name) {
+  return s.only.empty() || std::find(s.only.begin(), s.only.end(), name) != s.only.end();
+}
+
+const std::vector<control::Kind> kAllKinds = {control::Kind::OpenLoop, control::Kind::PI, control::Kind::PidEso,
+                                              control::Kind::PiAmc};
+const char* label(control::Kind k) {
+  switch (k) {
+    case control::Kind::OpenLoop: return "Open loop";
+    case control::Kind::PI: return "PID";
+    case control::Kind::PidEso: return "PID+ESO";
+    case control::Kind::PiAmc: return "PID+AMC";
+  }
+  return "?";
+}
+
+struct Paper2 {
+  double v[4][2];
+};
+// Table 2 of the paper (max/RMSE in mm): open loop, PID, PID+ESO, PID+AMC.
+const std::map<std::string, Paper2> kPaperTable2 = {
+    {"triangle_0.05Hz", {{{10.978, 6.395}, {1.097, 0.3461}, {1.100, 0.3243}, {0.924, 0.3209}}}},
+    {"sine_0.05Hz", {{{10.357, 6.873}, {3.769, 0.2450}, {2.322, 0.2005}, {1.323, 0.1934}}}},
+    {"sine_0.1Hz", {{{10.046, 6.592}, {3.272, 0.4670}, {2.010, 0.3911}, {1.922, 0.3803}}}},
+};
+
+}  // namespace
+
+ModelAccuracy modelAccuracy(const model::Model& m, const estimation::ActiveModelSettings& ukf,
+                            const std::vector<double>& u, const std::vector<double>& y, double Ts,
+                            std::vector<double>* y_ref, std::vector<double>* y_post) {
+  ModelAccuracy a;
+  const size_t n = u.size();
+  std::vector<double> yr = m.simulate(u, Ts);
+  estimation::ActiveModel am;
+  am.configure(m, ukf, Ts);
+  am.reset(u[0]);
+  double sr = 0, sp = 0, so = 0, sn = 0;
+  if (y_post) y_post->resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const auto st = am.update(u[i], y[i]);
+    sr += (yr[i] - y[i]) * (yr[i] - y[i]);
+    sp += (st.y_post - y[i]) * (st.y_post - y[i]);
+    so += (st.y_prior - y[i]) * (st.y_prior - y[i]);
+    const double prev = i ? y[i - 1] : y[0];
+    sn += (prev - y[i]) * (prev - y[i]);
+    if (y_post) (*y_post)[i] = st.y_post;
+  }
+  const double N = static_cast<double>(n);
+  a.reference_rmse = std::sqrt(sr / N);
+  a.posterior_rmse = std::sqrt(sp / N);
+  a.one_step_rmse = std::sqrt(so / N);
+  a.persistence_rmse = std::sqrt(sn / N);
+  if (y_ref) *y_ref = std::move(yr);
+  return a;
+}
+
+ExperimentReport runExperiments(const ExperimentSettings& s) {
+  ExperimentReport rep;
+  auto log = [&](const std::string& m) {
+    if (s.log) s.log(m);
+  };
+  ::mkdir(s.out_dir.c_str(), 0755);
+  struct stat sb {};
+  if (::stat(s.out_dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode))
+    throw std::runtime_error(s.out_dir + ": cannot create the output directory");
+  const std::string dir = s.out_dir + "/";
+  std::ostringstream txt;
+  std::string fig_error;
+  const bool figs = s.figures && haveGnuplot();
+  if (s.figures && !figs) log("warning: gnuplot not found (apt-get install gnuplot-nox); figures skipped");
+  const double Ts = s.plant.Ts;
+
+  // ---------------------------------------------------------------- Table 1
+  model::Model ref;
+  const Trajectory u0 = Trajectory::sine(0.1, 2.9, 0.2), u1 = Trajectory::sine(0.1, 1.4, 0.2),
+                   u2 = Trajectory::sine(0.05, 2.9, 0.2);
+  const double ident_duration = 40.0;
+  {
+    log("table1: exciting the emulator with u0, u1, u2 (open loop, " + fmt("%.0f", ident_duration) + " s each)");
+    std::vector<Record> recs;
+    const char* names[] = {"u0", "u1", "u2"};
+    const Trajectory* inputs[] = {&u0, &u1, &u2};
+    for (int i = 0; i < 3; ++i) {
+      plant::Plant p(s.plant);
+      recs.push_back(runOpenLoopInput(p, *inputs[i], ident_duration));
+      const auto& r = recs.back();
+      io::writeCsvAtomic(dir + "ident_" + names[i] + ".csv", {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
+    }
+    ident::FitResult fr;
+    if (!s.model_file.empty()) {
+      ref = io::readModelFile(s.model_file);
+      log("table1: using the model in " + s.model_file);
+    } else {
+      log("table1: identifying the Bouc-Wen model on u0 (GA + Nelder-Mead)");
+      io::Measurement m = io::readMeasurementCsv(dir + "ident_u0.csv");
+      int last_gen = 0;
+      fr = ident::fit(model::Model{}, m, s.fit, [&](const char* stage, int it, double rmse) {
+        if (std::string(stage) == "ga" && it - last_gen >= 25) {
+          last_gen = it;
+          log("  GA generation " + std::to_string(it) + ": RMSE " + fmt("%.4f", rmse) + " mm");
+        }
+      });
+      ref = fr.model;
+      io::writeModelFile(dir + "model.json", ref,
+                         {{"data", "ident_u0.csv"}, {"rmse", fr.rmse}, {"generations", fr.generations},
+                          {"evaluations", fr.evaluations}, {"seconds", fr.seconds}});
+      log("table1: fitted in " + fmt("%.2f", fr.seconds) + " s, " + std::to_string(fr.generations) +
+          " generations, RMSE " + fmt("%.4f", fr.rmse) + " mm -> " + dir + "model.json");
+    }
+    const auto& c = ref.core();
+    txt << "Identified reference model (alpha fixed at 1; see docs/MODEL.md):\n"
+        << "  k = " << fmt("%.4f", c.k) << " mm/V, rho = " << fmt("%.4f", c.rho) << ", b = " << fmt("%.4f", c.b)
+        << " mm, alpha = " << fmt("%.3f", c.alpha) << ", beta = " << fmt("%.4f", c.beta)
+        << " 1/V, gamma = " << fmt("%.4f", c.gamma) << " 1/V\n\n";
+    txt << "Table 1. Modelling RMSE (mm) on the emulator; paper's values in brackets.\n";
+    txt << "                                   u0                 u1                 u2\n";
+    nlohmann::json t1 = nlohmann::json::object();
+    ModelAccuracy acc[3];
+    for (int i = 0; i < 3; ++i) {
+      std::vector<double> yr, yp;
+      acc[i] = modelAccuracy(ref, s.ctrl.ukf, recs[static_cast<size_t>(i)].u, recs[static_cast<size_t>(i)].y, Ts,
+                             &yr, &yp);
+      const auto& r = recs[static_cast<size_t>(i)];
+      const std::string csv = dir + "table1_" + names[i] + ".csv";
+      io::writeCsvAtomic(csv, {"t", "u", "y", "y_reference", "y_active"}, {&r.t, &r.u, &r.y, &yr, &yp});
+      t1[names[i]] = {{"reference_rmse", acc[i].reference_rmse},
+                      {"active_posterior_rmse", acc[i].posterior_rmse},
+                      {"active_one_step_rmse", acc[i].one_step_rmse},
+                      {"persistence_rmse", acc[i].persistence_rmse}};
+      if (figs) {
+        std::vector<Panel> panels = {
+            {"time plot", "t [s]", "y [mm]",
+             {{csv, "t", "y", "measured"}, {csv, "t", "y_reference", "reference model"},
+              {csv, "t", "y_active", "active model (UKF posterior)"}}},
+            {"hysteresis loop", "u [V]", "y [mm]",
+             {{csv, "u", "y", "measured"}, {csv, "u", "y_reference", "reference model"}}}};
+        if (!renderFigure(dir + "table1_" + names[i] + ".png",
+                          std::string("Model accuracy on ") + names[i] + " = " + inputs[i]->describe(), panels,
+                          fig_error))
+          log("warning: " + fig_error);
+      }
+    }
+    const double paper_ref[3] = {2.012, 3.687, 2.284};
+    const double paper_act[3] = {1.482e-4, 1.379e-4, 1.397e-4};
+    txt << "  Reference model             ";
+    for (int i = 0; i < 3; ++i) txt << fmt("%8.3f", acc[i].reference_rmse) << " [" << fmt("%6.3f", paper_ref[i]) << "]";
+    txt << "\n  Active model (posterior)    ";
+    for (int i = 0; i < 3; ++i) txt << fmt("%8.2e", acc[i].posterior_rmse) << "[" << fmt("%6.1e", paper_act[i]) << "]";
+    txt << "\n  Active model (1-step ahead) ";
+    for (int i = 0; i < 3; ++i) txt << fmt("%8.2e", acc[i].one_step_rmse) << "          ";
+    txt << "\n  Persistence y(k-1) baseline ";
+    for (int i = 0; i < 3; ++i) txt << fmt("%8.2e", acc[i].persistence_rmse) << "          ";
+    txt << "\n  (posterior: the filter has seen y(k); one-step-ahead: it has not - only this one says how\n"
+           "   well the model predicts; persistence is the error of simply repeating the last sample.)\n\n";
+    rep.json["table1"] = t1;
+    rep.json["model"] = io::modelToJson(ref);
+    if (!s.model_file.empty()) rep.json["model_file"] = s.model_file;
+    else rep.json["fit"] = {{"rmse", fr.rmse}, {"generations", fr.generations}, {"seconds", fr.seconds}};
+  }
+
+  control::ControllerConfig cc = s.ctrl;
+  cc.Ts = Ts;
+  cc.model = ref;
+  cc.u_min = s.plant.u_min;
+  cc.u_max = s.plant.u_max;
+  control::InverseStatic inv;
+  inv.build(ref, cc.u_min, cc.u_max, Ts);
+
+  auto runOne = [&](control::Kind kind, const ClosedLoopRun& run, const std::string& tag) {
+    plant::Plant p(s.plant);
+    auto ctrl = control::makeController(kind, cc);
+    ClosedLoopRun rr = run;
+    rr.delay_cycles = cc.delay_cycles;
+    Record r = runClosedLoop(*ctrl, p, rr, inv(run.reference.at(0.0)));
+    r.writeCsv(dir + tag + "_" + control::toString(kind) + ".csv");
+    return r;
+  };
+  auto figure = [&](const std::string& tag, const std::string& title, const std::vector<control::Kind>& kinds) {
+    if (!figs) return;
+    std::vector<Series> time, loop, volts;
+    bool first = true;
+    for (auto k : kinds) {
+      const std::string csv = dir + tag + "_" + control::toString(k) + ".csv";
+      if (first) time.push_back({csv, "t", "yd", "desired"});
+      first = false;
+      time.push_back({csv, "t", "y", label(k)});
+      loop.push_back({csv, "yd", "y", label(k)});
+      if (k == control::Kind::PiAmc || k == control::Kind::PidEso) {
+        volts.push_back({csv, "t", "u_n", std::string(label(k)) + " nominal u_n"});
+        volts.push_back({csv, "t", "u_c", std::string(label(k)) + " compensation u_c"});
+      } else if (k == control::Kind::PI) {
+        volts.push_back({csv, "t", "u", "PID u"});
+      }
+    }
+    std::vector<Panel> panels = {{"(a) time plot", "t [s]", "y [mm]", time},
+                                 {"(b) hysteresis compensation: y against yd", "yd [mm]", "y [mm]", loop},
+                                 {"(c) control voltages", "t [s]", "u [V]", volts}};
+    if (!renderFigure(dir + tag + ".png", title, panels, fig_error)) log("warning: " + fig_error);
+  };
+
+  // ---------------------------------------------------------------- Table 2
+  if (wanted(s, "table2")) {
+    struct Case {
+      std::string tag;
+      ClosedLoopRun run;
+    };
+    std::vector<Case> cases;
+    {
+      ClosedLoopRun r;
+      r.reference = Trajectory::triangle(0.05, 0.2, 30.0);
+      r.duration_s = 40.0;
+      cases.push_back({"triangle_0.05Hz", r});
+      r.reference = Trajectory::sineDescending(0.05, 15.1, 14.9, 3.0, 60.0);
+      r.duration_s = 60.0;
+      cases.push_back({"sine_0.05Hz", r});
+      r.reference = Trajectory::sineDescending(0.1, 15.1, 14.9, 3.0, 30.0);
+      r.duration_s = 30.0;
+      cases.push_back({"sine_0.1Hz", r});
+    }
+    txt << "Table 2. Tracking error max/RMSE (mm); paper's values in brackets.\n";
+    txt << "                    Open loop              PID                    PID+ESO                PID+AMC\n";
+    nlohmann::json t2 = nlohmann::json::object();
+    for (const auto& c : cases) {
+      log("table2: " + c.tag + " (" + c.run.reference.describe() + ")");
+      { char b_[32]; std::snprintf(b_, sizeof b_, "%-18s", c.tag.c_str()); txt << b_; }
+      const auto& paper = kPaperTable2.at(c.tag);
+      nlohmann::json row = nlohmann::json::object();
+      for (size_t i = 0; i < kAllKinds.size(); ++i) {
+        const Record r = runOne(kAllKinds[i], c.run, c.tag);
+        const auto st = tracking(r);
+        txt << "  " << fmt("%6.3f", st.max_abs) << "/" << fmt("%-6.4f", st.rmse) << "[" << fmt("%.2f", paper.v[i][0])
+            << "/" << fmt("%.2f", paper.v[i][1]) << "]";
+        row[control::toString(kAllKinds[i])] = {{"max", st.max_abs}, {"rmse", st.rmse}};
+      }
+      txt << "\n";
+      t2[c.tag] = row;
+      figure(c.tag, "Tracking of a " + c.run.reference.describe(), kAllKinds);
+    }
+    txt << "\n";
+    rep.json["table2"] = t2;
+  }
+
+  // ---------------------------------------------------------------- discontinuous
+  if (wanted(s, "discontinuous")) {
+    const std::vector<control::Kind> kinds = {control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc};
+    txt << "Discontinuous trajectories: overshoot % / settling time s (2 % band), mean over the steps.\n";
+    txt << "Paper, square wave forward: PID ~17.3 % / ~0.8 s, PID+ESO ~5.7 %, PID+AMC negligible / < 0.5 s.\n";
+    txt << "                      PID                 PID+ESO             PID+AMC\n";
+    nlohmann::json dj = nlohmann::json::object();
+    for (const auto& [tag, traj] : std::vector<std::pair<std::string, Trajectory>>{
+             {"square", Trajectory::square(0.1, 10.0, 25.0)}, {"sawtooth", Trajectory::sawtooth(0.1, 10.0, 25.0)}}) {
+      log("discontinuous: " + tag + " (" + traj.describe() + ")");
+      ClosedLoopRun run;
+      run.reference = traj;
+      run.duration_s = 30.0;
+      std::vector<Record> recs;
+      for (auto k : kinds) recs.push_back(runOne(k, run, tag));
+      for (int dirn : {+1, -1}) {
+        if (tag == "sawtooth" && dirn > 0) continue;  // the sawtooth only jumps down
+        txt << (tag + std::string(10 - std::min<size_t>(10, tag.size()), ' ')) << (dirn > 0 ? " forward " : " backward");
+        for (size_t i = 0; i < kinds.size(); ++i) {
+          const auto st = stepResponse(recs[i], dirn, 1.0, 0.02);
+          txt << "  " << fmt("%6.1f", st.overshoot_pct) << " % / " << fmt("%5.2f", st.settling_s) << " s";
+          dj[tag][dirn > 0 ? "forward" : "backward"][control::toString(kinds[i])] = {
+              {"overshoot_pct", st.overshoot_pct}, {"settling_s", st.settling_s}, {"steps", st.steps}};
+        }
+        txt << "\n";
+      }
+      for (size_t i = 0; i < kinds.size(); ++i) {
+        const auto st = tracking(recs[i]);
+        dj[tag]["tracking"][control::toString(kinds[i])] = {{"max", st.max_abs}, {"rmse", st.rmse}};
+      }
+      figure(tag, "Tracking of a " + traj.describe(), kinds);
+    }
+    txt << "\n";
+    rep.json["discontinuous"] = dj;
+  }
+
+  // ---------------------------------------------------------------- payload
+  if (wanted(s, "payload")) {
+    const std::vector<control::Kind> kinds = {control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc};
+    ClosedLoopRun run;
+    run.reference = Trajectory::constant(15.0);
+    run.duration_s = 16.0;
+    run.force_step_time_s = 6.0;
+    run.force_N = 40.0;
+    log("payload: 40 N step at t = 6 s while holding 15 mm");
+    txt << "Payload step of 40 N at t = 6 s while holding 15 mm: peak deviation mm / recovery time s\n"
+           "(until |e| stays below 0.05 mm). Paper: PID+AMC recovers fastest, PID and PID+ESO take longer.\n";
+    txt << "                      PID                 PID+ESO             PID+AMC\n";
+    txt << "payload 40 N         ";
+    nlohmann::json pj = nlohmann::json::object();
+    for (auto k : kinds) {
+      const Record r = runOne(k, run, "payload");
+      const auto st = recovery(r, run.force_step_time_s, 0.05);
+      txt << "  " << fmt("%6.3f", st.peak_dev_mm) << " mm / " << fmt("%5.2f", st.recovery_s) << " s";
+      pj[control::toString(k)] = {{"peak_deviation_mm", st.peak_dev_mm}, {"recovery_s", st.recovery_s}};
+    }
+    txt << "\n\n";
+    figure("payload", "Payload step of 40 N while holding 15 mm", kinds);
+    rep.json["payload"] = pj;
+  }
+
+  rep.text = txt.str();
+  io::writeFileAtomic(dir + "summary.txt", rep.text);
+  io::writeFileAtomic(dir + "summary.json", rep.json.dump(2) + "\n");
+  return rep;
+}
+
+}  // namespace pamc::sim

@@ -1,0 +1,47 @@
+// The paper's experiments in lockstep simulation on the plant emulator:
+//  table1        identification on u0, reference model vs active model on u0, u1, u2 (Table 1)
+//  table2        open loop, PI, PID+ESO, PI+AMC on the triangle and descending sines (Table 2)
+//  discontinuous square and sawtooth waves: overshoot and settling time (Figure 10)
+//  payload       a 40 N payload step while holding: peak deviation and recovery time (Figure 11)
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "control/controller.hpp"
+#include "ident/identify.hpp"
+#include "plant/plant.hpp"
+
+namespace pamc::sim {
+
+struct ExperimentSettings {
+  std::string out_dir = "results";
+  plant::PlantConfig plant = plant::PlantConfig::defaults();
+  control::ControllerConfig ctrl{};  // gains and UKF settings; the model comes from table1's fit
+  ident::FitSettings fit{};
+  std::string model_file;            // use this model instead of identifying one
+  bool figures = true;
+  std::vector<std::string> only;     // empty: all
+  std::function<void(const std::string&)> log;
+};
+
+struct ExperimentReport {
+  nlohmann::json json;
+  std::string text;  // the tables, beside the paper's figures
+};
+
+ExperimentReport runExperiments(const ExperimentSettings& s);
+
+// Table 1's analysis of one record: reference-model RMSE, UKF posterior and one-step-ahead
+// RMSE, and the persistence predictor y_{k-1} for scale.
+struct ModelAccuracy {
+  double reference_rmse = 0, posterior_rmse = 0, one_step_rmse = 0, persistence_rmse = 0;
+};
+ModelAccuracy modelAccuracy(const model::Model& m, const estimation::ActiveModelSettings& ukf,
+                            const std::vector<double>& u, const std::vector<double>& y, double Ts,
+                            std::vector<double>* y_ref = nullptr, std::vector<double>* y_post = nullptr);
+
+}  // namespace pamc::sim

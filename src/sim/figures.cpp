@@ -1,0 +1,92 @@
+#include "sim/figures.hpp"
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "io/measurement.hpp"
+
+namespace pamc::sim {
+
+namespace {
+// gnuplot addresses CSV columns by number: read the header once per file.
+int columnIndex(const std::string& csv, const std::string& col) {
+  static std::map<std::string, std::vector<std::string>> cache;
+  auto it = cache.find(csv);
+  if (it == cache.end()) {
+    std::ifstream f(csv);
+    std::string line;
+    std::getline(f, line);
+    std::vector<std::string> h;
+    std::stringstream ss(line);
+    std::string c;
+    while (std::getline(ss, c, ',')) h.push_back(c);
+    it = cache.emplace(csv, h).first;
+  }
+  for (size_t i = 0; i < it->second.size(); ++i)
+    if (it->second[i] == col) return static_cast<int>(i) + 1;
+  return -1;
+}
+
+std::string quote(const std::string& s) {
+  std::string o = "'";
+  for (char c : s) o += c == '\'' ? std::string("''") : std::string(1, c);
+  return o + "'";
+}
+}  // namespace
+
+bool haveGnuplot() { return std::system("command -v gnuplot >/dev/null 2>&1") == 0; }
+
+bool renderFigure(const std::string& png, const std::string& title, const std::vector<Panel>& panels,
+                  std::string& error, int width, int panel_height) {
+  if (!haveGnuplot()) {
+    error = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
+    return false;
+  }
+  std::ostringstream gp;
+  const std::string tmp_png = png + ".tmp.png";
+  gp << "set terminal pngcairo size " << width << "," << panel_height * static_cast<int>(panels.size()) + 40
+     << " font 'DejaVu Sans,10'\n";
+  gp << "set output " << quote(tmp_png) << "\n";
+  gp << "set datafile separator ','\nset grid\nset key outside right top\n";
+  gp << "set multiplot layout " << panels.size() << ",1 title " << quote(title) << "\n";
+  for (const auto& p : panels) {
+    gp << "set title " << quote(p.title) << "\nset xlabel " << quote(p.xlabel) << "\nset ylabel " << quote(p.ylabel)
+       << "\n";
+    gp << (p.equal_axes ? "set size ratio -1\n" : "set size noratio\n");
+    gp << "plot ";
+    bool first = true;
+    for (const auto& s : p.series) {
+      const int xc = columnIndex(s.csv, s.xcol), yc = columnIndex(s.csv, s.ycol);
+      if (xc < 0 || yc < 0) continue;
+      gp << (first ? "" : ", ") << quote(s.csv) << " skip 1 every 10 using " << xc << ":" << yc << " with " << s.style
+         << " title " << quote(s.title);
+      first = false;
+    }
+    if (first) gp << "NaN notitle";
+    gp << "\n";
+  }
+  gp << "unset multiplot\nset output\n";
+  const std::string script = png + ".gp";
+  {
+    std::ofstream f(script);
+    f << gp.str();
+  }
+  const std::string cmd = "gnuplot " + quote(script) + " 2>" + quote(png + ".log");
+  const int rc = std::system(cmd.c_str());
+  if (rc != 0) {
+    error = "gnuplot failed on " + script + " (see " + png + ".log)";
+    std::remove(tmp_png.c_str());
+    return false;
+  }
+  std::remove((png + ".log").c_str());
+  if (std::rename(tmp_png.c_str(), png.c_str()) != 0) {
+    error = "cannot move " + tmp_png + " into place";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace pamc::sim

@@ -1,0 +1,30 @@
+// Figures through gnuplot: a script written next to the data, run once. Missing gnuplot is a
+// warning, not an error: the CSVs are the results, the pictures are for people.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace pamc::sim {
+
+struct Series {
+  std::string csv;      // data file
+  std::string xcol, ycol;  // column names in the CSV header
+  std::string title;
+  std::string style = "lines";
+};
+
+struct Panel {
+  std::string title, xlabel, ylabel;
+  std::vector<Series> series;
+  bool equal_axes = false;
+};
+
+// Renders panels stacked vertically into a PNG (pngcairo). Returns false with `error` set when
+// gnuplot is missing or fails.
+bool renderFigure(const std::string& png, const std::string& title, const std::vector<Panel>& panels,
+                  std::string& error, int width = 1000, int panel_height = 330);
+
+bool haveGnuplot();
+
+}  // namespace pamc::sim

@@ -1,0 +1,64 @@
+// Lockstep simulation in virtual time: plant emulator and controller advance together, one
+// 1 kHz cycle at a time, with the cycle order of the CANopen node:
+//   SYNC -> latch position y_k -> estimate -> control -> send u_k
+// and the valve applying u_k from the next SYNC on (delay_cycles = 1), so the plant holds
+// u_{k-1} during (k, k+1].
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "control/controller.hpp"
+#include "plant/plant.hpp"
+#include "sim/trajectory.hpp"
+
+namespace pamc::sim {
+
+struct Record {
+  std::vector<double> t, yd, y, y_true, u, u_n, u_c, y_hat, force, p;
+  void reserve(size_t n);
+  // Writes t,yd,y,y_true,u,u_n,u_c,y_hat,force,p atomically.
+  void writeCsv(const std::string& path) const;
+};
+
+struct ClosedLoopRun {
+  Trajectory reference;
+  double duration_s = 40.0;
+  double force_step_time_s = -1.0;  // < 0: no payload step
+  double force_N = 0.0;
+  int delay_cycles = 1;
+  // Before t = 0 the loop holds the first setpoint this long, as one homes a rig before a run;
+  // not recorded.
+  double preroll_s = 5.0;
+};
+
+// Runs `ctrl` on `plant` from rest at the reference's start. u0 starts the plant and the
+// controller (e.g. the open-loop inverse of the first setpoint).
+Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const ClosedLoopRun& run, double u0);
+
+// Open loop: command u(t) straight to the valve; row k holds u_k and the position measured at
+// the end of the sample it was held for.
+Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s);
+
+struct TrackingStats {
+  double rmse = 0, max_abs = 0;
+};
+TrackingStats tracking(const Record& r, double from_s = 0.0);
+
+struct StepStats {
+  double overshoot_pct = 0;   // mean over the steps
+  double settling_s = 0;      // mean time to stay within the band
+  int steps = 0;
+};
+// Steps of the reference by at least min_jump; direction +1 rising, -1 falling; band as a
+// fraction of the jump (0.02 = 2 %).
+StepStats stepResponse(const Record& r, int direction, double min_jump, double band_frac);
+
+struct RecoveryStats {
+  double peak_dev_mm = 0;
+  double recovery_s = 0;  // until |e| stays below the band
+};
+RecoveryStats recovery(const Record& r, double t_event, double band_mm);
+
+}  // namespace pamc::sim
