@@ -54,6 +54,8 @@ int cmdFit(const std::string& data, const std::string& out, const std::string& e
   for (size_t i = 0; i < specs.size(); ++i)
     std::printf("  %-28s = %-14.8g %s%s\n", specs[i].name.c_str(), p[i], specs[i].unit.c_str(),
                 specs[i].name == "alpha" ? "  (fixed: scale of h)" : "");
+  const auto& c = r.model.core();
+  std::printf("  (gain of u: k rho = %.6g; gain of h: k (1 - rho) = %.6g)\n", c.k * c.rho, c.k * (1 - c.rho));
   std::printf("RMSE %.6g (MSE %.6g) over %zu samples\n", r.rmse, r.mse, m.size());
   std::printf("%d generations, %d evaluations, %.2f s wall time\n", r.generations, r.evaluations, r.seconds);
   if (!out.empty()) {

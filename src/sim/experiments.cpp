@@ -139,7 +139,9 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     txt << "Identified reference model (alpha fixed at 1; see docs/MODEL.md):\n"
         << "  k = " << fmt("%.4f", c.k) << " mm/V, rho = " << fmt("%.4f", c.rho) << ", b = " << fmt("%.4f", c.b)
         << " mm, alpha = " << fmt("%.3f", c.alpha) << ", beta = " << fmt("%.4f", c.beta)
-        << " 1/V, gamma = " << fmt("%.4f", c.gamma) << " 1/V\n\n";
+        << " 1/V, gamma = " << fmt("%.4f", c.gamma) << " 1/V\n"
+        << "  (gain of u: k rho = " << fmt("%.4f", c.k * c.rho) << " mm/V; gain of h: k (1 - rho) = "
+        << fmt("%.4f", c.k * (1 - c.rho)) << " mm/V)\n\n";
     txt << "Table 1. Modelling RMSE (mm) on the emulator; paper's values in brackets.\n";
     txt << "                                   u0                 u1                 u2\n";
     nlohmann::json t1 = nlohmann::json::object();
@@ -173,11 +175,11 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     txt << "  Reference model             ";
     for (int i = 0; i < 3; ++i) txt << fmt("%8.3f", acc[i].reference_rmse) << " [" << fmt("%6.3f", paper_ref[i]) << "]";
     txt << "\n  Active model (posterior)    ";
-    for (int i = 0; i < 3; ++i) txt << fmt("%8.2e", acc[i].posterior_rmse) << "[" << fmt("%6.1e", paper_act[i]) << "]";
+    for (int i = 0; i < 3; ++i) txt << fmt("%8.1e", acc[i].posterior_rmse) << " [" << fmt("%6.1e", paper_act[i]) << "]";
     txt << "\n  Active model (1-step ahead) ";
-    for (int i = 0; i < 3; ++i) txt << fmt("%8.2e", acc[i].one_step_rmse) << "          ";
+    for (int i = 0; i < 3; ++i) txt << fmt("%8.1e", acc[i].one_step_rmse) << "          ";
     txt << "\n  Persistence y(k-1) baseline ";
-    for (int i = 0; i < 3; ++i) txt << fmt("%8.2e", acc[i].persistence_rmse) << "          ";
+    for (int i = 0; i < 3; ++i) txt << fmt("%8.1e", acc[i].persistence_rmse) << "          ";
     txt << "\n  (posterior: the filter has seen y(k); one-step-ahead: it has not - only this one says how\n"
            "   well the model predicts; persistence is the error of simply repeating the last sample.)\n\n";
     rep.json["table1"] = t1;
@@ -271,7 +273,8 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
   // ---------------------------------------------------------------- discontinuous
   if (wanted(s, "discontinuous")) {
     const std::vector<control::Kind> kinds = {control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc};
-    txt << "Discontinuous trajectories: overshoot % / settling time s (2 % band), mean over the steps.\n";
+    txt << "Discontinuous trajectories: overshoot % / settling time s (2 % band), mean over the steps\n"
+           "('>' : some step had not settled when the next one came).\n";
     txt << "Paper, square wave forward: PID ~17.3 % / ~0.8 s, PID+ESO ~5.7 %, PID+AMC negligible / < 0.5 s.\n";
     txt << "                      PID                 PID+ESO             PID+AMC\n";
     nlohmann::json dj = nlohmann::json::object();
@@ -288,9 +291,11 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
         txt << (tag + std::string(10 - std::min<size_t>(10, tag.size()), ' ')) << (dirn > 0 ? " forward " : " backward");
         for (size_t i = 0; i < kinds.size(); ++i) {
           const auto st = stepResponse(recs[i], dirn, 1.0, 0.02);
-          txt << "  " << fmt("%6.1f", st.overshoot_pct) << " % / " << fmt("%5.2f", st.settling_s) << " s";
+          txt << "  " << fmt("%6.1f", st.overshoot_pct) << " % / " << (st.unsettled ? ">" : " ")
+              << fmt("%4.2f", st.settling_s) << " s";
           dj[tag][dirn > 0 ? "forward" : "backward"][control::toString(kinds[i])] = {
-              {"overshoot_pct", st.overshoot_pct}, {"settling_s", st.settling_s}, {"steps", st.steps}};
+              {"overshoot_pct", st.overshoot_pct}, {"settling_s", st.settling_s}, {"steps", st.steps},
+              {"unsettled_steps", st.unsettled}};
         }
         txt << "\n";
       }
@@ -314,15 +319,17 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     run.force_N = 40.0;
     log("payload: 40 N step at t = 6 s while holding 15 mm");
     txt << "Payload step of 40 N at t = 6 s while holding 15 mm: peak deviation mm / recovery time s\n"
-           "(until |e| stays below 0.05 mm). Paper: PID+AMC recovers fastest, PID and PID+ESO take longer.\n";
+           "(until |e| stays below 0.05 mm; '>': not within the run). Paper: PID+AMC recovers fastest, PID and PID+ESO take longer.\n";
     txt << "                      PID                 PID+ESO             PID+AMC\n";
     txt << "payload 40 N         ";
     nlohmann::json pj = nlohmann::json::object();
     for (auto k : kinds) {
       const Record r = runOne(k, run, "payload");
       const auto st = recovery(r, run.force_step_time_s, 0.05);
-      txt << "  " << fmt("%6.3f", st.peak_dev_mm) << " mm / " << fmt("%5.2f", st.recovery_s) << " s";
-      pj[control::toString(k)] = {{"peak_deviation_mm", st.peak_dev_mm}, {"recovery_s", st.recovery_s}};
+      txt << "  " << fmt("%6.3f", st.peak_dev_mm) << " mm / " << (st.recovered ? " " : ">")
+          << fmt("%4.2f", st.recovery_s) << " s";
+      pj[control::toString(k)] = {{"peak_deviation_mm", st.peak_dev_mm}, {"recovery_s", st.recovery_s},
+                                  {"recovered", st.recovered}};
     }
     txt << "\n\n";
     figure("payload", "Payload step of 40 N while holding 15 mm", kinds);

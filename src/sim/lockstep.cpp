@@ -122,6 +122,7 @@ StepStats stepResponse(const Record& r, int dir, double min_jump, double band_fr
     }
     if (j - i < 10) continue;
     (void)ramp;
+    if (last_out + 1 >= j) ++s.unsettled;
     os_sum += 100.0 * peak / std::fabs(jump);
     ts_sum += static_cast<double>(last_out + 1 - i) * Ts;
     ++s.steps;
@@ -146,6 +147,7 @@ RecoveryStats recovery(const Record& r, double t_event, double band_mm) {
     s.peak_dev_mm = std::max(s.peak_dev_mm, e);
     if (e > band_mm) last_out = i;
   }
+  if (any && last_out + 1 >= r.t.size()) s.recovered = false;
   if (any && last_out >= i0) s.recovery_s = r.t[last_out] - r.t[i0] + (r.t.size() > 1 ? r.t[1] - r.t[0] : 0);
   return s;
 }

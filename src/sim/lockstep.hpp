@@ -50,6 +50,7 @@ struct StepStats {
   double overshoot_pct = 0;   // mean over the steps
   double settling_s = 0;      // mean time to stay within the band
   int steps = 0;
+  int unsettled = 0;          // steps still outside the band when the next one came
 };
 // Steps of the reference by at least min_jump; direction +1 rising, -1 falling; band as a
 // fraction of the jump (0.02 = 2 %).
@@ -58,6 +59,7 @@ StepStats stepResponse(const Record& r, int direction, double min_jump, double b
 struct RecoveryStats {
   double peak_dev_mm = 0;
   double recovery_s = 0;  // until |e| stays below the band
+  bool recovered = true;  // false: still outside the band at the end of the record
 };
 RecoveryStats recovery(const Record& r, double t_event, double band_mm);
 

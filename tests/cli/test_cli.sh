@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Command-line behaviour: help, one-line errors naming file/line/column, non-zero exit and no
+# half-written output on bad input, and the happy path of fit and emulate.
+set -u
+PAMC="$1"
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+fails=0
+passes=0
+check() {  # name, condition...
+  local name="$1"; shift
+  if "$@"; then passes=$((passes + 1)); else echo "FAIL: $name"; fails=$((fails + 1)); fi
+}
+
+"$PAMC" --help > "$work/help.txt"; check "help exits 0" test $? -eq 0
+check "help lists subcommands" grep -q "experiments" "$work/help.txt"
+"$PAMC" fit --help > /dev/null; check "fit --help exits 0" test $? -eq 0
+
+printf 't,u,y\n0,1,2\n0.001,abc,2\n0.002,1,2\n' > "$work/bad.csv"
+"$PAMC" fit "$work/bad.csv" --out "$work/m.json" 2> "$work/err.txt" > /dev/null
+rc=$?
+check "bad csv exits non-zero" test $rc -ne 0
+check "bad csv error is one line" test "$(wc -l < "$work/err.txt")" -eq 1
+check "bad csv error names file, line and column" grep -q "bad.csv:3: column 'u': not a number: 'abc'" "$work/err.txt"
+check "bad csv leaves no model file" test ! -e "$work/m.json"
+check "no temporary files left" test -z "$(ls "$work" | grep tmp || true)"
+
+printf 't,u,y\n0,1,2\n0.001,1,2\n0.003,1,2\n' > "$work/uneven.csv"
+"$PAMC" fit "$work/uneven.csv" 2> "$work/err2.txt" > /dev/null
+check "uneven step exits non-zero" test $? -ne 0
+check "uneven step named" grep -q "uneven.csv:4: column 't': uneven sampling step" "$work/err2.txt"
+
+"$PAMC" fit "$work/nope.csv" 2> "$work/err3.txt" > /dev/null
+check "missing file exits non-zero" test $? -ne 0
+check "missing file named" grep -q "nope.csv: cannot open file" "$work/err3.txt"
+
+"$PAMC" emulate --duration 4 --out "$work/d.csv" > /dev/null
+check "emulate writes data" test -s "$work/d.csv"
+"$PAMC" fit "$work/d.csv" --effects warp 2> "$work/err4.txt" > /dev/null
+check "unknown effect exits non-zero" test $? -ne 0
+check "unknown effect lists known ones" grep -q "known: pressure_lag" "$work/err4.txt"
+
+"$PAMC" fit "$work/d.csv" --generations 15 --out "$work/m.json" --quiet > "$work/fit.txt"
+check "fit exits 0" test $? -eq 0
+check "fit prints RMSE" grep -q "^RMSE" "$work/fit.txt"
+check "fit writes the model" grep -q '"pamc-model/1"' "$work/m.json"
+
+"$PAMC" experiments --only nonsense --out "$work/x" 2> "$work/err5.txt" > /dev/null
+check "unknown experiment exits non-zero" test $? -ne 0
+
+echo "$passes passed, $fails failed"
+test $fails -eq 0

@@ -1,0 +1,130 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "control/controller.hpp"
+#include "ident/identify.hpp"
+#include "plant/plant.hpp"
+#include "sim/lockstep.hpp"
+
+using namespace pamc;
+
+namespace {
+// A reference model identified on the emulator once for all tests of this file.
+const model::Model& identified() {
+  static const model::Model m = [] {
+    plant::Plant p;
+    const auto r = sim::runOpenLoopInput(p, sim::Trajectory::sine(0.1, 2.9, 0.2), 20.0);
+    io::Measurement d;
+    d.source = "emulator";
+    d.t = r.t;
+    d.u = r.u;
+    d.y = r.y;
+    d.Ts = 1e-3;
+    ident::FitSettings s;
+    s.ga.max_generations = 60;
+    return ident::fit(model::Model{}, d, s).model;
+  }();
+  return m;
+}
+
+sim::Record run(control::Kind kind, const sim::ClosedLoopRun& run, const control::ControllerConfig& base = {}) {
+  control::ControllerConfig cfg = base;
+  cfg.model = identified();
+  auto c = control::makeController(kind, cfg);
+  plant::Plant p;
+  control::InverseStatic inv;
+  inv.build(cfg.model, cfg.u_min, cfg.u_max, cfg.Ts);
+  return sim::runClosedLoop(*c, p, run, inv(run.reference.at(0)));
+}
+
+double meanAbsError(const sim::Record& r, double from) {
+  double s = 0;
+  int n = 0;
+  for (size_t i = 0; i < r.t.size(); ++i)
+    if (r.t[i] >= from) {
+      s += std::fabs(r.yd[i] - r.y[i]);
+      ++n;
+    }
+  return s / n;
+}
+}  // namespace
+
+class ClosesTheLoop : public ::testing::TestWithParam<control::Kind> {};
+
+// Each feedback controller settles on a step of the setpoint held long enough, on the full
+// emulator (every effect on, noise, one cycle of bus delay).
+TEST_P(ClosesTheLoop, SettlesAfterAStep) {
+  sim::ClosedLoopRun r;
+  // 20 s at 25 mm, then 20 s at 10 mm: the ESO's slow observer mode (about 0.1 rad/s with the
+  // paper's beta and delta) needs that long.
+  r.reference = sim::Trajectory::square(0.025, 10.0, 25.0);
+  r.duration_s = 40.0;
+  const auto rec = run(GetParam(), r);
+  // Last 2 s of each half.
+  double e1 = 0, e2 = 0;
+  int n1 = 0, n2 = 0;
+  for (size_t i = 0; i < rec.t.size(); ++i) {
+    if (rec.t[i] > 17 && rec.t[i] < 20) e1 += std::fabs(rec.yd[i] - rec.y[i]), ++n1;
+    if (rec.t[i] > 37) e2 += std::fabs(rec.yd[i] - rec.y[i]), ++n2;
+  }
+  // PI + ESO with the paper's observer gains has a slow (period about 60 s), weakly damped mode
+  // in which the PI integral and the ESO's disturbance estimate trade the static command
+  // (docs/CONTROL.md); it converges, but not within these 20 s to PI's accuracy.
+  const double tol = GetParam() == control::Kind::PidEso ? 1.5 : 0.05;
+  EXPECT_LT(e1 / n1, tol) << control::toString(GetParam());
+  EXPECT_LT(e2 / n2, tol) << control::toString(GetParam());
+  for (double u : rec.u) {
+    ASSERT_GE(u, -5.0);
+    ASSERT_LE(u, 5.0);
+  }
+}
+
+TEST_P(ClosesTheLoop, TracksASlowSineBetterThanOpenLoop) {
+  sim::ClosedLoopRun r;
+  r.reference = sim::Trajectory::sine(0.05, 8.0, 18.0);
+  r.duration_s = 40.0;
+  const auto closed = run(GetParam(), r);
+  const auto open = run(control::Kind::OpenLoop, r);
+  EXPECT_LT(meanAbsError(closed, 20.0), meanAbsError(open, 20.0)) << control::toString(GetParam());
+}
+
+INSTANTIATE_TEST_SUITE_P(Feedback, ClosesTheLoop,
+                         ::testing::Values(control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc),
+                         [](const auto& info) { return std::string(control::toString(info.param)); });
+
+// Open loop through the inverse static characteristic lands near a held setpoint (within the
+// hysteresis it cannot see).
+TEST(OpenLoop, InverseStaticLandsNearSetpoint) {
+  sim::ClosedLoopRun r;
+  r.reference = sim::Trajectory::constant(15.0);
+  r.duration_s = 3.0;
+  const auto rec = run(control::Kind::OpenLoop, r);
+  EXPECT_LT(meanAbsError(rec, 2.0), 4.0);
+}
+
+// Anti-windup: a setpoint beyond the stroke saturates the valve; when it comes back the PI
+// recovers within a second instead of unwinding a huge integral.
+TEST(AntiWindup, RecoversQuicklyAfterSaturation) {
+  sim::ClosedLoopRun r;
+  r.reference = sim::Trajectory::square(0.05, 15.0, 60.0);  // 60 mm is unreachable
+  r.duration_s = 16.0;
+  control::ControllerConfig cfg;
+  cfg.ki = 1.5;
+  const auto rec = run(control::Kind::PI, r, cfg);
+  // Saturated at the top during the first half.
+  EXPECT_DOUBLE_EQ(rec.u[static_cast<size_t>(9000)], 5.0);
+  // Back within 0.5 mm of 15 mm by 4 s after the setpoint returns.
+  EXPECT_LT(std::fabs(rec.y[static_cast<size_t>(14000)] - 15.0), 0.5);
+}
+
+TEST(Config, RejectsBadSettings) {
+  control::ControllerConfig c;
+  c.u_min = 5;
+  c.u_max = -5;
+  EXPECT_THROW(control::makeController(control::Kind::PI, c), std::invalid_argument);
+  control::ControllerConfig d;
+  d.kp = NAN;
+  EXPECT_THROW(control::makeController(control::Kind::PI, d), std::invalid_argument);
+  EXPECT_THROW(control::kindFromString("lqr"), std::invalid_argument);
+}

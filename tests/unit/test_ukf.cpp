@@ -1,0 +1,95 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "estimation/ukf.hpp"
+
+using pamc::estimation::Ukf;
+using pamc::estimation::UkfSettings;
+using pamc::estimation::UkfStatus;
+
+// One predict/update step worked out by hand (a = 1, b = 0, kappa = 2, n = 1):
+// lambda = 2, n + lambda = 3, Wm0 = Wc0 = 2/3, Wi = 1/6; sigma points 1, 1 +- sqrt(3).
+// f(x) = x^2: mean = 2/3 + (8)/6 = 2, P = 2/3*1 + 1/6*((2+2sqrt3)^2 + (2-2sqrt3)^2) = 6, + Q 0.5 = 6.5.
+// h(x) = x, z = 3, R = 0.5: S = 7, C = 6.5, K = 13/14, x = 2 + 13/14 = 41/14, P = 6.5 - 6.5^2/7 = 13/28.
+TEST(Ukf, OneStepByHand) {
+  UkfSettings s;
+  s.alpha = 1.0;
+  s.beta = 0.0;
+  s.kappa = 2.0;
+  Ukf<1, 1> f(s);
+  EXPECT_DOUBLE_EQ(f.lambda(), 2.0);
+  EXPECT_DOUBLE_EQ(f.wm0(), 2.0 / 3.0);
+  EXPECT_DOUBLE_EQ(f.wc0(), 2.0 / 3.0);
+  EXPECT_DOUBLE_EQ(f.wi(), 1.0 / 6.0);
+  f.reset(Ukf<1, 1>::Vec(1.0), Ukf<1, 1>::Mat(1.0));
+  auto st = f.predict([](const Ukf<1, 1>::Vec& x) { return Ukf<1, 1>::Vec(x(0) * x(0)); }, Ukf<1, 1>::Mat(0.5));
+  EXPECT_EQ(st, UkfStatus::Ok);
+  EXPECT_NEAR(f.x()(0), 2.0, 1e-12);
+  EXPECT_NEAR(f.P()(0, 0), 6.5, 1e-12);
+  st = f.update([](const Ukf<1, 1>::Vec& x) { return Ukf<1, 1>::MVec(x(0)); }, Ukf<1, 1>::MVec(3.0),
+                Ukf<1, 1>::MMat(0.5));
+  EXPECT_EQ(st, UkfStatus::Ok);
+  EXPECT_NEAR(f.predictedMeasurement()(0), 2.0, 1e-12);
+  EXPECT_NEAR(f.x()(0), 41.0 / 14.0, 1e-12);
+  EXPECT_NEAR(f.P()(0, 0), 13.0 / 28.0, 1e-12);
+}
+
+// The paper's settings give Wm0 of about -1e6; on a linear system the UKF must still equal the
+// Kalman filter.
+TEST(Ukf, PaperSettingsMatchKalmanOnLinearSystem) {
+  Ukf<2, 1> f;  // a = 1e-3, b = 2, kappa = 3 - n
+  EXPECT_NEAR(f.wm0(), (1e-6 * 3 - 2) / (1e-6 * 3), 1e-3);
+  EXPECT_LT(f.wm0(), -6e5);
+  EXPECT_NEAR(f.wm0() + 4 * f.wi(), 1.0, 1e-9);
+  using V = Ukf<2, 1>::Vec;
+  using M = Ukf<2, 1>::Mat;
+  M A;
+  A << 1.0, 0.01, 0.0, 1.0;
+  M Q = M::Identity() * 0.1;
+  Eigen::Matrix<double, 1, 2> H(1.0, 0.5);
+  Eigen::Matrix<double, 1, 1> R(0.2);
+  V x(1.0, -2.0);
+  M P;
+  P << 2.0, 0.3, 0.3, 1.0;
+  f.reset(x, P);
+  for (int k = 0; k < 50; ++k) {
+    const double z = std::sin(0.1 * k);
+    ASSERT_EQ(f.predict([&](const V& s) { return V(A * s); }, Q), UkfStatus::Ok);
+    x = A * x;
+    P = A * P * A.transpose() + Q;
+    ASSERT_EQ(f.update([&](const V& s) { return Ukf<2, 1>::MVec(H * s); }, Ukf<2, 1>::MVec(z), R), UkfStatus::Ok);
+    const Eigen::Matrix<double, 1, 1> S = H * P * H.transpose() + R;
+    const Eigen::Matrix<double, 2, 1> K = P * H.transpose() / S(0);
+    x = x + K * (z - (H * x)(0));
+    P = P - K * S * K.transpose();
+    EXPECT_NEAR((f.x() - x).norm(), 0.0, 1e-6 * (1 + x.norm()));
+    EXPECT_NEAR((f.P() - P).norm(), 0.0, 1e-6 * (1 + P.norm()));
+  }
+}
+
+TEST(Ukf, IndefiniteCovarianceIsRepairedNotFatal) {
+  Ukf<2, 1> f;
+  Ukf<2, 1>::Mat bad;
+  bad << 1.0, 2.0, 2.0, 1.0;  // eigenvalues 3 and -1
+  f.reset(Ukf<2, 1>::Vec(0, 0), bad);
+  const auto st = f.predict([](const Ukf<2, 1>::Vec& x) { return x; }, Ukf<2, 1>::Mat::Identity() * 1e-3);
+  EXPECT_EQ(st, UkfStatus::CovarianceRepaired);
+  Eigen::LLT<Ukf<2, 1>::Mat> llt(f.P());
+  EXPECT_EQ(llt.info(), Eigen::Success);
+  EXPECT_TRUE(f.P().isApprox(f.P().transpose()));
+}
+
+TEST(Ukf, NonFiniteStateResetsAndNonFiniteMeasurementIsRejected) {
+  Ukf<2, 1> f;
+  const Ukf<2, 1>::Mat P0 = Ukf<2, 1>::Mat::Identity() * 10;
+  f.reset(Ukf<2, 1>::Vec(1, 1), P0);
+  auto st = f.predict([](const Ukf<2, 1>::Vec&) { return Ukf<2, 1>::Vec(NAN, 0); }, P0);
+  EXPECT_EQ(st, UkfStatus::Reset);
+  EXPECT_TRUE(f.x().allFinite());
+  EXPECT_TRUE(f.P().isApprox(P0));
+  st = f.update([](const Ukf<2, 1>::Vec& x) { return Ukf<2, 1>::MVec(x(0)); }, Ukf<2, 1>::MVec(NAN),
+                Ukf<2, 1>::MMat(1e-3));
+  EXPECT_EQ(st, UkfStatus::MeasurementRejected);
+  EXPECT_TRUE(f.x().allFinite());
+}
