@@ -7,6 +7,8 @@
 #include <iostream>
 #include <sstream>
 
+#include "diagnose/compare.hpp"
+#include "diagnose/diagnose.hpp"
 #include "ident/identify.hpp"
 #include "io/measurement.hpp"
 #include "io/model_file.hpp"
@@ -112,10 +114,12 @@ int main(int argc, char** argv) {
   auto* em = app.add_subcommand("emulate", "excite the plant emulator open loop and write a measurement CSV");
   std::string em_input = "sine:0.1:0.2:2.9", em_out, em_plant;
   double em_duration = 40.0;
-  em->add_option("--input", em_input, "command u(t) [V]: sine:F:OFFSET:AMP, triangle:F:LO:HI, square:F:LO:HI, ...")
+  em->add_option("--input", em_input, "command u(t) [V]: sine:F:OFFSET:AMP, triangle:F:LO:HI, square:F:LO:HI, chirp:F0:F1:OFFSET:AMP:DURATION, random:SEED:LO:HI, ...")
       ->capture_default_str();
   em->add_option("--duration", em_duration, "seconds")->capture_default_str()->check(CLI::PositiveNumber);
   em->add_option("--plant", em_plant, "plant emulator config (JSON)");
+  std::string em_load;
+  em->add_option("--load", em_load, "external force [N] over time, same forms as --input (adds a 'load' column)");
   em->add_option("--out", em_out, "CSV to write (t,u,y,p)")->required();
 
   // plant
@@ -125,6 +129,31 @@ int main(int argc, char** argv) {
 
   // effects
   auto* ef = app.add_subcommand("effects", "list the catalogue of physical effects");
+
+  // compare
+  auto* cmp = app.add_subcommand("compare", "simulate a model on a measurement's input and show where it fails: "
+                                            "RMSE, max error, fit %, error by where it happens, residual tests, figures");
+  std::string cmp_model, cmp_data, cmp_report, cmp_json;
+  cmp->add_option("model", cmp_model, "model file (JSON, from `pamc fit` or `pamc diagnose`)")->required();
+  cmp->add_option("data", cmp_data, "measurement CSV with header t,u,y")->required();
+  cmp->add_option("--report", cmp_report, "directory for CSVs and figures (default: DATA.compare/)");
+  cmp->add_option("--json", cmp_json, "write the numbers as JSON here");
+
+  // diagnose
+  auto* dg = app.add_subcommand("diagnose", "fit the reference model, find which physical effect is missing, add it, "
+                                            "refit, and repeat while the validated error falls");
+  std::string dg_data, dg_val, dg_report, dg_json, dg_cands;
+  pamc::diagnose::DiagnoseSettings ds;
+  dg->add_option("data", dg_data, "training measurement CSV (t,u,y[,load,...])")->required();
+  dg->add_option("--validate", dg_val, "validation measurement (default: hold out the last part of DATA)");
+  dg->add_option("--holdout", ds.holdout, "fraction held out without --validate")->capture_default_str()->check(CLI::Range(0.06, 0.94));
+  dg->add_option("--max-effects", ds.max_effects, "at most this many effects added")->capture_default_str()->check(CLI::Range(0, 9));
+  dg->add_option("--min-gain", ds.min_gain, "an effect must lower the validated RMSE by this fraction")->capture_default_str()->check(CLI::Range(0.0, 0.99));
+  dg->add_option("--candidates", dg_cands, "comma list of effects to try (default: the whole catalogue)");
+  dg->add_option("--report", dg_report, "directory for figures, CSVs and the final model");
+  dg->add_option("--json", dg_json, "write the result as JSON here");
+  dg->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
+  dg->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
 
   try {
     app.parse(argc, argv);
@@ -159,14 +188,70 @@ int main(int argc, char** argv) {
                                                      : pamc::plant::PlantConfig::fromFile(em_plant);
       pamc::plant::Plant p(pc);
       const auto traj = pamc::sim::Trajectory::parse(em_input);
-      const auto r = pamc::sim::runOpenLoopInput(p, traj, em_duration);
-      pamc::io::writeCsvAtomic(em_out, {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
+      pamc::sim::Trajectory force;
+      if (!em_load.empty()) force = pamc::sim::Trajectory::parse(em_load);
+      const auto r = pamc::sim::runOpenLoopInput(p, traj, em_duration, em_load.empty() ? nullptr : &force);
+      if (em_load.empty())
+        pamc::io::writeCsvAtomic(em_out, {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
+      else
+        pamc::io::writeCsvAtomic(em_out, {"t", "u", "y", "p", "load"}, {&r.t, &r.u, &r.y, &r.p, &r.force});
       std::printf("wrote %s: %zu samples of u = %s\n", em_out.c_str(), r.t.size(), traj.describe().c_str());
       return 0;
     }
     if (*pl) {
       const auto c = pl_file.empty() ? pamc::plant::PlantConfig::defaults() : pamc::plant::PlantConfig::fromFile(pl_file);
       std::printf("%s\n", c.toJson().dump(2).c_str());
+      return 0;
+    }
+    if (*cmp) {
+      const auto m = pamc::io::readModelFile(cmp_model);
+      const auto d = pamc::io::readMeasurementCsv(cmp_data);
+      if (!d.warning.empty()) std::fprintf(stderr, "warning: %s\n", d.warning.c_str());
+      const auto c = pamc::diagnose::compare(m, d);
+      std::printf("model %s (%s) on %s: %zu samples, Ts = %g s\n", cmp_model.c_str(), m.describe().c_str(),
+                  cmp_data.c_str(), d.size(), d.Ts);
+      std::printf("%s", pamc::diagnose::formatReport(c.report).c_str());
+      std::string dir = cmp_report.empty() ? cmp_data + ".compare" : cmp_report;
+      std::string warn;
+      pamc::diagnose::writeCompareReport(c, d, dir, warn);
+      if (!warn.empty()) std::fprintf(stderr, "warning: %s\n", warn.c_str());
+      std::printf("figures and CSVs in %s/\n", dir.c_str());
+      if (!cmp_json.empty()) pamc::io::writeFileAtomic(cmp_json, pamc::diagnose::toJson(c).dump(2) + "\n");
+      return 0;
+    }
+    if (*dg) {
+      const auto d = pamc::io::readMeasurementCsv(dg_data);
+      if (!d.warning.empty()) std::fprintf(stderr, "warning: %s\n", d.warning.c_str());
+      pamc::io::Measurement v;
+      if (!dg_val.empty()) {
+        v = pamc::io::readMeasurementCsv(dg_val);
+        if (!v.warning.empty()) std::fprintf(stderr, "warning: %s\n", v.warning.c_str());
+      }
+      ds.candidates = splitList(dg_cands);
+      for (const auto& c : ds.candidates) (void)pamc::model::makeEffect(c);
+      ds.log = progressLine;
+      const auto r = pamc::diagnose::diagnose(d, dg_val.empty() ? nullptr : &v, ds);
+      std::printf("\nFirst round (on top of the reference model), best first:\n");
+      if (!r.rounds.empty())
+        for (const auto& c : r.rounds.front())
+          std::printf("  %-20s validation RMSE %-10.5g train %-10.5g  %s\n", c.effect.c_str(), c.rmse_val, c.rmse_train,
+                      c.evidence.text.c_str());
+      std::printf("\nLadder (validation: %s):\n", r.validation.c_str());
+      for (const auto& g : r.ladder) {
+        std::string e;
+        for (const auto& x : g.effects) e += (e.empty() ? "" : " + ") + x;
+        std::printf("  %-50s train %-10.5g validation %-10.5g\n", e.empty() ? "reference model" : ("+ " + e).c_str(),
+                    g.rmse_train, g.rmse_val);
+      }
+      std::printf("\n%s\n", r.verdict.c_str());
+      std::printf("%.1f s\n", r.seconds);
+      if (!dg_report.empty()) {
+        std::string warn;
+        pamc::diagnose::writeReport(r, d, dg_val.empty() ? nullptr : &v, ds, dg_report, warn);
+        if (!warn.empty()) std::fprintf(stderr, "warning: %s\n", warn.c_str());
+        std::printf("report in %s/ (ladder.png, validation.png, residual_tests.png, model.json)\n", dg_report.c_str());
+      }
+      if (!dg_json.empty()) pamc::io::writeFileAtomic(dg_json, pamc::diagnose::toJson(r).dump(2) + "\n");
       return 0;
     }
     if (*ef) {

@@ -19,6 +19,7 @@ void ActiveModel::reset(double u0, double load) noexcept {
   P0 << settings_.P0_h, 0.0, 0.0, settings_.P0_f;
   ukf_.reset(Filter::Vec(st_.h, 0.0), P0);
   du_pending_ = 0.0;
+  c.u_eff = st_.u_eff_prev;
   y_post_ = model_.outputPeek(st_, model_.coreOutput(st_.u_eff_prev, st_.h), c);
 }
 
@@ -41,6 +42,7 @@ ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
       Q);
 
   const double ue = model_.inputStage(st_, u, c);
+  c.u_eff = ue;
   // Eq. (9): H(X) = k rho u + b + k (1 - rho) h, then the output effects (not advanced).
   const auto& mdl = model_;
   const auto& st = st_;
@@ -76,7 +78,10 @@ double ActiveModel::predictNext(double u_eff_prev, double u_eff_next, double loa
   // would feed u_c back onto itself with gain kc k rho and ring when that exceeds 1.
   const double h0 = ukf_.x()(0);
   const double h1 = model::boucWenNext(model_.core(), h0, u_eff_next - u_eff_prev, ukf_.x()(1), Ts_);
-  const double y1 = model_.outputPeek(st_, model_.coreOutput(u_eff_next, h1), c);
+  model::StepContext c1 = c;
+  c1.u_eff = u_eff_next;
+  c.u_eff = u_eff_prev;
+  const double y1 = model_.outputPeek(st_, model_.coreOutput(u_eff_next, h1), c1);
   const double y0 = model_.outputPeek(st_, model_.coreOutput(u_eff_prev, h0), c);
   return y_post_ + (y1 - y0);
 }

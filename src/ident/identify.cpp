@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <random>
 #include <stdexcept>
 
 namespace pamc::ident {
@@ -41,13 +43,49 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   b.hi[4] = 10.0 / ru;  // beta
   b.lo[5] = -10.0 / ru;
   b.hi[5] = 10.0 / ru;  // gamma
-  // Effect parameters in output units scale with the output range.
+  // Effect parameters: the catalogue's bounds are written for a 40 mm / 10 V rig at 1 kHz; scale
+  // them to this data by their unit so any units and sample rate work.
+  const double duration = d.Ts * static_cast<double>(d.size());
+  const auto [umin, umax_] = std::minmax_element(d.u.begin(), d.u.end());
+  const auto* load = d.column("load");
+  const double rl = load ? std::max(range(*load), 1e-12) : 1.0;
   for (size_t i = model::kBoucWenParams; i < specs.size(); ++i) {
-    if (specs[i].unit.rfind("y-unit", 0) == 0) {
-      const double s = ry / 40.0;  // catalogue bounds are written for a 40 mm stroke
-      b.lo[i] *= s;
-      b.hi[i] *= s;
+    const std::string& u = specs[i].unit;
+    double& lo = b.lo[i];
+    double& hi = b.hi[i];
+    if (u == "y-unit") {
+      lo *= ry / 40.0;
+      hi *= ry / 40.0;
+    } else if (u == "y-level") {
+      // A level outside the data's range is indistinguishable from no effect (flat cost).
+      lo = *ymin;
+      hi = *ymax;
+    } else if (u == "u-unit") {
+      lo *= ru / 10.0;
+      hi *= ru / 10.0;
+    } else if (u == "u-level") {
+      lo = *umin;
+      hi = *umax_;
+    } else if (u == "u-unit/s") {
+      lo *= ru / 10.0;
+      hi *= ru / 10.0;
+    } else if (u == "y-unit/u-unit") {
+      lo *= ry / ru / 4.0;
+      hi *= ry / ru / 4.0;
+    } else if (u == "y-unit/load-unit") {
+      lo = -2.0 * ry / rl;
+      hi = 2.0 * ry / rl;
+    } else if (u == "s") {
+      // No faster than a few samples; no slower than the record; a delay at most the ring's length.
+      lo = std::max(lo, specs[i].name.size() >= 2 && specs[i].name.compare(specs[i].name.size() - 2, 2, ".d") == 0 ? 0.0 : 2.0 * d.Ts);
+      hi = std::min(hi, duration / 2.0);
+      if (specs[i].name.size() >= 2 && specs[i].name.compare(specs[i].name.size() - 2, 2, ".d") == 0)
+        hi = std::min(hi, 250.0 * d.Ts);
+    } else if (u == "Hz") {
+      lo = std::max(lo, 2.0 / duration);
+      hi = std::min(hi, 0.2 / d.Ts);
     }
+    if (hi < lo) hi = lo;
   }
   return b;
 }
@@ -57,6 +95,23 @@ void searchToModel(const std::vector<double>& x, std::vector<double>& p) {
   const double k = x[0] + x[1];
   p[0] = k;
   p[1] = std::fabs(k) > 1e-300 ? x[0] / k : 1.0;
+}
+
+std::vector<double> modelToSearch(const std::vector<double>& p) {
+  std::vector<double> x = p;
+  x[0] = p[0] * p[1];
+  x[1] = p[0] * (1.0 - p[1]);
+  return x;
+}
+
+double rmseFrom(const model::Model& m, const io::Measurement& d, size_t from) {
+  const auto* load = d.column("load");
+  std::vector<double> y(d.size());
+  m.simulate(d.u.data(), load ? load->data() : nullptr, d.size(), d.Ts, y.data());
+  double s = 0;
+  size_t k = 0;
+  for (size_t i = from; i < y.size(); ++i, ++k) s += (y[i] - d.y[i]) * (y[i] - d.y[i]);
+  return k ? std::sqrt(s / static_cast<double>(k)) : 0.0;
 }
 
 double mse(const model::Model& m, const io::Measurement& d) {
@@ -72,7 +127,7 @@ double mse(const model::Model& m, const io::Measurement& d) {
 }
 
 FitResult fit(const model::Model& structure, const io::Measurement& d, const FitSettings& s,
-              const std::function<void(const char*, int, double)>& progress) {
+              const std::function<void(const char*, int, double)>& progress, const model::Model* start) {
   const auto t0 = std::chrono::steady_clock::now();
   if (structure.needsLoad() && !d.has("load"))
     throw std::invalid_argument(d.source + ": the model has the 'load' effect but the data has no 'load' column");
@@ -100,13 +155,75 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
   };
   GaSettings gs = s.ga;
   gs.threads = threads;
+  if (start) {
+    // Seed: the start model's values where it has them, the structure's defaults elsewhere.
+    model::Model seeded = structure;
+    seeded.core() = start->core();
+    for (int i = 0; i < start->numEffects(); ++i) {
+      const auto& e = start->effect(i);
+      if (!seeded.hasEffect(e.name())) continue;
+      for (size_t q = 0; q < e.params().size(); ++q) seeded.setEffectParam(e.name(), e.params()[q].name, start->effectParams(i)[q]);
+    }
+    gs.start = modelToSearch(seeded.params());
+    const auto specs = structure.paramSpecs();
+    gs.explore.assign(specs.size(), false);
+    for (size_t i = model::kBoucWenParams; i < specs.size(); ++i) {
+      const std::string eff = specs[i].name.substr(0, specs[i].name.find('.'));
+      gs.explore[i] = !start->hasEffect(eff);
+    }
+  }
   OptResult r = geneticAlgorithm(cost, b.lo, b.hi, gs, [&](int g, double c) {
     if (progress) progress("ga", g, std::sqrt(c));
   });
   FitResult out;
   out.generations = r.iterations;
   out.evaluations = r.evaluations;
-  if (s.refine) {
+  if (s.refine && s.lm_iterations > 0) {
+    std::vector<std::vector<double>> pb(static_cast<size_t>(threads));
+    ResidualFn resid = [&](const std::vector<double>& x, std::vector<double>& e, int w) {
+      auto& m = models[static_cast<size_t>(w)];
+      auto& p = pb[static_cast<size_t>(w)];
+      searchToModel(x, p);
+      m.setParams(p);
+      m.simulate(d.u.data(), lp, d.size(), d.Ts, e.data());
+      for (size_t i = 0; i < e.size(); ++i) e[i] -= d.y[i];
+    };
+    // Short LM runs from the best and the GA's distinct runners-up, then the best of them to the end:
+    // the GA finds basins, LM their bottoms.
+    std::vector<std::vector<double>> starts = {r.x};
+    for (size_t k = 0; k < r.runners_up.size() && static_cast<int>(k) < s.lm_starts; ++k) starts.push_back(r.runners_up[k]);
+    if (!gs.start.empty()) {
+      // Warm start: also the start model with the new effects' parameters spread over their ranges,
+      // so an effect whose cost is flat where the GA left it still gets a chance.
+      std::mt19937_64 rng(gs.seed ^ 0x9e3779b97f4a7c15ull);
+      std::uniform_real_distribution<double> U(0.0, 1.0);
+      for (int k = 0; k < s.lm_starts + 1; ++k) {
+        std::vector<double> x = gs.start;
+        bool any = false;
+        for (size_t i = 0; i < x.size(); ++i)
+          if (i < gs.explore.size() && gs.explore[i]) {
+            x[i] = b.lo[i] + (k + U(rng)) / (s.lm_starts + 1) * (b.hi[i] - b.lo[i]);
+            any = true;
+          }
+        if (any) starts.push_back(x);
+      }
+    }
+    OptResult best_l;
+    best_l.cost = std::numeric_limits<double>::max();
+    for (const auto& x0 : starts) {
+      OptResult l = levenbergMarquardt(resid, d.size(), x0, b.lo, b.hi, starts.size() > 1 ? 8 : s.lm_iterations, threads);
+      out.evaluations += l.evaluations;
+      if (l.cost < best_l.cost) best_l = l;
+    }
+    if (starts.size() > 1) {
+      OptResult l = levenbergMarquardt(resid, d.size(), best_l.x, b.lo, b.hi, s.lm_iterations, threads);
+      out.evaluations += l.evaluations;
+      if (l.cost <= best_l.cost) best_l = l;
+    }
+    if (best_l.cost <= r.cost) r = best_l;
+    if (progress) progress("refine", best_l.iterations, std::sqrt(r.cost));
+  }
+  if (s.refine && s.refine_evals > 0) {
     OptResult n = nelderMead(cost, r.x, b.lo, b.hi, s.refine_evals);
     out.evaluations += n.evaluations;
     if (n.cost <= r.cost) r = n;

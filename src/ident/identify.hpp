@@ -16,7 +16,9 @@ namespace pamc::ident {
 struct FitSettings {
   GaSettings ga{};
   bool refine = true;
-  int refine_evals = 1500;
+  int refine_evals = 300;      // Nelder-Mead polish after Levenberg-Marquardt (non-smooth effects)
+  int lm_iterations = 40;      // Levenberg-Marquardt iterations after the GA (0: none)
+  int lm_starts = 3;           // LM also from this many distinct runners-up of the GA (short runs)
 };
 
 struct FitResult {
@@ -43,9 +45,18 @@ void searchToModel(const std::vector<double>& x, std::vector<double>& p);
 // MSE of the model's simulated output against y.
 double mse(const model::Model& m, const io::Measurement& data);
 
+// Model parameter vector -> search vector.
+std::vector<double> modelToSearch(const std::vector<double>& p);
+
 // Fits the parameters of `structure` (its effects decide what is fitted) to the data.
-// progress(stage, iteration, rmse) with stage "ga" or "refine".
+// progress(stage, iteration, rmse) with stage "ga" or "refine". With `start`, the search is
+// warm-started from it: its parameters seed half the population (effects it lacks are explored
+// over their whole range).
 FitResult fit(const model::Model& structure, const io::Measurement& data, const FitSettings& s,
-              const std::function<void(const char*, int, double)>& progress = {});
+              const std::function<void(const char*, int, double)>& progress = {},
+              const model::Model* start = nullptr);
+
+// RMSE of the model simulated on the whole record, scored over samples [from, n).
+double rmseFrom(const model::Model& m, const io::Measurement& data, size_t from = 0);
 
 }  // namespace pamc::ident

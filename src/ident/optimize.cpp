@@ -1,5 +1,7 @@
 #include "ident/optimize.hpp"
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -60,6 +62,18 @@ OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const
     std::iota(perm.begin(), perm.end(), 0);
     std::shuffle(perm.begin(), perm.end(), rng);
     for (int p = 0; p < P; ++p) genes[static_cast<size_t>(p)][i] = (perm[static_cast<size_t>(p)] + U(rng)) / P;
+  }
+  if (!s.start.empty() && s.start.size() == d) {
+    std::vector<double> g0(d);
+    for (size_t i = 0; i < d; ++i) g0[i] = hi[i] > lo[i] ? std::clamp((s.start[i] - lo[i]) / (hi[i] - lo[i]), 0.0, 1.0) : 0.0;
+    for (int p = 0; p < P / 2; ++p) {
+      auto& g = genes[static_cast<size_t>(p)];
+      for (size_t i = 0; i < d; ++i) {
+        const bool ex = i < s.explore.size() && s.explore[i];
+        if (p == 0) g[i] = ex ? g[i] : g0[i];
+        else g[i] = ex ? g[i] : std::clamp(g0[i] + 0.03 * N01(rng), 0.0, 1.0);
+      }
+    }
   }
   std::vector<std::vector<double>> xs(static_cast<size_t>(P));
   std::vector<double> cost(static_cast<size_t>(P));
@@ -128,6 +142,26 @@ OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const
   r.x = toX(best_g);
   r.cost = best;
   r.iterations = std::min(gen, s.max_generations);
+  {
+    // Distinct runners-up from the last population (for multi-start refinement).
+    std::vector<int> order(static_cast<size_t>(P));
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return cost[static_cast<size_t>(a)] < cost[static_cast<size_t>(b)]; });
+    std::vector<std::vector<double>> kept = {best_g};
+    for (int o : order) {
+      const auto& g = genes[static_cast<size_t>(o)];
+      bool distinct = true;
+      for (const auto& k : kept) {
+        double dist = 0;
+        for (size_t i = 0; i < d; ++i) dist = std::max(dist, std::fabs(g[i] - k[i]));
+        if (dist < 0.05) distinct = false;
+      }
+      if (!distinct || !(cost[static_cast<size_t>(o)] < std::numeric_limits<double>::max())) continue;
+      kept.push_back(g);
+      r.runners_up.push_back(toX(g));
+      if (r.runners_up.size() >= 4) break;
+    }
+  }
   return r;
 }
 
@@ -236,6 +270,119 @@ OptResult nelderMead(const CostFn& f, const std::vector<double>& x0, const std::
   r.x = toX(bestg);
   r.cost = bestc;
   return r;
+}
+
+OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<double>& x0,
+                             const std::vector<double>& lo, const std::vector<double>& hi, int max_iterations,
+                             int threads) {
+  std::vector<size_t> freeIdx;
+  for (size_t i = 0; i < x0.size(); ++i)
+    if (hi[i] > lo[i]) freeIdx.push_back(i);
+  const int n = static_cast<int>(freeIdx.size());
+  OptResult res;
+  auto toX = [&](const Eigen::VectorXd& g) {
+    std::vector<double> x = x0;
+    for (int k = 0; k < n; ++k) {
+      const size_t i = freeIdx[static_cast<size_t>(k)];
+      x[i] = lo[i] + std::clamp(g(k), 0.0, 1.0) * (hi[i] - lo[i]);
+    }
+    return x;
+  };
+  Eigen::VectorXd g(n);
+  for (int k = 0; k < n; ++k) {
+    const size_t i = freeIdx[static_cast<size_t>(k)];
+    g(k) = std::clamp((x0[i] - lo[i]) / (hi[i] - lo[i]), 0.0, 1.0);
+  }
+  std::vector<double> r(m), rt(m);
+  auto cost = [&](const std::vector<double>& v) {
+    double s = 0;
+    for (double e : v) s += e * e;
+    return std::isfinite(s) ? s / static_cast<double>(m) : std::numeric_limits<double>::max();
+  };
+  f(toX(g), r, 0);
+  ++res.evaluations;
+  double c = cost(r);
+  if (n == 0) {
+    res.x = toX(g);
+    res.cost = c;
+    return res;
+  }
+  threads = std::max(1, std::min(threads, n));
+  std::vector<std::vector<double>> cols(static_cast<size_t>(n), std::vector<double>(m));
+  double lambda = 1e-3;
+  for (int it = 0; it < max_iterations; ++it) {
+    ++res.iterations;
+    // Jacobian columns by forward (or, at the upper bound, backward) differences.
+    const double h = 1e-6;
+    std::vector<double> steps(static_cast<size_t>(n));
+    auto column = [&](int k, int w) {
+      Eigen::VectorXd gp = g;
+      const double st = g(k) + h <= 1.0 ? h : -h;
+      gp(k) += st;
+      steps[static_cast<size_t>(k)] = st;
+      f(toX(gp), cols[static_cast<size_t>(k)], w);
+    };
+    if (threads == 1) {
+      for (int k = 0; k < n; ++k) column(k, 0);
+    } else {
+      std::vector<std::thread> ts;
+      for (int w = 0; w < threads; ++w)
+        ts.emplace_back([&, w] {
+          for (int k = w; k < n; k += threads) column(k, w);
+        });
+      for (auto& t : ts) t.join();
+    }
+    res.evaluations += n;
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+    for (int a = 0; a < n; ++a) {
+      auto& ca = cols[static_cast<size_t>(a)];
+      const double sa = steps[static_cast<size_t>(a)];
+      for (size_t i = 0; i < m; ++i) ca[i] = (ca[i] - r[i]) / sa;  // now the derivative
+    }
+    for (int a = 0; a < n; ++a) {
+      const auto& ca = cols[static_cast<size_t>(a)];
+      double sb = 0;
+      for (size_t i = 0; i < m; ++i) sb += ca[i] * r[i];
+      b(a) = sb;
+      for (int q = a; q < n; ++q) {
+        const auto& cq = cols[static_cast<size_t>(q)];
+        double s = 0;
+        for (size_t i = 0; i < m; ++i) s += ca[i] * cq[i];
+        A(a, q) = A(q, a) = s;
+      }
+    }
+    if (!A.allFinite() || !b.allFinite()) break;
+    bool improved = false;
+    for (int tries = 0; tries < 12; ++tries) {
+      Eigen::MatrixXd M = A;
+      for (int k = 0; k < n; ++k) M(k, k) += lambda * std::max(A(k, k), 1e-12);
+      const Eigen::VectorXd d = M.ldlt().solve(-b);
+      if (!d.allFinite()) {
+        lambda *= 10;
+        continue;
+      }
+      Eigen::VectorXd gn = (g + d).cwiseMax(0.0).cwiseMin(1.0);
+      f(toX(gn), rt, 0);
+      ++res.evaluations;
+      const double cn = cost(rt);
+      if (cn < c) {
+        const double rel = (c - cn) / std::max(c, 1e-300);
+        g = gn;
+        r.swap(rt);
+        c = cn;
+        lambda = std::max(lambda / 3.0, 1e-9);
+        improved = true;
+        if (rel < 1e-10) it = max_iterations;  // converged
+        break;
+      }
+      lambda *= 4.0;
+    }
+    if (!improved) break;
+  }
+  res.x = toX(g);
+  res.cost = c;
+  return res;
 }
 
 }  // namespace pamc::ident

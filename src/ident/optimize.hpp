@@ -22,11 +22,16 @@ struct GaSettings {
   int elite = 2;
   std::uint64_t seed = 1;
   int threads = 0;  // 0: all cores
+  // Warm start: half the first population is drawn around `start` (a point in the box); genes
+  // flagged in `explore` are drawn over their whole range instead.
+  std::vector<double> start;
+  std::vector<bool> explore;
 };
 
 struct OptResult {
   std::vector<double> x;
   double cost = 0.0;
+  std::vector<std::vector<double>> runners_up;  // GA: the next best distinct individuals, best first
   int iterations = 0;   // generations or simplex iterations
   int evaluations = 0;
 };
@@ -37,6 +42,15 @@ OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const
 
 OptResult nelderMead(const CostFn& f, const std::vector<double>& x0, const std::vector<double>& lo,
                      const std::vector<double>& hi, int max_evals, double rel_tol = 1e-12);
+
+// Residual function for least squares: fills r (already sized) for parameters x; `worker` as in CostFn.
+using ResidualFn = std::function<void(const std::vector<double>& x, std::vector<double>& r, int worker)>;
+
+// Bounded Levenberg-Marquardt on sum(r^2)/n, Jacobian by finite differences in the unit box, its
+// columns computed on `threads` workers. Fixed parameters (lo == hi) stay put.
+OptResult levenbergMarquardt(const ResidualFn& f, size_t n_residuals, const std::vector<double>& x0,
+                             const std::vector<double>& lo, const std::vector<double>& hi, int max_iterations,
+                             int threads = 1);
 
 int defaultThreads();
 

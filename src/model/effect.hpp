@@ -19,9 +19,14 @@ namespace pamc::model {
 
 enum class Stage { Input, Output };
 
+// Units say how identification bounds follow the data (ident::dataBounds):
+//  "s" time (clamped to the sample time and record length), "Hz" frequency, "y-unit" a size in
+//  output units (scaled with the output's range), "y-level" an output level (within its range),
+//  "u-unit" a size in input units, "u-level" an input level, "u-unit/s" an input rate,
+//  "y-unit/load-unit" a compliance, "-" dimensionless (bounds as given).
 struct ParamSpec {
   std::string name;
-  double lo;    // identification bound
+  double lo;    // identification bound (for a 40 mm / 10 V / 1 kHz rig; scaled to the data)
   double hi;    // identification bound
   double def;   // default value
   std::string unit;
@@ -31,9 +36,10 @@ struct ParamSpec {
 struct StepContext {
   double Ts = 1e-3;     // sample time [s]
   double load = 0.0;    // measured external load (file units, e.g. N) - 0 when absent
+  double u_eff = 0.0;   // effective command of this sample (set by the model for output effects)
 };
 
-constexpr int kMaxEffectStates = 64;  // per effect; storage is fixed so a step never allocates
+constexpr int kMaxEffectStates = 260;  // per effect; storage is fixed so a step never allocates
 
 class Effect {
  public:

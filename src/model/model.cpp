@@ -123,7 +123,7 @@ std::vector<ParamSpec> Model::paramSpecs() const {
   };
   for (const auto& s : effects_) {
     for (const auto& p : s.impl->params()) {
-      ParamSpec q = p;
+      ParamSpec q = p;  // unit kept: identification scales the bounds with it
       q.name = std::string(s.impl->name()) + "." + p.name;
       v.push_back(q);
     }
@@ -157,13 +157,15 @@ void Model::init(State& st, double u0, const StepContext& c) const noexcept {
     x = s.impl->step(eff_params_.data() + s.param_offset, tmp, x, c);
   }
   st.u_eff_prev = x;
+  StepContext co = c;
+  co.u_eff = x;
   double y = coreOutput(x, st.h);
   for (; i < effects_.size(); ++i) {
     const auto& s = effects_[i];
-    s.impl->init(eff_params_.data() + s.param_offset, st.s.data() + s.state_offset, y, c);
+    s.impl->init(eff_params_.data() + s.param_offset, st.s.data() + s.state_offset, y, co);
     double tmp[kMaxEffectStates];
     std::memcpy(tmp, st.s.data() + s.state_offset, sizeof(double) * static_cast<size_t>(s.impl->numStates()));
-    y = s.impl->step(eff_params_.data() + s.param_offset, tmp, y, c);
+    y = s.impl->step(eff_params_.data() + s.param_offset, tmp, y, co);
   }
 }
 
@@ -195,8 +197,10 @@ double Model::outputPeek(const State& st, double y, const StepContext& c) const 
   return y;
 }
 
-double Model::step(State& st, double u, const StepContext& c, double f_h) const noexcept {
+double Model::step(State& st, double u, const StepContext& c0, double f_h) const noexcept {
+  StepContext c = c0;
   const double ue = inputStage(st, u, c);
+  c.u_eff = ue;
   const double y = outputStage(st, coreOutput(ue, st.h), c);
   st.h = boucWenNext(core_, st.h, ue - st.u_eff_prev, f_h, c.Ts);
   st.u_eff_prev = ue;

@@ -16,7 +16,7 @@
 
 namespace pamc::model {
 
-constexpr int kMaxModelStates = 256;
+constexpr int kMaxModelStates = 600;
 
 class Model {
  public:

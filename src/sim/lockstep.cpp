@@ -60,16 +60,17 @@ Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const Close
   return r;
 }
 
-Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s) {
+Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s, const Trajectory* force_N) {
   const double Ts = plant.config().Ts;
   const auto n = static_cast<size_t>(std::llround(duration_s / Ts));
   Record r;
   r.reserve(n);
-  plant.reset(u.at(0.0));
+  plant.reset(u.at(0.0), force_N ? force_N->at(0.0) : 0.0);
   for (size_t k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * Ts;
     const double uk = u.at(t);
-    plant.step(uk, 0.0);
+    const double F = force_N ? force_N->at(t) : 0.0;
+    plant.step(uk, F);
     const double y = plant.measure();
     r.t.push_back(t);
     r.yd.push_back(NAN);
@@ -79,7 +80,7 @@ Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duratio
     r.u_n.push_back(uk);
     r.u_c.push_back(0.0);
     r.y_hat.push_back(NAN);
-    r.force.push_back(0.0);
+    r.force.push_back(F);
     r.p.push_back(plant.pressure_bar());
   }
   return r;

@@ -39,7 +39,7 @@ Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const Close
 
 // Open loop: command u(t) straight to the valve; row k holds u_k and the position measured at
 // the end of the sample it was held for.
-Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s);
+Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s, const Trajectory* force_N = nullptr);
 
 struct TrackingStats {
   double rmse = 0, max_abs = 0;

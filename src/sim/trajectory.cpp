@@ -1,6 +1,8 @@
 #include "sim/trajectory.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
@@ -21,6 +23,20 @@ double Trajectory::at(double t) const noexcept {
       const double a = amplitude + (amplitude_end - amplitude) * f;
       return offset - a * std::cos(2.0 * M_PI * freq_hz * t);
     }
+    case Shape::Chirp: {
+      const double tt = duration > 0 ? std::min(std::max(t, 0.0), duration) : t;
+      const double k = duration > 0 ? (freq_end_hz - freq_hz) / duration : 0.0;
+      return offset + amplitude * std::sin(2.0 * M_PI * (freq_hz * tt + 0.5 * k * tt * tt));
+    }
+    case Shape::RandomRampHold: {
+      if (knot_t.size() < 2) return lo;
+      const double tt = std::fmod(std::max(t, 0.0), knot_t.back());
+      const auto it = std::upper_bound(knot_t.begin(), knot_t.end(), tt);
+      const size_t i = static_cast<size_t>(std::max<long>(1, it - knot_t.begin()));
+      if (i >= knot_t.size()) return knot_v.back();
+      const double f = (tt - knot_t[i - 1]) / (knot_t[i] - knot_t[i - 1]);
+      return knot_v[i - 1] + f * (knot_v[i] - knot_v[i - 1]);
+    }
   }
   return 0.0;
 }
@@ -37,6 +53,10 @@ std::string Trajectory::describe() const {
       std::snprintf(b, sizeof b, "%g Hz sine about %g, amplitude %g -> %g over %g s", freq_hz, offset, amplitude,
                     amplitude_end, duration);
       break;
+    case Shape::Chirp:
+      std::snprintf(b, sizeof b, "chirp %g -> %g Hz over %g s, %g sin + %g", freq_hz, freq_end_hz, duration, amplitude, offset);
+      break;
+    case Shape::RandomRampHold: std::snprintf(b, sizeof b, "random ramps and holds in [%g, %g]", lo, hi); break;
   }
   return b;
 }
@@ -87,6 +107,45 @@ Trajectory Trajectory::sineDescending(double f, double c, double a0, double a1, 
   return t;
 }
 
+Trajectory Trajectory::chirp(double f0, double f1, double offset, double amplitude, double duration) {
+  Trajectory t;
+  t.shape = Shape::Chirp;
+  t.freq_hz = f0;
+  t.freq_end_hz = f1;
+  t.offset = offset;
+  t.amplitude = amplitude;
+  t.duration = duration;
+  t.lo = offset - amplitude;
+  t.hi = offset + amplitude;
+  return t;
+}
+
+Trajectory Trajectory::randomRampHold(std::uint64_t seed, double lo, double hi) {
+  Trajectory t;
+  t.shape = Shape::RandomRampHold;
+  t.lo = lo;
+  t.hi = hi;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  double now = 0.0, v = lo + (hi - lo) * U(rng);
+  t.knot_t.push_back(now);
+  t.knot_v.push_back(v);
+  while (now < 1200.0) {
+    // Ramp durations and holds spread log-uniformly so slow and fast both appear.
+    const double ramp = 0.05 * std::pow(60.0, U(rng));
+    const double hold = 0.1 * std::pow(30.0, U(rng));
+    v = lo + (hi - lo) * U(rng);
+    now += ramp;
+    t.knot_t.push_back(now);
+    t.knot_v.push_back(v);
+    now += hold;
+    t.knot_t.push_back(now);
+    t.knot_v.push_back(v);
+  }
+  t.duration = now;
+  return t;
+}
+
 Trajectory Trajectory::parse(const std::string& spec) {
   std::vector<std::string> parts;
   std::stringstream ss(spec);
@@ -95,7 +154,7 @@ Trajectory Trajectory::parse(const std::string& spec) {
   auto bad = [&](const std::string& why) {
     throw std::invalid_argument("trajectory '" + spec + "': " + why +
                                 " (forms: const:Y, sine:F:CENTRE:AMP, triangle:F:LO:HI, square:F:LO:HI, "
-                                "sawtooth:F:LO:HI, sinedesc:F:CENTRE:A0:A1:DURATION)");
+                                "sawtooth:F:LO:HI, sinedesc:F:CENTRE:A0:A1:DURATION, chirp:F0:F1:OFFSET:AMP:DURATION, random:SEED:LO:HI)");
   };
   if (parts.empty()) bad("empty");
   std::vector<double> v;
@@ -115,6 +174,12 @@ Trajectory Trajectory::parse(const std::string& spec) {
   if (k == "square") { need(3); return square(v[0], v[1], v[2]); }
   if (k == "sawtooth") { need(3); return sawtooth(v[0], v[1], v[2]); }
   if (k == "sinedesc") { need(5); return sineDescending(v[0], v[1], v[2], v[3], v[4]); }
+  if (k == "chirp") { need(5); return chirp(v[0], v[1], v[2], v[3], v[4]); }
+  if (k == "random") {
+    need(3);
+    if (v[0] < 0 || v[0] != std::floor(v[0])) bad("the seed must be a non-negative integer");
+    return randomRampHold(static_cast<std::uint64_t>(v[0]), v[1], v[2]);
+  }
   bad("unknown shape '" + k + "'");
   return {};
 }

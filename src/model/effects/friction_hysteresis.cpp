@@ -19,8 +19,8 @@ class FrictionHysteresis final : public Effect {
   int rank() const override { return 30; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
-        {"zmax", 0.0, 1000.0, 0.5, "y-unit"},  // friction force over stiffness
-        {"delta", 1e-4, 1000.0, 0.5, "y-unit"},  // pre-sliding travel
+        {"zmax", 0.0, 10.0, 0.5, "y-unit"},  // friction force over stiffness
+        {"delta", 0.01, 20.0, 0.5, "y-unit"},  // pre-sliding travel
     };
     return p;
   }

@@ -14,7 +14,7 @@ class Load final : public Effect {
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 10; }
   const std::vector<ParamSpec>& params() const override {
-    static const std::vector<ParamSpec> p = {{"compliance", -10.0, 10.0, 0.05, "y-unit per load-unit"}};
+    static const std::vector<ParamSpec> p = {{"compliance", -10.0, 10.0, 0.05, "y-unit/load-unit"}};
     return p;
   }
   int numStates() const override { return 0; }

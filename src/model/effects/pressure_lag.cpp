@@ -20,17 +20,18 @@ class PressureLag final : public Effect {
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
         {"tau", 1e-3, 2.0, 0.05, "s"},
-        {"slew", 1.0, 1000.0, 1000.0, "V/s"},
+        {"slew", 1.0, 1000.0, 1000.0, "u-unit/s"},
     };
     return p;
   }
-  int numStates() const override { return 1; }
-  void init(const double*, double* s, double in0, const StepContext&) const noexcept override { s[0] = in0; }
-  double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
-    const double tau = std::max(p[0], 1e-6);
-    double d = (in - s[0]) * (1.0 - std::exp(-c.Ts / tau));
-    const double lim = std::max(p[1], 0.0) * c.Ts;
-    d = std::clamp(d, -lim, lim);
+  int numStates() const override { return 3; }  // pressure (as command), cached: filter gain, step limit
+  void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
+    s[0] = in0;
+    s[1] = 1.0 - std::exp(-c.Ts / std::max(p[0], 1e-6));
+    s[2] = std::max(p[1], 0.0) * c.Ts;
+  }
+  double step(const double*, double* s, double in, const StepContext&) const noexcept override {
+    const double d = std::clamp((in - s[0]) * s[1], -s[2], s[2]);
     s[0] += d;
     return s[0];
   }

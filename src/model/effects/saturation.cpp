@@ -17,8 +17,8 @@ class Saturation final : public Effect {
   int rank() const override { return 20; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
-        {"knee", -1000.0, 1000.0, 30.0, "y-unit"},
-        {"width", 1e-3, 1000.0, 10.0, "y-unit"},
+        {"knee", 0.0, 40.0, 30.0, "y-level"},
+        {"width", 0.1, 80.0, 10.0, "y-unit"},
     };
     return p;
   }

@@ -1,0 +1,157 @@
+#include "canopen/heartbeat.hpp"
+
+#include "canopen/nmt.hpp"
+
+namespace pamc::canopen {
+
+namespace {
+constexpr std::uint16_t kConsumerHeartbeat = 0x1016;
+constexpr std::uint16_t kProducerHeartbeat = 0x1017;
+}  // namespace
+
+void HeartbeatProducer::registerHooks() {
+  if (ctx_.od.find(kProducerHeartbeat, 0) == nullptr) return;
+  ctx_.od.addObserver(kProducerHeartbeat, 0, [this](Entry&) { configure(ctx_.now); });
+}
+
+void HeartbeatProducer::configure(TimeUs now) {
+  const Entry* e = ctx_.od.find(kProducerHeartbeat, 0);
+  period_us_ = e != nullptr ? static_cast<TimeUs>(e->asUnsigned()) * 1000 : 0;
+  next_us_ = period_us_ > 0 ? now + period_us_ : kNever;
+}
+
+void HeartbeatProducer::advance(TimeUs now) {
+  if (next_us_ == kNever || now < next_us_) return;
+  if (ctx_.state != NmtState::Initialising) {
+    Frame f;
+    f.id = kHeartbeatCobIdBase + ctx_.node_id;
+    f.len = 1;
+    f.data[0] = static_cast<std::uint8_t>(ctx_.state);
+    ctx_.send(f);
+  }
+  next_us_ += period_us_;
+  // A late wake-up sends one heartbeat, not a burst of the missed ones.
+  if (next_us_ <= now) next_us_ = now + period_us_;
+}
+
+const char* heartbeatEventName(HeartbeatEvent e) {
+  switch (e) {
+    case HeartbeatEvent::Started: return "started";
+    case HeartbeatEvent::Timeout: return "timeout";
+    case HeartbeatEvent::BootUp: return "boot-up";
+    case HeartbeatEvent::StateChanged: return "state changed";
+  }
+  return "?";
+}
+
+void HeartbeatConsumer::registerHooks() {
+  const Entry* count = ctx_.od.find(kConsumerHeartbeat, 0);
+  if (count == nullptr) return;
+  slots_.resize(count->asUnsigned());
+  // Two entries for the same node are refused (CiA 301: general parameter incompatibility).
+  ctx_.od.addValidator(kConsumerHeartbeat, [this](const Entry& e, const std::uint8_t* d, std::size_t len) {
+    if (e.subIndex() == 0 || len != 4) return kSdoOk;
+    std::uint32_t v = getU32(d);
+    std::uint32_t node = (v >> 16) & 0xFF;
+    if ((v >> 24) != 0 || node > 127) return kAbortValueRange;
+    if (node == 0 || (v & 0xFFFF) == 0) return kSdoOk;
+    for (std::size_t i = 1; i <= slots_.size(); ++i) {
+      const Entry* other = ctx_.od.find(kConsumerHeartbeat, static_cast<std::uint8_t>(i));
+      if (other == nullptr || other == &e) continue;
+      auto ov = static_cast<std::uint32_t>(other->asUnsigned());
+      if (((ov >> 16) & 0xFF) == node && (ov & 0xFFFF) != 0) return kAbortParameterIncompatible;
+    }
+    return kSdoOk;
+  });
+  ctx_.od.addObserver(kConsumerHeartbeat, [this](Entry&) { configure(); });
+}
+
+void HeartbeatConsumer::configure() {
+  for (Slot& s : slots_) {
+    if (s.status != Status::Unused) ctx_.dispatcher.unsubscribe(kHeartbeatCobIdBase + s.node_id, this);
+    s = Slot{};
+  }
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    const Entry* e = ctx_.od.find(kConsumerHeartbeat, static_cast<std::uint8_t>(i + 1));
+    if (e == nullptr) continue;
+    auto v = static_cast<std::uint32_t>(e->asUnsigned());
+    auto node = static_cast<std::uint8_t>((v >> 16) & 0x7F);
+    std::uint32_t time_ms = v & 0xFFFF;
+    if (node == 0 || time_ms == 0 || node == ctx_.node_id) continue;
+    if (slotFor(node) != nullptr) continue;  // duplicates are refused on SDO write; ignore one from the EDS
+    Slot& s = slots_[i];
+    s.node_id = node;
+    s.timeout_us = static_cast<TimeUs>(time_ms) * 1000;
+    s.status = Status::Waiting;
+    ctx_.dispatcher.subscribe<&HeartbeatConsumer::onFrame>(kHeartbeatCobIdBase + node, this);
+  }
+}
+
+const HeartbeatConsumer::Slot* HeartbeatConsumer::slotFor(std::uint8_t node_id) const {
+  for (const Slot& s : slots_) {
+    if (s.status != Status::Unused && s.node_id == node_id) return &s;
+  }
+  return nullptr;
+}
+
+void HeartbeatConsumer::onFrame(const Frame& f, TimeUs now) {
+  if (f.len != 1) {
+    ++ctx_.counters.wrong_length;
+    return;
+  }
+  if (ctx_.state == NmtState::Initialising) return;
+  Slot* s = slotFor(static_cast<std::uint8_t>(f.id - kHeartbeatCobIdBase));
+  if (s == nullptr) return;
+  auto state = static_cast<NmtState>(f.data[0] & 0x7F);
+  if (state == NmtState::Initialising) {
+    // Boot-up: the node restarted; wait for its first heartbeat before timing it again.
+    s->state = state;
+    s->status = Status::Waiting;
+    emit(*s, HeartbeatEvent::BootUp, now);
+    return;
+  }
+  NmtState old = s->state;
+  s->state = state;
+  s->last_us = now;
+  if (s->status != Status::Active) {
+    s->status = Status::Active;
+    emit(*s, HeartbeatEvent::Started, now);
+  } else if (old != state) {
+    emit(*s, HeartbeatEvent::StateChanged, now);
+  }
+}
+
+void HeartbeatConsumer::advance(TimeUs now) {
+  for (Slot& s : slots_) {
+    if (s.status == Status::Active && now >= s.last_us + s.timeout_us) {
+      s.status = Status::TimedOut;
+      emit(s, HeartbeatEvent::Timeout, now);
+    }
+  }
+}
+
+TimeUs HeartbeatConsumer::nextDeadline() const {
+  TimeUs next = kNever;
+  for (const Slot& s : slots_) {
+    if (s.status == Status::Active && s.last_us + s.timeout_us < next) next = s.last_us + s.timeout_us;
+  }
+  return next;
+}
+
+NmtState HeartbeatConsumer::remoteState(std::uint8_t node_id) const {
+  const Slot* s = slotFor(node_id);
+  return s != nullptr ? s->state : NmtState::Initialising;
+}
+
+bool HeartbeatConsumer::timedOut(std::uint8_t node_id) const {
+  const Slot* s = slotFor(node_id);
+  return s != nullptr && s->status == Status::TimedOut;
+}
+
+std::size_t HeartbeatConsumer::monitoredCount() const {
+  std::size_t n = 0;
+  for (const Slot& s : slots_) n += s.status != Status::Unused ? 1 : 0;
+  return n;
+}
+
+}  // namespace pamc::canopen

@@ -1,0 +1,79 @@
+// Heartbeat (CiA 301, 7.2.8.3.2.2): producer (period 0x1017) and consumer (0x1016) with timeout events.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "canopen/service.hpp"
+
+namespace pamc::canopen {
+
+class HeartbeatProducer {
+ public:
+  explicit HeartbeatProducer(NodeContext& ctx) : ctx_(ctx) {}
+  // Reconfigures when an SDO writes 0x1017 (configuration time).
+  void registerHooks();
+  // Reads 0x1017 and schedules the next heartbeat one period after now.
+  void configure(TimeUs now);
+  void advance(TimeUs now);
+  TimeUs nextDeadline() const { return next_us_; }
+  TimeUs periodUs() const { return period_us_; }
+
+ private:
+  NodeContext& ctx_;
+  TimeUs period_us_ = 0;
+  TimeUs next_us_ = kNever;
+};
+
+enum class HeartbeatEvent : std::uint8_t {
+  Started,       // first heartbeat after configuration, boot-up or a timeout: monitoring runs
+  Timeout,       // no heartbeat within the consumer time
+  BootUp,        // the remote node sent its boot-up message (it was reset)
+  StateChanged,  // the NMT state in the heartbeat changed
+};
+const char* heartbeatEventName(HeartbeatEvent e);
+
+class HeartbeatConsumer {
+ public:
+  using EventHook = std::function<void(std::uint8_t node_id, HeartbeatEvent event, NmtState remote, TimeUs now)>;
+
+  explicit HeartbeatConsumer(NodeContext& ctx) : ctx_(ctx) {}
+  void setHook(EventHook hook) { hook_ = std::move(hook); }
+  // Sizes the monitor table from 0x1016 and installs the SDO validator/observer (configuration time).
+  void registerHooks();
+  // Reads 0x1016 and (re)subscribes to 0x700+node of every monitored node; monitoring restarts.
+  void configure();
+  void onFrame(const Frame& f, TimeUs now);
+  void advance(TimeUs now);
+  TimeUs nextDeadline() const;
+
+  // State last reported by a monitored node (Initialising if unknown or not monitored).
+  NmtState remoteState(std::uint8_t node_id) const;
+  bool timedOut(std::uint8_t node_id) const;
+  std::size_t monitoredCount() const;
+
+ private:
+  enum class Status : std::uint8_t { Unused, Waiting, Active, TimedOut };
+  struct Slot {
+    std::uint8_t node_id = 0;
+    TimeUs timeout_us = 0;
+    TimeUs last_us = 0;
+    NmtState state = NmtState::Initialising;
+    Status status = Status::Unused;
+  };
+  void emit(const Slot& s, HeartbeatEvent e, TimeUs now) {
+    if (hook_) hook_(s.node_id, e, s.state, now);
+  }
+  const Slot* slotFor(std::uint8_t node_id) const;
+  Slot* slotFor(std::uint8_t node_id) {
+    return const_cast<Slot*>(static_cast<const HeartbeatConsumer*>(this)->slotFor(node_id));
+  }
+
+  NodeContext& ctx_;
+  EventHook hook_;
+  std::vector<Slot> slots_;  // one per 0x1016 sub-index, sized once
+};
+
+}  // namespace pamc::canopen

@@ -1,0 +1,184 @@
+#include "canopen/node.hpp"
+
+#include <algorithm>
+
+#include "canopen/eds.hpp"
+
+namespace pamc::canopen {
+
+namespace {
+constexpr std::uint16_t kRpdoCommBase = 0x1400;
+constexpr std::uint16_t kRpdoMapBase = 0x1600;
+constexpr std::uint16_t kTpdoCommBase = 0x1800;
+constexpr std::uint16_t kTpdoMapBase = 0x1A00;
+constexpr unsigned kMaxPdos = 512;
+}  // namespace
+
+Node::Node(ObjectDictionary od, std::uint8_t node_id, Transport& transport, NodeOptions options)
+    : od_(std::move(od)),
+      ctx_{node_id, od_, dispatcher_, transport, counters_},
+      options_(options),
+      nmt_(ctx_),
+      heartbeat_producer_(ctx_),
+      heartbeat_consumer_(ctx_),
+      sync_(ctx_),
+      emcy_(ctx_),
+      sdo_server_(ctx_, options.sdo_timeout_us),
+      sdo_client_(ctx_, options.sdo_timeout_us, options.sdo_client_buffer) {
+  if (node_id == 0 || node_id > 127) throw OdError("node-ID must be 1..127, got " + std::to_string(node_id));
+
+  for (unsigned i = 0; i < kMaxPdos; ++i) {
+    auto comm = static_cast<std::uint16_t>(kRpdoCommBase + i);
+    if (!od_.hasObject(comm)) continue;
+    auto map = static_cast<std::uint16_t>(kRpdoMapBase + i);
+    if (!od_.hasObject(map)) throw OdError("RPDO" + std::to_string(i + 1) + ": mapping object missing");
+    rpdos_.push_back(std::make_unique<Rpdo>(ctx_, i + 1, comm, map));
+  }
+  for (unsigned i = 0; i < kMaxPdos; ++i) {
+    auto comm = static_cast<std::uint16_t>(kTpdoCommBase + i);
+    if (!od_.hasObject(comm)) continue;
+    auto map = static_cast<std::uint16_t>(kTpdoMapBase + i);
+    if (!od_.hasObject(map)) throw OdError("TPDO" + std::to_string(i + 1) + ": mapping object missing");
+    tpdos_.push_back(std::make_unique<Tpdo>(ctx_, i + 1, comm, map, options.tpdo_change_of_state));
+  }
+
+  nmt_.setHooks([this](NmtState from, NmtState to, TimeUs now) { handleStateChange(from, to, now); },
+                [this](NmtCommand cmd, TimeUs now) { handleReset(cmd, now); });
+  sync_.setHandler([this](std::uint8_t counter, TimeUs now) { handleSync(counter, now); });
+
+  // Hooks first (they are installed once), then the configuration they guard.
+  heartbeat_producer_.registerHooks();
+  heartbeat_consumer_.registerHooks();
+  sync_.registerHooks();
+  emcy_.registerHooks();
+  for (auto& p : rpdos_) p->registerHooks();
+  for (auto& p : tpdos_) p->registerHooks();
+
+  nmt_.subscribe();
+  sdo_server_.configure();
+  for (auto& p : rpdos_) p->configure();
+  for (auto& p : tpdos_) p->configure();
+  sync_.configure(0);
+  heartbeat_consumer_.configure();
+  emcy_.configure();  // last: the EMCY consumer only takes identifiers nobody else uses
+}
+
+std::unique_ptr<Node> Node::fromEds(const std::string& eds_path, Transport& transport, std::uint8_t node_id,
+                                    NodeOptions options) {
+  EdsFile eds = EdsFile::load(eds_path);
+  if (node_id == 0) node_id = eds.node_id;
+  if (node_id == 0) {
+    throw EdsError(eds_path, 0, "DeviceComissioning", "no node-ID given and no [DeviceComissioning] NodeID");
+  }
+  return std::make_unique<Node>(ObjectDictionary::fromEds(eds, node_id), node_id, transport, options);
+}
+
+void Node::onRpdoTimeout(Rpdo::TimeoutHook cb) {
+  for (auto& p : rpdos_) p->setTimeoutHook(cb);
+}
+
+Rpdo& Node::rpdo(unsigned number) {
+  for (auto& p : rpdos_) {
+    if (p->number() == number) return *p;
+  }
+  throw OdError("node " + std::to_string(ctx_.node_id) + " has no RPDO" + std::to_string(number));
+}
+
+Tpdo& Node::tpdo(unsigned number) {
+  for (auto& p : tpdos_) {
+    if (p->number() == number) return *p;
+  }
+  throw OdError("node " + std::to_string(ctx_.node_id) + " has no TPDO" + std::to_string(number));
+}
+
+void Node::start(TimeUs now) {
+  ctx_.now = now;
+  heartbeat_producer_.configure(now);
+  sync_.restart(now);
+  nmt_.bootUp(now);
+  if (options_.auto_operational) nmt_.apply(NmtCommand::Start, now);
+}
+
+void Node::onFrame(const Frame& frame, TimeUs now) {
+  ctx_.now = now;
+  ++counters_.rx_frames;
+  if (frame.error()) {
+    ++counters_.error_frames;
+    if (error_cb_) error_cb_(frame, now);
+    return;
+  }
+  if (frame.remote() || frame.extended()) {
+    ++counters_.unsupported_frames;
+    return;
+  }
+  if (ctx_.state == NmtState::Initialising) {
+    ++counters_.ignored_in_state;
+    return;
+  }
+  if (!dispatcher_.dispatch(frame, now)) ++counters_.unknown_cob_id;
+}
+
+void Node::advance(TimeUs now) {
+  ctx_.now = now;
+  if (ctx_.state == NmtState::Initialising) return;
+  heartbeat_consumer_.advance(now);
+  heartbeat_producer_.advance(now);
+  sync_.advance(now);
+  for (auto& p : rpdos_) p->advance(now);
+  for (auto& p : tpdos_) p->advance(now);
+  emcy_.advance(now);
+  sdo_server_.advance(now);
+  sdo_client_.advance(now);
+}
+
+TimeUs Node::nextDeadline() const {
+  if (ctx_.state == NmtState::Initialising) return kNever;
+  TimeUs next = std::min({heartbeat_consumer_.nextDeadline(), heartbeat_producer_.nextDeadline(),
+                          sync_.nextDeadline(), emcy_.nextDeadline(), sdo_server_.nextDeadline(),
+                          sdo_client_.nextDeadline()});
+  for (const auto& p : rpdos_) next = std::min(next, p->nextDeadline());
+  for (const auto& p : tpdos_) next = std::min(next, p->nextDeadline());
+  return next;
+}
+
+void Node::handleSync(std::uint8_t counter, TimeUs now) {
+  // Cycle order: SYNC -> latch RPDOs -> application callback -> TPDOs, so the application computes
+  // from the inputs of the previous cycle and its outputs leave in this one.
+  for (auto& p : rpdos_) p->onSync(now);
+  if (sync_cb_) sync_cb_(counter, now);
+  for (auto& p : tpdos_) p->onSync(counter, now);
+}
+
+void Node::handleStateChange(NmtState from, NmtState to, TimeUs now) {
+  if (to == NmtState::Operational) {
+    for (auto& p : tpdos_) p->start(now);
+  }
+  if (from == NmtState::Operational) {
+    for (auto& p : rpdos_) p->reset();
+  }
+  if (state_cb_) state_cb_(from, to, now);
+}
+
+void Node::handleReset(NmtCommand cmd, TimeUs now) {
+  // Without persistent storage a reset restores the EDS defaults: communication area for reset
+  // communication, everything for reset node.
+  if (cmd == NmtCommand::ResetNode) od_.restoreDefaults(0x2000, 0xFFFF);
+  od_.restoreDefaults(0x1000, 0x1FFF);
+  emcy_.clearAll();
+  if (reset_cb_) reset_cb_(cmd, now);
+  reconfigure(now);
+  nmt_.bootUp(now);
+}
+
+void Node::reconfigure(TimeUs now) {
+  sdo_server_.reset();
+  sdo_client_.abort(kAbortDeviceState);
+  for (auto& p : rpdos_) p->reconfigure();
+  for (auto& p : tpdos_) p->reconfigure();
+  sync_.configure(now);
+  heartbeat_producer_.configure(now);
+  heartbeat_consumer_.configure();
+  emcy_.configure();
+}
+
+}  // namespace pamc::canopen

@@ -1,0 +1,153 @@
+// PDO (CiA 301, 7.2.2): RPDOs (0x1400/0x1600) and TPDOs (0x1800/0x1A00) whose mapping is read from the
+// object dictionary and compiled into a copy table; no lookup or allocation per frame.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+
+#include "canopen/service.hpp"
+
+namespace pamc::canopen {
+
+inline constexpr std::uint32_t kPdoInvalidBit = 0x80000000;   // COB-ID bit 31: PDO does not exist
+inline constexpr std::uint32_t kPdoNoRtrBit = 0x40000000;     // COB-ID bit 30: no RTR allowed
+inline constexpr std::uint32_t kPdoExtendedBit = 0x20000000;  // COB-ID bit 29: 29-bit identifier (unsupported)
+inline constexpr std::uint8_t kPdoSyncAcyclic = 0;             // transmission type 0
+inline constexpr std::uint8_t kPdoSyncMax = 240;              // types 1..240: every n-th SYNC
+inline constexpr std::uint8_t kPdoEventManufacturer = 254;
+inline constexpr std::uint8_t kPdoEventProfile = 255;
+
+// Copy table between a PDO payload and OD storage, compiled from a mapping object.
+// Only byte-aligned mappings of numeric entries are supported (and dummy entries 0x0002-0x0007 in RPDOs).
+class PdoMap {
+ public:
+  // Compiles mapping object map_index; returns kSdoOk or an abort code, bad_value gets the offending entry.
+  std::uint32_t build(ObjectDictionary& od, std::uint16_t map_index, bool receive, std::uint32_t* bad_value);
+  // Checks one mapping value (index << 16 | sub << 8 | bits) without building.
+  static std::uint32_t check(const ObjectDictionary& od, std::uint32_t value, bool receive, std::uint8_t* bytes);
+  void encode(std::uint8_t* out) const;
+  void decode(const std::uint8_t* in) const;
+  std::uint8_t size() const { return size_; }
+  std::uint8_t count() const { return count_; }
+  void clear() { count_ = size_ = 0; }
+
+ private:
+  struct Field {
+    std::uint8_t* ptr;  // null for a dummy entry
+    std::uint8_t len;
+  };
+  std::array<Field, 8> fields_{};
+  std::uint8_t count_ = 0;
+  std::uint8_t size_ = 0;
+};
+
+class Rpdo {
+ public:
+  using TimeoutHook = std::function<void(unsigned number, TimeUs now)>;
+
+  // number is 1-based (RPDO1 uses 0x1400/0x1600).
+  Rpdo(NodeContext& ctx, unsigned number, std::uint16_t comm_index, std::uint16_t map_index)
+      : ctx_(ctx), number_(number), comm_(comm_index), map_index_(map_index) {}
+  void setTimeoutHook(TimeoutHook h) { timeout_hook_ = std::move(h); }
+  void registerHooks();
+  // Reads the communication and mapping parameters; throws OdError for an invalid mapping.
+  void configure();
+  // Same without throwing (run-time path after an SDO write); returns kSdoOk or why the PDO is off.
+  std::uint32_t reconfigure();
+
+  void onFrame(const Frame& f, TimeUs now);
+  // SYNC: applies data received since the previous SYNC (synchronous types) and updates freshness.
+  void onSync(TimeUs now);
+  void advance(TimeUs now);
+  TimeUs nextDeadline() const;
+  // Drops buffered data (leaving Operational).
+  void reset();
+
+  unsigned number() const { return number_; }
+  bool valid() const { return valid_; }
+  std::uint32_t cobId() const { return cob_id_; }
+  std::uint8_t transmissionType() const { return type_; }
+  bool synchronous() const { return type_ <= kPdoSyncMax; }
+  const PdoMap& map() const { return map_; }
+  std::uint64_t received() const { return received_; }
+  std::uint64_t wrongLength() const { return wrong_length_; }
+  // SYNCs since data last arrived (0: fresh this cycle); lets the application count missing PDOs.
+  std::uint32_t syncsSinceReception() const { return syncs_since_rx_; }
+  bool timedOut() const { return timed_out_; }  // event timer (deadline monitoring) expired
+  TimeUs lastReceptionUs() const { return last_rx_us_; }
+
+ private:
+  NodeContext& ctx_;
+  unsigned number_;
+  std::uint16_t comm_;
+  std::uint16_t map_index_;
+  TimeoutHook timeout_hook_;
+  PdoMap map_;
+  bool valid_ = false;
+  bool subscribed_ = false;
+  std::uint32_t cob_id_ = 0;
+  std::uint8_t type_ = kPdoEventManufacturer;
+  TimeUs event_timer_us_ = 0;
+  std::uint8_t pending_[8] = {};
+  bool has_pending_ = false;
+  bool rx_since_sync_ = false;
+  bool timed_out_ = false;
+  TimeUs last_rx_us_ = kNever;
+  std::uint64_t received_ = 0;
+  std::uint64_t wrong_length_ = 0;
+  std::uint32_t syncs_since_rx_ = 0;
+};
+
+class Tpdo {
+ public:
+  // change_of_state: event-driven TPDOs also send when their mapped data changed (checked in advance()).
+  Tpdo(NodeContext& ctx, unsigned number, std::uint16_t comm_index, std::uint16_t map_index, bool change_of_state)
+      : ctx_(ctx), number_(number), comm_(comm_index), map_index_(map_index), change_of_state_(change_of_state) {}
+  void registerHooks();
+  void configure();
+  std::uint32_t reconfigure();
+
+  // SYNC: synchronous types count SYNCs and send (after the application callback has run).
+  void onSync(std::uint8_t counter, TimeUs now);
+  void advance(TimeUs now);
+  TimeUs nextDeadline() const;
+  // Application event: event-driven types send as soon as the inhibit time allows, type 0 on the next SYNC.
+  void request() { pending_ = true; }
+  // Entering Operational: event-driven PDOs send once, synchronous counters restart.
+  void start(TimeUs now);
+
+  unsigned number() const { return number_; }
+  bool valid() const { return valid_; }
+  std::uint32_t cobId() const { return cob_id_; }
+  std::uint8_t transmissionType() const { return type_; }
+  bool synchronous() const { return type_ <= kPdoSyncMax; }
+  const PdoMap& map() const { return map_; }
+  std::uint64_t sent() const { return sent_; }
+
+ private:
+  bool eventDriven() const { return type_ >= kPdoEventManufacturer; }
+  bool changed() const;
+  void transmit(TimeUs now);
+  NodeContext& ctx_;
+  unsigned number_;
+  std::uint16_t comm_;
+  std::uint16_t map_index_;
+  bool change_of_state_;
+  PdoMap map_;
+  bool valid_ = false;
+  std::uint32_t cob_id_ = 0;
+  std::uint8_t type_ = kPdoEventManufacturer;
+  TimeUs inhibit_us_ = 0;
+  TimeUs event_timer_us_ = 0;
+  std::uint8_t sync_start_ = 0;
+  bool waiting_for_start_ = false;
+  std::uint8_t sync_count_ = 0;
+  bool pending_ = false;
+  bool has_sent_ = false;
+  TimeUs last_tx_us_ = 0;
+  std::uint8_t last_[8] = {};
+  std::uint64_t sent_ = 0;
+};
+
+}  // namespace pamc::canopen

@@ -1,0 +1,87 @@
+#include "diagnose/compare.hpp"
+
+#include <sys/stat.h>
+
+#include <stdexcept>
+
+#include "sim/figures.hpp"
+
+namespace pamc::diagnose {
+
+Comparison compare(const model::Model& m, const io::Measurement& d) {
+  if (m.needsLoad() && !d.has("load"))
+    throw std::invalid_argument(d.source + ": the model has the 'load' effect but the data has no 'load' column");
+  Comparison c;
+  const auto* load = d.column("load");
+  c.y_model.resize(d.size());
+  m.simulate(d.u.data(), load ? load->data() : nullptr, d.size(), d.Ts, c.y_model.data());
+  c.report = analyze(d, c.y_model);
+  return c;
+}
+
+nlohmann::json toJson(const Comparison& c) {
+  const auto& r = c.report;
+  nlohmann::json bins = nlohmann::json::array();
+  for (const auto& b : r.bins) bins.push_back({{"group", b.group}, {"label", b.label}, {"n", b.n}, {"rmse", b.rmse}, {"mean", b.mean}});
+  return {{"samples", r.n},  {"rmse", r.rmse}, {"max_abs", r.max_abs}, {"fit_pct", r.fit_pct},
+          {"mean", r.mean},  {"noise_floor", r.noise_floor}, {"breakdown", bins}, {"indicators", r.ind},
+          {"acf", r.acf},    {"ccf_du", r.ccf_du}, {"conf", r.conf}, {"lag_step_s", r.lag_step_s}};
+}
+
+void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::string& warnings) {
+  ::mkdir(dir.c_str(), 0755);
+  struct stat sb {};
+  if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(dir + ": cannot create the report directory");
+  const std::string p = dir + "/";
+  std::vector<double> e(d.size());
+  for (size_t i = 0; i < d.size(); ++i) e[i] = d.y[i] - c.y_model[i];
+  io::writeCsvAtomic(p + "compare.csv", {"t", "u", "y", "y_model", "residual"}, {&d.t, &d.u, &d.y, &c.y_model, &e});
+  const auto& r = c.report;
+  std::vector<double> lag, acf, up, dn, clag, ccf, cup, cdn;
+  for (size_t i = 0; i < r.acf.size(); ++i) {
+    lag.push_back(static_cast<double>(i) * r.lag_step_s);
+    acf.push_back(r.acf[i]);
+    up.push_back(r.conf);
+    dn.push_back(-r.conf);
+  }
+  for (size_t i = 0; i < r.ccf_du.size(); ++i) {
+    clag.push_back((static_cast<double>(i) - r.max_lag) * r.lag_step_s);
+    ccf.push_back(r.ccf_du[i]);
+    cup.push_back(r.conf);
+    cdn.push_back(-r.conf);
+  }
+  io::writeCsvAtomic(p + "acf.csv", {"lag_s", "acf", "upper", "lower"}, {&lag, &acf, &up, &dn});
+  io::writeCsvAtomic(p + "ccf.csv", {"lag_s", "ccf", "upper", "lower"}, {&clag, &ccf, &cup, &cdn});
+  {
+    std::string t = "group,label,n,rmse,mean\n";
+    for (const auto& b : r.bins)
+      t += b.group + "," + b.label + "," + std::to_string(b.n) + "," + std::to_string(b.rmse) + "," + std::to_string(b.mean) + "\n";
+    io::writeFileAtomic(p + "breakdown.csv", t);
+  }
+  io::writeFileAtomic(p + "compare.json", toJson(c).dump(2) + "\n");
+  if (!sim::haveGnuplot()) {
+    warnings = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
+    return;
+  }
+  std::string err;
+  const std::string cc = p + "compare.csv";
+  char title[200];
+  std::snprintf(title, sizeof title, "%s: RMSE %.4g, max %.4g, fit %.1f %%", d.source.c_str(), r.rmse, r.max_abs, r.fit_pct);
+  if (!sim::renderFigure(p + "compare.png", title,
+                         {{"measured and model over time", "t [s]", "y", {{cc, "t", "y", "measured"}, {cc, "t", "y_model", "model"}}},
+                          {"loops: y against u", "u", "y", {{cc, "u", "y", "measured"}, {cc, "u", "y_model", "model"}}},
+                          {"residual over time", "t [s]", "y - model", {{cc, "t", "residual", "residual"}}}},
+                         err))
+    warnings += err + "; ";
+  if (!sim::renderFigure(p + "residual_tests.png", "Residual tests with 95 % bounds",
+                         {{"auto-correlation of the residual", "lag [s]", "acf",
+                           {{p + "acf.csv", "lag_s", "acf", "acf"}, {p + "acf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
+                            {p + "acf.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}},
+                          {"cross-correlation of the residual with the input increments", "lag [s]", "ccf",
+                           {{p + "ccf.csv", "lag_s", "ccf", "ccf"}, {p + "ccf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
+                            {p + "ccf.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}}},
+                         err))
+    warnings += err + "; ";
+}
+
+}  // namespace pamc::diagnose

@@ -1,0 +1,308 @@
+#include "diagnose/diagnose.hpp"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <mutex>
+#include <thread>
+
+#include "io/model_file.hpp"
+#include "sim/figures.hpp"
+
+namespace pamc::diagnose {
+
+namespace {
+
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+double seconds(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Where the validation error is measured.
+struct Validation {
+  const io::Measurement* data;
+  size_t from;
+  double rmse(const model::Model& m) const { return ident::rmseFrom(m, *data, from); }
+};
+
+std::vector<double> simulate(const model::Model& m, const io::Measurement& d) {
+  const auto* load = d.column("load");
+  std::vector<double> y(d.size());
+  m.simulate(d.u.data(), load ? load->data() : nullptr, d.size(), d.Ts, y.data());
+  return y;
+}
+
+std::string join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : " + ") + x;
+  return s.empty() ? "(reference model)" : s;
+}
+
+}  // namespace
+
+DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val, const DiagnoseSettings& s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto log = [&](const std::string& m) {
+    if (s.log) s.log(m);
+  };
+  DiagnoseResult res;
+  io::Measurement train;
+  Validation v{};
+  if (val) {
+    train = data;
+    v = {val, 0};
+    res.validation = val->source;
+  } else {
+    if (!(s.holdout > 0.05 && s.holdout < 0.95)) throw std::invalid_argument("holdout fraction must be in (0.05, 0.95)");
+    const auto n_train = static_cast<size_t>(static_cast<double>(data.size()) * (1.0 - s.holdout));
+    if (n_train < 50 || data.size() - n_train < 50)
+      throw std::invalid_argument(data.source + ": too few samples to hold out a validation part; give --validate");
+    train = data.slice(0, n_train);
+    v = {&data, n_train};
+    res.validation = "held out: the last " + fmt("%.0f", 100 * s.holdout) + " % of " + data.source;
+  }
+  res.samples = train.size();
+  res.val_samples = v.data->size() - v.from;
+  const int threads = s.threads > 0 ? s.threads : ident::defaultThreads();
+
+  std::vector<std::string> pool = s.candidates;
+  if (pool.empty())
+    for (const auto& e : model::catalogue()) pool.emplace_back(e.name);
+  for (const auto& c : pool) (void)model::makeEffect(c);  // unknown names fail here, listing the known ones
+  const bool have_load = train.has("load") && v.data->has("load");
+  pool.erase(std::remove_if(pool.begin(), pool.end(),
+                            [&](const std::string& c) { return model::makeEffect(c)->needsLoad() && !have_load; }),
+             pool.end());
+
+  // Baseline: the reference model, full GA.
+  log("fitting the reference model (Bouc-Wen) on " + std::to_string(train.size()) + " samples ...");
+  ident::FitSettings base;
+  base.ga.seed = s.seed;
+  base.ga.threads = threads;
+  base.ga.population = 40;
+  base.ga.max_generations = 100;
+  base.ga.stall_generations = 20;
+  base.refine_evals = 300;
+  auto bt = std::chrono::steady_clock::now();
+  const auto b = ident::fit(model::Model{}, train, base);
+  Rung rung{{}, b.rmse, v.rmse(b.model), b.model};
+  res.ladder.push_back(rung);
+  log("  reference model: RMSE train " + fmt("%.5g", rung.rmse_train) + ", validation " + fmt("%.5g", rung.rmse_val) +
+      " (" + fmt("%.1f", seconds(bt)) + " s)");
+  res.baseline_residual = analyze(train, simulate(b.model, train));
+
+  // Candidates are screened on at most kScreen training samples (the start of the record); the
+  // winner is then polished on all of it.
+  constexpr size_t kScreen = 50000;
+  const io::Measurement screen = train.size() > kScreen ? train.slice(0, kScreen) : train;
+  std::string stop_reason = "the catalogue is exhausted";
+  // Sensor noise of the training and validation outputs: below about 1.5x it nothing is left to explain.
+  double noise = res.baseline_residual.noise_floor;
+  {
+    io::Measurement vv = v.data->slice(v.from, v.data->size());
+    noise = std::max(noise, analyze(vv, std::vector<double>(vv.size(), 0.0)).noise_floor);
+  }
+  for (int round = 1; round <= s.max_effects; ++round) {
+    const Rung& cur = res.ladder.back();
+    if (cur.rmse_val < 1.5 * noise) {
+      stop_reason = "the validated error is at the sensor noise level (" + fmt("%.3g", noise) + " rms)";
+      break;
+    }
+    std::vector<std::string> todo;
+    for (const auto& c : pool)
+      if (!cur.model.hasEffect(c)) todo.push_back(c);
+    if (todo.empty()) break;
+    const ResidualReport rr = round == 1 ? res.baseline_residual : analyze(train, simulate(cur.model, train));
+    log("round " + std::to_string(round) + ": trying " + std::to_string(todo.size()) + " effects on top of " +
+        join(cur.effects));
+    std::vector<CandidateResult> results(todo.size());
+    std::atomic<size_t> next{0};
+    std::mutex log_mu;
+    auto worker = [&] {
+      for (size_t i = next++; i < todo.size(); i = next++) {
+        const auto ct = std::chrono::steady_clock::now();
+        model::Model structure = cur.model;
+        structure.addEffect(todo[i]);
+        ident::FitSettings fs;
+        fs.ga.population = 32;
+        fs.ga.max_generations = 30;
+        fs.ga.stall_generations = 10;
+        fs.ga.threads = 1;
+        fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
+        fs.lm_iterations = 30;
+        fs.refine_evals = 200;
+        const auto f = ident::fit(structure, screen, fs, {}, &cur.model);
+        CandidateResult& c = results[i];
+        c.effect = todo[i];
+        c.model = f.model;
+        c.rmse_train = screen.size() == train.size() ? f.rmse : ident::rmseFrom(f.model, train);
+        c.rmse_val = v.rmse(f.model);
+        c.evidence = effectEvidence(todo[i], rr);
+        c.seconds = seconds(ct);
+        std::lock_guard<std::mutex> lk(log_mu);
+        log("  " + todo[i] + std::string(todo[i].size() < 20 ? 20 - todo[i].size() : 0, ' ') + " train " + fmt("%-10.5g", c.rmse_train) + " validation " +
+            fmt("%-10.5g", c.rmse_val) + " (" + fmt("%.1f", c.seconds) + " s)");
+      }
+    };
+    std::vector<std::thread> ts;
+    for (int w = 0; w < std::min<int>(threads, static_cast<int>(todo.size())); ++w) ts.emplace_back(worker);
+    for (auto& t : ts) t.join();
+    std::stable_sort(results.begin(), results.end(),
+                     [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
+    res.rounds.push_back(results);
+    const auto& best = results.front();
+    const double gain = 1.0 - best.rmse_val / cur.rmse_val;
+    if (!(gain >= s.min_gain)) {
+      stop_reason = gain > 0 ? "the best candidate, " + best.effect + ", lowers the validated RMSE by only " +
+                                   fmt("%.1f", 100 * gain) + " % (at least " + fmt("%.0f", 100 * s.min_gain) + " % needed)"
+                             : "no candidate lowers the validated RMSE";
+      break;
+    }
+    Rung next_rung{cur.effects, best.rmse_train, best.rmse_val, best.model};
+    {
+      // Refit the winner properly on the whole training record (the screening fit was short).
+      ident::FitSettings ps;
+      ps.ga.population = 32;
+      ps.ga.max_generations = 40;
+      ps.ga.stall_generations = 12;
+      ps.ga.threads = threads;
+      ps.ga.seed = s.seed + static_cast<std::uint64_t>(round);
+      ps.lm_iterations = 40;
+      ps.refine_evals = 200;
+      const auto f = ident::fit(best.model, train, ps, {}, &best.model);
+      const double rv = v.rmse(f.model);
+      if (rv <= best.rmse_val) next_rung = Rung{cur.effects, f.rmse, rv, f.model};
+    }
+    next_rung.effects.push_back(best.effect);
+    res.ladder.push_back(next_rung);
+    log("  -> added " + best.effect + ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " + fmt("%.5g", next_rung.rmse_val) +
+        " (" + fmt("%.1f", 100 * gain) + " % lower)");
+    if (round == s.max_effects) stop_reason = "the limit of " + std::to_string(s.max_effects) + " effects was reached";
+  }
+  const Rung& fin = res.ladder.back();
+  res.final_residual = analyze(train, simulate(fin.model, train));
+  std::string v_text;
+  if (res.ladder.size() == 1) {
+    v_text = "No effect in the catalogue explains the residual: " + stop_reason + ".";
+  } else {
+    v_text = "Added " + join(fin.effects) + ": validated RMSE " + fmt("%.4g", res.ladder.front().rmse_val) + " -> " +
+             fmt("%.4g", fin.rmse_val) + " (" + fmt("%.1f", res.ladder.front().rmse_val / std::max(fin.rmse_val, 1e-300)) +
+             "x lower). Stopped: " + stop_reason + ".";
+  }
+  if (noise > 0 && fin.rmse_train < 2.0 * noise)
+    v_text += " The remaining training error (" + fmt("%.3g", fin.rmse_train) + ") is at the sensor noise level (" +
+              fmt("%.3g", noise) + " rms): nothing systematic is left to explain.";
+  else if (noise > 0)
+    v_text += " The remaining training error (" + fmt("%.3g", fin.rmse_train) + ") is " +
+              fmt("%.0f", fin.rmse_train / noise) + "x the sensor noise (" + fmt("%.3g", noise) +
+              " rms): something systematic is left that the catalogue does not capture.";
+  res.verdict = v_text;
+  res.seconds = seconds(t0);
+  return res;
+}
+
+nlohmann::json toJson(const DiagnoseResult& r) {
+  nlohmann::json j;
+  j["samples"] = r.samples;
+  j["validation_samples"] = r.val_samples;
+  j["validation"] = r.validation;
+  j["baseline"] = {{"rmse_train", r.ladder.front().rmse_train}, {"rmse_val", r.ladder.front().rmse_val}};
+  nlohmann::json c = nlohmann::json::array();
+  if (!r.rounds.empty())
+    for (const auto& x : r.rounds.front())
+      c.push_back({{"effect", x.effect}, {"rmse_val", x.rmse_val}, {"rmse_train", x.rmse_train},
+                   {"evidence", x.evidence.text}, {"evidence_strength", x.evidence.strength}});
+  j["candidates"] = c;
+  nlohmann::json l = nlohmann::json::array();
+  for (const auto& g : r.ladder) l.push_back({{"effects", g.effects}, {"rmse_train", g.rmse_train}, {"rmse_val", g.rmse_val}});
+  j["ladder"] = l;
+  j["model"] = io::modelToJson(r.ladder.back().model);
+  j["verdict"] = r.verdict;
+  j["seconds"] = r.seconds;
+  return j;
+}
+
+void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io::Measurement* val,
+                 const DiagnoseSettings& /*s*/, const std::string& dir, std::string& warnings) {
+  ::mkdir(dir.c_str(), 0755);
+  struct stat sb {};
+  if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(dir + ": cannot create the report directory");
+  const std::string p = dir + "/";
+  // Ladder.
+  {
+    std::vector<double> rung, tr, va;
+    std::string labels;
+    for (size_t i = 0; i < r.ladder.size(); ++i) {
+      rung.push_back(static_cast<double>(i));
+      tr.push_back(r.ladder[i].rmse_train);
+      va.push_back(r.ladder[i].rmse_val);
+    }
+    io::writeCsvAtomic(p + "ladder.csv", {"rung", "rmse_train", "rmse_val"}, {&rung, &tr, &va});
+  }
+  // Measured vs baseline vs final on the validation data.
+  const io::Measurement& vd = val ? *val : data;
+  const auto yb = simulate(r.ladder.front().model, vd);
+  const auto yf = simulate(r.ladder.back().model, vd);
+  std::vector<double> eb(vd.size()), ef(vd.size());
+  for (size_t i = 0; i < vd.size(); ++i) eb[i] = vd.y[i] - yb[i], ef[i] = vd.y[i] - yf[i];
+  io::writeCsvAtomic(p + "validation.csv", {"t", "u", "y", "y_reference", "y_final", "e_reference", "e_final"},
+                     {&vd.t, &vd.u, &vd.y, &yb, &yf, &eb, &ef});
+  // Residual tests of the baseline and the final model (training data).
+  for (const auto& [name, rep] : {std::pair<std::string, const ResidualReport*>{"reference", &r.baseline_residual},
+                                  {"final", &r.final_residual}}) {
+    std::vector<double> lag, acf, up, dn;
+    for (size_t i = 0; i < rep->acf.size(); ++i) {
+      lag.push_back(static_cast<double>(i) * rep->lag_step_s);
+      acf.push_back(rep->acf[i]);
+      up.push_back(rep->conf);
+      dn.push_back(-rep->conf);
+    }
+    std::vector<double> clag, ccf;
+    for (size_t i = 0; i < rep->ccf_du.size(); ++i) {
+      clag.push_back((static_cast<double>(i) - rep->max_lag) * rep->lag_step_s);
+      ccf.push_back(rep->ccf_du[i]);
+    }
+    std::vector<double> cup(clag.size(), rep->conf), cdn(clag.size(), -rep->conf);
+    io::writeCsvAtomic(p + "acf_" + name + ".csv", {"lag_s", "acf", "upper", "lower"}, {&lag, &acf, &up, &dn});
+    io::writeCsvAtomic(p + "ccf_" + name + ".csv", {"lag_s", "ccf", "upper", "lower"}, {&clag, &ccf, &cup, &cdn});
+  }
+  io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", toJson(r)["ladder"]}});
+  io::writeFileAtomic(p + "diagnosis.json", toJson(r).dump(2) + "\n");
+  if (!sim::haveGnuplot()) {
+    warnings = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
+    return;
+  }
+  std::string err;
+  const std::string vcsv = p + "validation.csv";
+  auto fig = [&](const std::string& png, const std::string& title, const std::vector<sim::Panel>& panels) {
+    if (!sim::renderFigure(p + png, title, panels, err)) warnings += err + "; ";
+  };
+  fig("ladder.png", "Error ladder: " + r.verdict.substr(0, 90),
+      {{"RMSE after each added effect (0 = reference model)", "rung", "RMSE",
+        {{p + "ladder.csv", "rung", "rmse_train", "training", "linespoints lw 2 pt 7"},
+         {p + "ladder.csv", "rung", "rmse_val", "validation", "linespoints lw 2 pt 5"}}}});
+  fig("validation.png", "Validation data: measured, reference model and final model (" + join(r.ladder.back().effects) + ")",
+      {{"measured and models over time", "t [s]", "y", {{vcsv, "t", "y", "measured"}, {vcsv, "t", "y_reference", "reference model"}, {vcsv, "t", "y_final", "final model"}}},
+       {"loops: y against u", "u", "y", {{vcsv, "u", "y", "measured"}, {vcsv, "u", "y_reference", "reference model"}, {vcsv, "u", "y_final", "final model"}}},
+       {"residual over time", "t [s]", "y - model", {{vcsv, "t", "e_reference", "reference model"}, {vcsv, "t", "e_final", "final model"}}}});
+  fig("residual_tests.png", "Residual tests (training data) with 95 % bounds",
+      {{"auto-correlation of the residual", "lag [s]", "acf",
+        {{p + "acf_reference.csv", "lag_s", "acf", "reference model"}, {p + "acf_final.csv", "lag_s", "acf", "final model"},
+         {p + "acf_reference.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
+         {p + "acf_reference.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}},
+       {"cross-correlation of the residual with the input increments", "lag [s]", "ccf",
+        {{p + "ccf_reference.csv", "lag_s", "ccf", "reference model"}, {p + "ccf_final.csv", "lag_s", "ccf", "final model"},
+         {p + "ccf_reference.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
+         {p + "ccf_reference.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}}});
+}
+
+}  // namespace pamc::diagnose

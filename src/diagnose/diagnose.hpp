@@ -1,0 +1,65 @@
+// The modelling loop: fit the reference model, look at where it fails, try every physical effect
+// of the catalogue on the training data, keep the one that lowers the *validated* error most, and
+// repeat until no candidate helps by a meaningful margin.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "diagnose/residual.hpp"
+#include "ident/identify.hpp"
+#include "io/measurement.hpp"
+#include "model/model.hpp"
+
+namespace pamc::diagnose {
+
+struct DiagnoseSettings {
+  double holdout = 0.3;      // fraction held out at the end when no validation file is given
+  int max_effects = 4;       // rungs above the baseline
+  double min_gain = 0.10;    // a candidate must lower the validated RMSE by this fraction
+  std::vector<std::string> candidates;  // empty: the whole catalogue
+  std::uint64_t seed = 1;
+  int threads = 0;           // 0: all cores
+  std::function<void(const std::string&)> log;
+};
+
+struct CandidateResult {
+  std::string effect;
+  double rmse_train = 0, rmse_val = 0;
+  Evidence evidence;
+  model::Model model;
+  double seconds = 0;
+};
+
+struct Rung {
+  std::vector<std::string> effects;
+  double rmse_train = 0, rmse_val = 0;
+  model::Model model;
+};
+
+struct DiagnoseResult {
+  size_t samples = 0;          // training samples
+  size_t val_samples = 0;
+  std::string validation;      // "held out: last 30 % of DATA" or the file name
+  std::vector<Rung> ladder;    // [0] is the baseline (reference model)
+  std::vector<std::vector<CandidateResult>> rounds;  // candidates per round, best first
+  ResidualReport baseline_residual, final_residual;  // on the training data
+  std::string verdict;
+  double seconds = 0;
+};
+
+// Validation: `val` if given, else the last `holdout` of `data` (scored in continuity with the
+// training part, so the model enters it in the right state).
+DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val, const DiagnoseSettings& s);
+
+// The stable JSON of `pamc diagnose --json`.
+nlohmann::json toJson(const DiagnoseResult& r);
+
+// Writes figures and CSVs of a diagnosis into dir (created if missing).
+void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io::Measurement* val,
+                 const DiagnoseSettings& s, const std::string& dir, std::string& warnings);
+
+}  // namespace pamc::diagnose

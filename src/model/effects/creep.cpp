@@ -1,0 +1,41 @@
+// creep: the rubber is viscoelastic - under a held pressure the muscle keeps drifting slowly
+// towards a further fraction of its displacement.
+#include <algorithm>
+#include <cmath>
+
+#include "model/effect.hpp"
+
+namespace pamc::model {
+namespace {
+
+class Creep final : public Effect {
+ public:
+  const char* name() const override { return "creep"; }
+  const char* explanation() const override {
+    return "slow viscoelastic drift of the rubber under a held pressure";
+  }
+  Stage stage() const override { return Stage::Output; }
+  int rank() const override { return 25; }
+  const std::vector<ParamSpec>& params() const override {
+    static const std::vector<ParamSpec> p = {
+        {"fraction", -0.5, 0.5, 0.05, "-"},  // extra displacement per unit of displacement, at rest
+        {"tau", 0.2, 200.0, 5.0, "s"},
+    };
+    return p;
+  }
+  int numStates() const override { return 3; }  // drift z, reference input, cached filter gain
+  void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
+    s[0] = 0.0;
+    s[1] = in0;
+    s[2] = 1.0 - std::exp(-c.Ts / std::max(p[1], 1e-6));
+  }
+  double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
+    // z relaxes towards fraction x (displacement since start): a first-order creep function.
+    s[0] += s[2] * (p[0] * (in - s[1]) - s[0]);
+    return in + s[0];
+  }
+};
+
+}  // namespace
+std::unique_ptr<Effect> make_creep() { return std::make_unique<Creep>(); }
+}  // namespace pamc::model
