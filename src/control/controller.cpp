@@ -91,6 +91,7 @@ void validate(const ControllerConfig& c) {
     if (!std::isfinite(g) || g < 0) bad("gains must be finite and non-negative");
   if (!(c.delta > 0) || !(c.b0 > 0)) bad("ESO delta and b0 must be positive");
   if (c.delay_cycles < 0 || c.delay_cycles > 7) bad("delay_cycles must be 0..7");
+  if (c.amc_horizon < 1 || c.amc_horizon > 2000) bad("amc_horizon must be 1..2000 samples");
 }
 
 // The commands of the last few cycles, to tell the estimators which one was in effect when a
@@ -188,7 +189,9 @@ class PiAmc final : public Controller {
     am_.configure(c.model, c.ukf, c.Ts);
   }
   Kind kind() const override { return Kind::PiAmc; }
+  int lookahead() const override { return cfg_.amc_horizon; }
   void activate(double u0, double) noexcept override {
+    un_prev_ = u0;
     pi_.reset(u0);
     am_.reset(u0);
     hist_.fill(u0);
@@ -209,9 +212,16 @@ class PiAmc final : public Controller {
     model::StepContext ctx;
     ctx.Ts = cfg_.Ts;
     ctx.load = load;
-    const double un_eff = cfg_.model.inputStage(nom_, un, ctx);
-    const double y_next = am_.predictNext(un_eff_prev_, un_eff, load);
-    un_eff_prev_ = un_eff;
+    double y_next;
+    if (cfg_.amc_horizon <= 1) {
+      const double un_eff = cfg_.model.inputStage(nom_, un, ctx);
+      y_next = am_.predictNext(un_eff_prev_, un_eff, load);
+      un_eff_prev_ = un_eff;
+    } else {
+      // Roll out from the last command sent plus the nominal controller's change.
+      y_next = am_.predictAhead(hist_.get(0) + (un - un_prev_), cfg_.amc_horizon, load);
+    }
+    un_prev_ = un;
     // Compensation, eq. (18), and total command, eqs. (14)/(19).
     o.u_c = std::isfinite(y_next) ? cfg_.kc * (yd_next - y_next) : 0.0;
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
@@ -226,6 +236,7 @@ class PiAmc final : public Controller {
   CommandHistory hist_;
   model::Model::State nom_;
   double un_eff_prev_ = 0.0;
+  double un_prev_ = 0.0;
 };
 
 // PID + extended state observer, eqs. (22)-(25).

@@ -35,6 +35,9 @@ struct ControllerConfig {
   double kp = 0.1;                   // [V/mm]
   double ki = 0.15;                  // [V/(mm s)], see above
   double kc = 0.06;                  // [V/mm]
+  // AMC prediction horizon in samples: 1 is eq. (17); longer horizons roll the model out so that
+  // its lags and delays shape the compensation (see docs/CONTROL.md).
+  int amc_horizon = 1;
   // ESO, eq. (24): fal() with delta in mm; b0 [mm/(s^2 V)] is the input gain the observer
   // assumes (the paper's eq. (22) has b0 = 1).
   double beta1 = 100.0, beta2 = 100.0, beta3 = 100.0, delta = 500.0, b0 = 1.0;
@@ -59,9 +62,11 @@ class Controller {
  public:
   virtual ~Controller() = default;
   virtual Kind kind() const = 0;
+  // How many samples ahead `yd_next` of update() should be (the AMC's prediction horizon).
+  virtual int lookahead() const { return 1; }
   // Rest at command u0 with measured position y0.
   virtual void activate(double u0, double y0) noexcept = 0;
-  // One cycle: setpoint now and one cycle ahead, measured position (and load if measured).
+  // One cycle: setpoint now and lookahead() cycles ahead, measured position (and load if measured).
   virtual ControlOutput update(double yd, double yd_next, double y, double load = 0.0) noexcept = 0;
 };
 

@@ -86,4 +86,24 @@ double ActiveModel::predictNext(double u_eff_prev, double u_eff_next, double loa
   return y_post_ + (y1 - y0);
 }
 
+double ActiveModel::predictAhead(double u_hold, int horizon, double load) const noexcept {
+  model::StepContext c;
+  c.Ts = Ts_;
+  c.load = load;
+  model::Model::State s = st_;
+  double h = ukf_.x()(0);
+  const double f = ukf_.x()(1);
+  double du = du_pending_;
+  double y = y_post_;
+  for (int i = 0; i < horizon; ++i) {
+    h = model::boucWenNext(model_.core(), h, du, f, Ts_);
+    const double ue = model_.inputStage(s, u_hold, c);
+    c.u_eff = ue;
+    y = model_.outputStage(s, model_.coreOutput(ue, h), c);
+    du = ue - s.u_eff_prev;
+    s.u_eff_prev = ue;
+  }
+  return y;
+}
+
 }  // namespace pamc::estimation

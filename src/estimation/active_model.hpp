@@ -43,6 +43,10 @@ class ActiveModel {
   // current posterior, in effective-input units (after the model's input effects).
   double predictNext(double u_eff_prev, double u_eff_next, double load) const noexcept;
 
+  // Output `horizon` samples ahead if the command u_hold is applied from the next sample on: the
+  // model rolled out from the posterior [h, f_h] and its effect states (lags, delays, inertia).
+  double predictAhead(double u_hold, int horizon, double load) const noexcept;
+
   const Filter& filter() const { return ukf_; }
   const model::Model::State& modelState() const { return st_; }
   double Ts() const { return Ts_; }

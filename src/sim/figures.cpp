@@ -50,7 +50,7 @@ bool renderFigure(const std::string& png, const std::string& title, const std::v
   gp << "set terminal pngcairo size " << width << "," << panel_height * static_cast<int>(panels.size()) + 40
      << " font 'DejaVu Sans,10'\n";
   gp << "set output " << quote(tmp_png) << "\n";
-  gp << "set datafile separator ','\nset grid\nset key outside right top\n";
+  gp << "set datafile separator ','\nset grid\nset key outside right top noenhanced\nset termoption noenhanced\n";
   gp << "set multiplot layout " << panels.size() << ",1 title " << quote(title) << "\n";
   for (const auto& p : panels) {
     gp << "set title " << quote(p.title) << "\nset xlabel " << quote(p.xlabel) << "\nset ylabel " << quote(p.ylabel)

@@ -43,7 +43,7 @@ Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const Close
     const double t = static_cast<double>(k) * Ts;
     const double F = run.force_step_time_s >= 0 && t >= run.force_step_time_s ? run.force_N : 0.0;
     const double y = plant.measure();                 // latch
-    const auto o = ctrl.update(run.reference.at(t), run.reference.at(t + Ts), y);  // estimate + control
+    const auto o = ctrl.update(run.reference.at(t), run.reference.at(t + ctrl.lookahead() * Ts), y);  // estimate + control
     r.t.push_back(t);
     r.yd.push_back(run.reference.at(t));
     r.y.push_back(y);

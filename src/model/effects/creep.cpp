@@ -18,20 +18,21 @@ class Creep final : public Effect {
   int rank() const override { return 25; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
-        {"fraction", -0.5, 0.5, 0.05, "-"},  // extra displacement per unit of displacement, at rest
+        {"fraction", -0.5, 0.5, 0.05, "-"},  // further displacement, as a fraction of the displacement, once crept
         {"tau", 0.2, 200.0, 5.0, "s"},
     };
     return p;
   }
-  int numStates() const override { return 3; }  // drift z, reference input, cached filter gain
+  // A standard-linear-solid creep: the extra displacement z relaxes towards fraction x input with
+  // time constant tau, so after a change the muscle keeps drifting the same way; at rest it is a
+  // gain change the core absorbs. States: z, cached filter gain.
+  int numStates() const override { return 2; }
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
-    s[0] = 0.0;
-    s[1] = in0;
-    s[2] = 1.0 - std::exp(-c.Ts / std::max(p[1], 1e-6));
+    s[0] = p[0] * in0;
+    s[1] = 1.0 - std::exp(-c.Ts / std::max(p[1], 1e-6));
   }
   double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
-    // z relaxes towards fraction x (displacement since start): a first-order creep function.
-    s[0] += s[2] * (p[0] * (in - s[1]) - s[0]);
+    s[0] += s[1] * (p[0] * in - s[0]);
     return in + s[0];
   }
 };

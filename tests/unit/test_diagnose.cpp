@@ -1,0 +1,142 @@
+// The modelling loop on data with hidden effects: emulator data from fixed seeds, different
+// excitations for training and validation, the effect's parameters unknown to the diagnosis.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "diagnose/compare.hpp"
+#include "diagnose/diagnose.hpp"
+#include "plant/plant.hpp"
+#include "sim/lockstep.hpp"
+
+using namespace pamc;
+
+namespace {
+
+// Plant with the plain Bouc-Wen core plus the listed effects (JSON fragments), noise and quantisation on.
+plant::PlantConfig hidden(const std::string& effects_json) {
+  std::string j = R"({"effects":{"pressure_lag":{"enabled":false},"load":{"enabled":false},"saturation":{"enabled":false},
+    "friction_hysteresis":{"enabled":false},"mass_spring":{"enabled":false})";
+  if (!effects_json.empty()) j += "," + effects_json;
+  j += R"(},"stroke":{"enabled":false},"core":{"k":6.0}})";
+  return plant::PlantConfig::fromJson(nlohmann::json::parse(j), "test");
+}
+
+io::Measurement record(const plant::PlantConfig& pc, std::uint64_t seed, double seconds, bool with_load) {
+  plant::Plant p(pc);
+  const auto u = sim::Trajectory::randomRampHold(seed, -2.5, 2.5);
+  const auto f = sim::Trajectory::randomRampHold(seed + 100, 0.0, 40.0);
+  const auto r = sim::runOpenLoopInput(p, u, seconds, with_load ? &f : nullptr);
+  io::Measurement m;
+  m.source = "emulator seed " + std::to_string(seed);
+  m.t = r.t;
+  m.u = r.u;
+  m.y = r.y;
+  m.Ts = r.t[1] - r.t[0];
+  if (with_load) m.extra["load"] = r.force;
+  return m;
+}
+
+diagnose::DiagnoseResult run(const plant::PlantConfig& pc, bool with_load = false) {
+  const auto train = record(pc, 1, 24.0, with_load);
+  const auto val = record(pc, 2, 16.0, with_load);
+  diagnose::DiagnoseSettings s;
+  s.seed = 1;
+  return diagnose::diagnose(train, &val, s);
+}
+
+struct Hidden {
+  const char* effect;
+  const char* json;
+};
+
+}  // namespace
+
+class HiddenEffect : public ::testing::TestWithParam<Hidden> {};
+
+TEST_P(HiddenEffect, IsNamedFirstAndTheValidatedErrorFallsFiveFold) {
+  const auto& h = GetParam();
+  const auto r = run(hidden(h.json), std::string(h.effect) == "load");
+  ASSERT_GE(r.ladder.size(), 2u) << r.verdict;
+  EXPECT_EQ(r.ladder[1].effects.front(), h.effect) << r.verdict;
+  EXPECT_EQ(r.rounds.front().front().effect, h.effect);
+  EXPECT_GE(r.ladder.front().rmse_val / r.ladder.back().rmse_val, 5.0) << r.verdict;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Catalogue, HiddenEffect,
+    ::testing::Values(Hidden{"pressure_lag", R"("pressure_lag":{"enabled":true,"tau":0.06,"slew":1000})"},
+                      Hidden{"asymmetry", R"("asymmetry":{"enabled":true,"gain":2,"w_up":1.5,"w_down":0.3})"},
+                      Hidden{"creep", R"("creep":{"enabled":true,"fraction":0.1,"tau":3})"},
+                      Hidden{"mass_spring", R"("mass_spring":{"enabled":true,"fn":3,"zeta":0.3})"},
+                      Hidden{"friction_hysteresis", R"("friction_hysteresis":{"enabled":true,"zmax":1.0,"delta":0.5})"},
+                      Hidden{"delay", R"("delay":{"enabled":true,"d":0.03})"},
+                      Hidden{"dead_band", R"("dead_band":{"enabled":true,"threshold":-1.0})"},
+                      Hidden{"load", R"("load":{"enabled":true,"compliance":0.08})"},
+                      Hidden{"saturation", R"("saturation":{"enabled":true,"knee":26,"width":6})"}),
+    [](const auto& info) { return std::string(info.param.effect); });
+
+TEST(Diagnose, TwoHiddenEffectsAreBothAdded) {
+  const auto r = run(hidden(R"("pressure_lag":{"enabled":true,"tau":0.06,"slew":1000},"creep":{"enabled":true,"fraction":0.08,"tau":4})"));
+  const auto& fin = r.ladder.back().effects;
+  EXPECT_NE(std::find(fin.begin(), fin.end(), "pressure_lag"), fin.end()) << r.verdict;
+  EXPECT_NE(std::find(fin.begin(), fin.end(), "creep"), fin.end()) << r.verdict;
+  EXPECT_GE(r.ladder.front().rmse_val / r.ladder.back().rmse_val, 5.0);
+}
+
+TEST(Diagnose, ReferenceModelDataAddsNothing) {
+  const auto r = run(hidden(""));
+  EXPECT_EQ(r.ladder.size(), 1u) << r.verdict;
+  EXPECT_NE(r.verdict.find("No effect"), std::string::npos);
+}
+
+TEST(Diagnose, HoldsOutDataWithoutValidationFileAndKeepsTheJsonContract) {
+  const auto d = record(hidden(R"("delay":{"enabled":true,"d":0.02})"), 3, 30.0, false);
+  diagnose::DiagnoseSettings s;
+  s.max_effects = 1;
+  const auto r = diagnose::diagnose(d, nullptr, s);
+  const auto j = diagnose::toJson(r);
+  EXPECT_EQ(j["samples"].get<size_t>(), static_cast<size_t>(30000 * 0.7));
+  ASSERT_TRUE(j["baseline"].is_object());
+  EXPECT_TRUE(j["baseline"]["rmse_train"].is_number());
+  EXPECT_TRUE(j["baseline"]["rmse_val"].is_number());
+  ASSERT_TRUE(j["candidates"].is_array());
+  ASSERT_FALSE(j["candidates"].empty());
+  double last = 0;
+  for (const auto& c : j["candidates"]) {
+    EXPECT_TRUE(c["effect"].is_string());
+    EXPECT_TRUE(c["evidence"].is_string());
+    EXPECT_GE(c["rmse_val"].get<double>(), last);  // best first
+    last = c["rmse_val"].get<double>();
+  }
+  ASSERT_TRUE(j["ladder"].is_array());
+  EXPECT_TRUE(j["ladder"][0]["effects"].empty());
+  EXPECT_EQ(j["ladder"][1]["effects"][0], "delay");
+  EXPECT_EQ(j["model"]["format"], "pamc-model/1");
+  EXPECT_EQ(j["model"]["effects"][0]["name"], "delay");
+}
+
+TEST(Compare, PerfectModelFitsAndDelayShowsInTheResidual) {
+  model::Model m({6.0, 1.25, 18.0, 1.0, 0.35, 0.25});
+  io::Measurement d;
+  d.source = "x";
+  d.Ts = 1e-3;
+  const auto u = sim::Trajectory::randomRampHold(4, -2.5, 2.5);
+  for (int i = 0; i < 20000; ++i) {
+    d.t.push_back(i * 1e-3);
+    d.u.push_back(u.at(i * 1e-3));
+  }
+  d.y = m.simulate(d.u, d.Ts);
+  auto c = diagnose::compare(m, d);
+  EXPECT_NEAR(c.report.rmse, 0.0, 1e-12);
+  EXPECT_NEAR(c.report.fit_pct, 100.0, 1e-9);
+  // Data delayed by 25 ms against the undelayed model: the best alignment shift says so.
+  model::Model delayed = m;
+  delayed.addEffect("delay");
+  delayed.setEffectParam("delay", "d", 0.025);
+  d.y = delayed.simulate(d.u, d.Ts);
+  c = diagnose::compare(m, d);
+  EXPECT_NEAR(c.report.ind.at("best_shift_s"), 0.025, 0.003);
+  EXPECT_LT(c.report.fit_pct, 99.0);
+  EXPECT_GT(c.report.acf[1], c.report.conf);  // residual not white
+}
