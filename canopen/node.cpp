@@ -93,7 +93,8 @@ Tpdo& Node::tpdo(unsigned number) {
 
 void Node::start(TimeUs now) {
   ctx_.now = now;
-  heartbeat_producer_.configure(now);
+  // The application may have set communication parameters locally since construction.
+  reconfigure(now);
   sync_.restart(now);
   nmt_.bootUp(now);
   if (options_.auto_operational) nmt_.apply(NmtCommand::Start, now);

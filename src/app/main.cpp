@@ -7,6 +7,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "app/bus_commands.hpp"
 #include "diagnose/compare.hpp"
 #include "diagnose/diagnose.hpp"
 #include "ident/identify.hpp"
@@ -156,6 +157,8 @@ int main(int argc, char** argv) {
   dg->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
   dg->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
 
+  pamc::app::BusCommands bus(app);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -163,6 +166,7 @@ int main(int argc, char** argv) {
   }
 
   try {
+    if (const int rc = bus.run(); rc >= 0) return rc;
     if (*ex) {
       pamc::sim::ExperimentSettings s;
       if (!ex_plant.empty()) s.plant = pamc::plant::PlantConfig::fromFile(ex_plant);

@@ -1,0 +1,450 @@
+#include "app/bus_commands.hpp"
+
+#include <sched.h>
+#include <signal.h>
+#include <sys/mman.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <thread>
+
+#include "canopen/candump_log.hpp"
+#include "canopen/event_loop.hpp"
+#include "canopen/socketcan.hpp"
+#include "io/measurement.hpp"
+#include "io/model_file.hpp"
+#include "nodes/controller_node.hpp"
+#include "nodes/decoder.hpp"
+#include "nodes/emulator_node.hpp"
+#include "nodes/monitor.hpp"
+#include "nodes/virtual_rig.hpp"
+#include "sim/trajectory.hpp"
+
+namespace pamc::app {
+
+namespace {
+
+std::atomic<canopen::EventLoop*> g_loop{nullptr};
+std::atomic<bool> g_stop{false};
+void onSignal(int) {
+  g_stop = true;
+  if (auto* l = g_loop.load()) l->stop();
+}
+
+void installSignals() {
+  struct sigaction sa {};
+  sa.sa_handler = onSignal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+// Real-time set-up when permitted, a warning when not.
+void realtimeSetup(bool enable, int cpu, int priority) {
+  if (!enable) return;
+  if (::mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
+    std::fprintf(stderr, "warning: mlockall failed (%s): pages may fault in the cycle\n", std::strerror(errno));
+  sched_param sp{};
+  sp.sched_priority = priority;
+  if (::sched_setscheduler(0, SCHED_FIFO, &sp) != 0)
+    std::fprintf(stderr, "warning: SCHED_FIFO %d not permitted (%s): running with normal priority\n", priority,
+                 std::strerror(errno));
+  if (cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(cpu, &set);
+    if (::sched_setaffinity(0, sizeof set, &set) != 0)
+      std::fprintf(stderr, "warning: cannot pin to CPU %d (%s)\n", cpu, std::strerror(errno));
+  }
+}
+
+struct LogItem {
+  canopen::Frame frame;
+  canopen::TimeUs unix_us;
+};
+
+// Formats frames and cycle records off the real-time thread and flushes them every 20 ms, so a crash
+// loses at most the last few cycles.
+class Logger {
+ public:
+  Logger(const std::string& candump, const std::string& iface, const std::string& csv) {
+    if (!candump.empty()) dump_ = std::make_unique<canopen::CandumpWriter>(candump, iface);
+    if (!csv.empty()) {
+      csv_ = std::fopen(csv.c_str(), "w");
+      if (!csv_) throw std::runtime_error(csv + ": cannot write");
+      std::fprintf(csv_, "t,yd,y,u,u_n,u_c,y_hat,fault,latency_us\n");
+    }
+  }
+  ~Logger() {
+    stop();
+    if (csv_) std::fclose(csv_);
+  }
+  nodes::SpscRing<LogItem, 1 << 16> frames;
+  nodes::SpscRing<nodes::CycleRecord, 1 << 15>* records = nullptr;
+  void start() {
+    thread_ = std::thread([this] {
+      while (!quit_) {
+        drain();
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+      drain();
+    });
+  }
+  void stop() {
+    quit_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  std::vector<nodes::CycleRecord> kept;  // for the summary
+
+ private:
+  void drain() {
+    LogItem it;
+    while (frames.pop(it))
+      if (dump_) dump_->write(it.frame, it.unix_us);
+    if (dump_) dump_->flush();
+    nodes::CycleRecord r;
+    while (records && records->pop(r)) {
+      kept.push_back(r);
+      if (csv_)
+        std::fprintf(csv_, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%u,%.1f\n", r.t, r.yd, r.y, r.u, r.u_n, r.u_c, r.y_hat,
+                     r.fault, static_cast<double>(r.latency_us));
+    }
+    if (csv_) std::fflush(csv_);
+  }
+  std::unique_ptr<canopen::CandumpWriter> dump_;
+  std::FILE* csv_ = nullptr;
+  std::thread thread_;
+  std::atomic<bool> quit_{false};
+};
+
+void printStats(const nodes::CycleStats& s, const std::vector<nodes::CycleRecord>& recs) {
+  std::printf("cycles %llu, overruns %llu, missed SYNCs %llu\n", static_cast<unsigned long long>(s.cycles),
+              static_cast<unsigned long long>(s.overruns), static_cast<unsigned long long>(s.missed_syncs));
+  std::printf("SYNC-to-setpoint latency: median %.1f us, p99 %.1f us, max %.1f us\n", s.latency_us.quantile(0.5),
+              s.latency_us.quantile(0.99), s.latency_us.max());
+  std::printf("SYNC period jitter: median %.1f us, p99 %.1f us, max %.1f us\n", s.jitter_us.quantile(0.5),
+              s.jitter_us.quantile(0.99), s.jitter_us.max());
+  double acc = 0, mx = 0;
+  size_t n = 0;
+  for (const auto& r : recs)
+    if (r.fault == 0) {
+      const double e = r.yd - r.y;
+      acc += e * e;
+      mx = std::max(mx, std::fabs(e));
+      ++n;
+    }
+  if (n) std::printf("tracking error over %zu cycles: RMSE %.4f mm, max %.4f mm\n", n, std::sqrt(acc / n), mx);
+}
+
+}  // namespace
+
+struct BusCommands::Impl {
+  CLI::App *rig = nullptr, *controller = nullptr, *emulator = nullptr, *decode = nullptr, *monitor = nullptr;
+  // controller options
+  std::string iface = "vcan0", od_dir = "od", ctrl_kind = "pi", traj = "triangle:0.05:0.2:30", model_file, plant_file;
+  double duration = 40.0, preroll = 5.0;
+  unsigned period_us = 0;
+  bool consume_sync = false, rt = false;
+  int cpu = -1, prio = 80;
+  std::string candump, csv;
+  control::ControllerConfig cc;
+  // emulator options
+  nodes::EmulatorConfig ec;
+  std::string payload;
+  // decode / monitor
+  std::string log_in, out;
+  std::vector<std::string> od_paths;
+  bool once = false;
+
+  void addControllerOptions(CLI::App* a) {
+    a->add_option("--od", od_dir, "directory with controller.eds, sensor.eds, valve.eds")->capture_default_str();
+    a->add_option("--controller", ctrl_kind, "open, pi, eso or amc")->capture_default_str();
+    a->add_option("--trajectory", traj, "desired position: triangle:F:LO:HI, sinedesc:F:C:A0:A1:T, square:F:LO:HI, ...")
+        ->capture_default_str();
+    a->add_option("--duration", duration, "seconds of trajectory (0: until stopped)")->capture_default_str();
+    a->add_option("--preroll", preroll, "seconds holding the first setpoint before the trajectory")->capture_default_str();
+    a->add_option("--model", model_file, "identified model (JSON) for the AMC's UKF and the open loop");
+    a->add_option("--kp", cc.kp, "[V/mm]")->capture_default_str();
+    a->add_option("--ki", cc.ki, "[V/(mm s)]")->capture_default_str();
+    a->add_option("--kc", cc.kc, "[V/mm]")->capture_default_str();
+    a->add_option("--csv", csv, "write the cycle records (t,yd,y,u,...) here");
+    a->add_option("--period-us", period_us, "SYNC period (default: 0x1006 of the EDS, 1000 us)")->check(CLI::Range(100u, 1000000u));
+  }
+  void addEmulatorOptions(CLI::App* a) {
+    a->add_option("--plant", plant_file, "plant emulator config (JSON)");
+    a->add_option("--sensor-silent-at", ec.sensor_silent_at_s, "the sensor node goes silent at this time [s]");
+    a->add_option("--sensor-silent-for", ec.sensor_silent_for_s, "... for this long [s]");
+    a->add_option("--drop-pdo", ec.drop_pdo_prob, "probability of dropping each position PDO")->check(CLI::Range(0.0, 1.0));
+    a->add_option("--late-pdo", ec.late_pdo_cycles, "position PDOs this many cycles late")->check(CLI::Range(0, 255));
+    a->add_option("--payload", payload, "payload step TIME:NEWTONS, e.g. 10:40");
+  }
+  // Opens the interface with a hint on what to do when it is not there.
+  std::unique_ptr<canopen::SocketCanTransport> openCan() {
+    try {
+      return std::make_unique<canopen::SocketCanTransport>(iface);
+    } catch (const std::exception& e) {
+      const std::string hint = std::string(e.what()).find("Address family") != std::string::npos
+                                   ? " (this kernel has no CAN support: run inside ./vcan_setup.sh vm -- ...)"
+                                   : " (bring it up first, e.g. sudo ./vcan_setup.sh up " + iface + ")";
+      throw std::runtime_error(std::string(e.what()) + hint);
+    }
+  }
+  void prepare() {
+    if (!model_file.empty()) cc.model = io::readModelFile(model_file);
+    if (!plant_file.empty()) ec.plant = plant::PlantConfig::fromFile(plant_file);
+    if (period_us) ec.plant.Ts = period_us * 1e-6;  // the emulator steps one SYNC period per SYNC
+    ec.sensor_eds = od_dir + "/sensor.eds";
+    ec.valve_eds = od_dir + "/valve.eds";
+    if (!payload.empty()) {
+      const auto c = payload.find(':');
+      if (c == std::string::npos) throw std::invalid_argument("--payload: expected TIME:NEWTONS, got '" + payload + "'");
+      ec.payload_at_s = std::stod(payload.substr(0, c));
+      ec.payload_N = std::stod(payload.substr(c + 1));
+    }
+  }
+  nodes::ControllerNodeConfig controllerConfig() {
+    nodes::ControllerNodeConfig c;
+    c.eds_path = od_dir + "/controller.eds";
+    c.kind = static_cast<int>(control::kindFromString(ctrl_kind));
+    c.ctrl = cc;
+    c.gains_from_config = true;
+    c.has_trajectory = true;
+    c.trajectory = sim::Trajectory::parse(traj);
+    c.preroll_s = preroll;
+    c.produce_sync = !consume_sync;
+    c.period_us = period_us;
+    if ((c.kind == static_cast<int>(control::Kind::PiAmc) || c.kind == static_cast<int>(control::Kind::OpenLoop)) &&
+        model_file.empty())
+      std::fprintf(stderr, "warning: no --model: the %s controller uses the model parameters of the EDS defaults\n",
+                   ctrl_kind.c_str());
+    return c;
+  }
+
+  int runRig() {
+    prepare();
+    const auto c = controllerConfig();
+    std::fprintf(stderr, "in-process bus: controller (node 1) + sensor (2) + valve (3), %g s pre-roll + %g s run\n",
+                 preroll, duration);
+    const auto r = nodes::runVirtualRig(c, ec, duration, candump);
+    if (!csv.empty()) {
+      std::vector<double> t, yd, y, u, un, uc, yh, f;
+      for (const auto& x : r.records) {
+        t.push_back(x.t), yd.push_back(x.yd), y.push_back(x.y), u.push_back(x.u), un.push_back(x.u_n),
+            uc.push_back(x.u_c), yh.push_back(x.y_hat), f.push_back(x.fault);
+      }
+      io::writeCsvAtomic(csv, {"t", "yd", "y", "u", "u_n", "u_c", "y_hat", "fault"}, {&t, &yd, &y, &u, &un, &uc, &yh, &f});
+    }
+    std::printf("%llu frames on the bus, %llu faults%s%s\n", static_cast<unsigned long long>(r.frames),
+                static_cast<unsigned long long>(r.faults), r.final_fault == nodes::Fault::None ? "" : ", last: ",
+                r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
+    printStats(r.stats, r.records);
+    if (!candump.empty()) std::printf("candump log: %s\n", candump.c_str());
+    return 0;
+  }
+
+  int runController() {
+    prepare();
+    auto c = controllerConfig();
+    realtimeSetup(rt, cpu, prio);
+    auto canp = openCan();
+    auto& can = *canp;
+    nodes::ControllerNode node(c, can, [] { return canopen::monotonicNowUs(); });
+    Logger logger(candump, iface, csv);
+    logger.records = &node.records();
+    can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
+    canopen::EventLoop loop(can, node.node());
+    g_loop = &loop;
+    installSignals();
+    logger.start();
+    std::fprintf(stderr, "controller node 1 on %s: %s, %s%s\n", iface.c_str(), control::toString(node.kind()),
+                 c.trajectory.describe().c_str(), c.produce_sync ? ", producing SYNC" : ", consuming SYNC");
+    std::thread watch([&] {
+      nodes::Fault last = nodes::Fault::None;
+      while (!g_stop) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const auto f = node.fault();
+        if (f != last) {
+          if (f != nodes::Fault::None)
+            std::fprintf(stderr, "fault: %s -> valve to its safe value, EMCY 0x%04X sent\n", nodes::toString(f),
+                         nodes::emcyCode(f));
+          else
+            std::fprintf(stderr, "fault cleared: estimator and integrator restarted\n");
+          last = f;
+        }
+        if (duration > 0 && node.runTime() >= duration) loop.stop();
+      }
+    });
+    node.start(canopen::monotonicNowUs());
+    loop.run();
+    g_stop = true;
+    watch.join();
+    g_loop = nullptr;
+    logger.stop();
+    printStats(node.stats(), logger.kept);
+    const auto& st = can.stats();
+    std::printf("socket: rx %llu, tx %llu, tx queued %llu, tx dropped %llu, error frames %llu\n",
+                static_cast<unsigned long long>(st.rx_frames), static_cast<unsigned long long>(st.tx_frames),
+                static_cast<unsigned long long>(st.tx_queued), static_cast<unsigned long long>(st.tx_dropped),
+                static_cast<unsigned long long>(st.error_frames));
+    return 0;
+  }
+
+  int runEmulator() {
+    prepare();
+    realtimeSetup(rt, cpu, prio);
+    auto canp = openCan();
+    auto& can = *canp;
+    nodes::EmulatorNodes emu(ec, can);
+    Logger logger(candump, iface, "");
+    can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
+    canopen::EventLoop loop(can, emu);
+    g_loop = &loop;
+    installSignals();
+    logger.start();
+    std::fprintf(stderr, "emulator on %s: sensor node %u, valve node %u; stepped by SYNC\n", iface.c_str(),
+                 emu.sensor().nodeId(), emu.valve().nodeId());
+    std::thread watch([&] {
+      while (!g_stop) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        if (duration > 0 && emu.time() >= duration) loop.stop();
+      }
+    });
+    emu.start(canopen::monotonicNowUs());
+    loop.run();
+    g_stop = true;
+    watch.join();
+    g_loop = nullptr;
+    logger.stop();
+    std::printf("emulated %.3f s (%llu position PDOs dropped by fault injection)\n", emu.time(),
+                static_cast<unsigned long long>(emu.pdosDropped()));
+    return 0;
+  }
+
+  int runDecode() {
+    const auto dict = nodes::loadBusDictionary(od_paths.empty() ? std::vector<std::string>{od_dir} : od_paths);
+    const auto log = canopen::readCandumpLog(log_in);
+    const auto run = nodes::decodeCandump(log, dict);
+    if (run.rows.size() < 3)
+      throw std::runtime_error(log_in + ": no complete cycles (SYNC, position and valve command) found in the log");
+    std::string text;
+    for (size_t i = 0; i < run.columns.size(); ++i) text += (i ? "," : "") + run.columns[i];
+    text += '\n';
+    char b[64];
+    for (const auto& r : run.rows) {
+      for (size_t i = 0; i < r.size(); ++i) {
+        if (std::isnan(r[i])) std::snprintf(b, sizeof b, "%s", i ? "," : "");
+        else std::snprintf(b, sizeof b, "%s%.9g", i ? "," : "", r[i]);
+        text += b;
+      }
+      text += '\n';
+    }
+    const std::string dst = out.empty() ? log_in + ".csv" : out;
+    io::writeFileAtomic(dst, text);
+    std::printf("%s: %llu frames, %llu SYNCs -> %zu rows (%zu columns) in %s; %llu frames of unknown COB-ID, %llu of "
+                "wrong length\n",
+                log_in.c_str(), static_cast<unsigned long long>(run.frames), static_cast<unsigned long long>(run.syncs),
+                run.rows.size(), run.columns.size(), dst.c_str(), static_cast<unsigned long long>(run.unknown),
+                static_cast<unsigned long long>(run.bad_length));
+    return 0;
+  }
+
+  int runMonitor() {
+    auto dict = nodes::loadBusDictionary(od_paths.empty() ? std::vector<std::string>{od_dir} : od_paths);
+    nodes::Monitor mon(dict);
+    if (!log_in.empty()) {
+      const auto log = canopen::readCandumpLog(log_in);
+      if (log.empty()) throw std::runtime_error(log_in + ": no frames");
+      const double t0 = log.front().unix_time_us * 1e-6;
+      double next = 0.5;
+      for (const auto& r : log) {
+        const double t = r.unix_time_us * 1e-6 - t0;
+        if (!once && t >= next) {
+          std::printf("\033[H\033[2J%s", mon.render(t).c_str());
+          next += 0.5;
+        }
+        mon.feed(r.frame, t);
+      }
+      std::printf("%s%s", once ? "" : "\033[H\033[2J", mon.render(log.back().unix_time_us * 1e-6 - t0).c_str());
+      return 0;
+    }
+    auto canp = openCan();  // listen only: the monitor never sends
+    auto& can = *canp;
+    installSignals();
+    const double t0 = canopen::monotonicNowUs() * 1e-6;
+    double next = 0.5;
+    canopen::Frame f;
+    canopen::TimeUs ts;
+    while (!g_stop) {
+      bool any = false;
+      while (can.receive(f, ts)) {
+        mon.feed(f, canopen::monotonicNowUs() * 1e-6 - t0);
+        any = true;
+      }
+      const double now = canopen::monotonicNowUs() * 1e-6 - t0;
+      if (now >= next) {
+        std::printf("\033[H\033[2J%s", mon.render(now).c_str());
+        std::fflush(stdout);
+        next += 0.5;
+        if (once || (duration > 0 && now >= duration)) break;
+      }
+      if (!any) std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    return 0;
+  }
+};
+
+BusCommands::BusCommands(CLI::App& app) : impl_(new Impl) {
+  auto& m = *impl_;
+  m.rig = app.add_subcommand("rig", "controller and emulator as CANopen nodes on the in-process bus (virtual time, "
+                                    "no CAN hardware): the whole rig through the CANopen layer");
+  m.addControllerOptions(m.rig);
+  m.addEmulatorOptions(m.rig);
+  m.rig->add_option("--log", m.candump, "write every frame as a candump -l log");
+
+  m.controller = app.add_subcommand("controller", "run the controller node on a SocketCAN interface");
+  m.controller->add_option("--iface", m.iface, "CAN interface (can0, vcan0, ...)")->capture_default_str();
+  m.addControllerOptions(m.controller);
+  m.controller->add_flag("--consume-sync", m.consume_sync, "another master produces SYNC");
+  m.controller->add_option("--log", m.candump, "write every frame as a candump -l log");
+  m.controller->add_flag("--rt", m.rt, "mlockall, SCHED_FIFO, CPU affinity (warns when not permitted)");
+  m.controller->add_option("--cpu", m.cpu, "pin to this CPU with --rt");
+  m.controller->add_option("--priority", m.prio, "SCHED_FIFO priority with --rt")->capture_default_str();
+
+  m.emulator = app.add_subcommand("emulator", "play the valve and sensor nodes with the emulator physics on SocketCAN");
+  m.emulator->add_option("--iface", m.iface, "CAN interface")->capture_default_str();
+  m.emulator->add_option("--od", m.od_dir, "directory with sensor.eds and valve.eds")->capture_default_str();
+  m.addEmulatorOptions(m.emulator);
+  m.emulator->add_option("--duration", m.duration, "stop after this many seconds of SYNCs (0: until stopped)");
+  m.emulator->add_option("--period-us", m.period_us, "SYNC period the physics steps by (default 1000 us)");
+  m.emulator->add_option("--log", m.candump, "write every frame as a candump -l log");
+  m.emulator->add_flag("--rt", m.rt, "mlockall, SCHED_FIFO, CPU affinity (warns when not permitted)");
+
+  m.decode = app.add_subcommand("decode", "turn a candump log into a measurement CSV (t,u,y,p,...) through the PDO "
+                                          "mappings of the EDS files");
+  m.decode->add_option("log", m.log_in, "candump -l log (from candump or the nodes)")->required();
+  m.decode->add_option("--od", m.od_paths, "EDS files or directories (default: od/)");
+  m.decode->add_option("--out", m.out, "CSV to write (default: LOG.csv)");
+
+  m.monitor = app.add_subcommand("monitor", "passive live view of a bus decoded through the EDS files");
+  m.monitor->add_option("--iface", m.iface, "CAN interface")->capture_default_str();
+  m.monitor->add_option("--log", m.log_in, "replay a candump log instead of listening");
+  m.monitor->add_option("--od", m.od_paths, "EDS files or directories (default: od/)");
+  m.monitor->add_option("--duration", m.duration, "stop after this many seconds (0: until Ctrl-C)");
+  m.monitor->add_flag("--once", m.once, "print one screen at the end and exit");
+}
+
+int BusCommands::run() {
+  auto& m = *impl_;
+  if (*m.rig) return m.runRig();
+  if (*m.controller) return m.runController();
+  if (*m.emulator) return m.runEmulator();
+  if (*m.decode) return m.runDecode();
+  if (*m.monitor) return m.runMonitor();
+  return -1;
+}
+
+}  // namespace pamc::app

@@ -1,0 +1,233 @@
+#include "nodes/decoder.hpp"
+
+#include <dirent.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+#include "canopen/eds.hpp"
+
+namespace pamc::nodes {
+
+namespace {
+
+std::string stem(const std::string& path) {
+  std::string s = path.substr(path.find_last_of('/') + 1);
+  const auto dot = s.rfind('.');
+  return dot == std::string::npos ? s : s.substr(0, dot);
+}
+
+std::string sanitize(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (std::isalnum(static_cast<unsigned char>(c))) o += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    else if (!o.empty() && o.back() != '_') o += '_';
+  }
+  while (!o.empty() && o.back() == '_') o.pop_back();
+  return o;
+}
+
+std::vector<std::string> expand(const std::vector<std::string>& paths) {
+  std::vector<std::string> files;
+  for (const auto& p : paths) {
+    struct stat st {};
+    if (::stat(p.c_str(), &st) != 0) throw std::runtime_error(p + ": no such file or directory");
+    if (S_ISDIR(st.st_mode)) {
+      DIR* d = ::opendir(p.c_str());
+      if (!d) throw std::runtime_error(p + ": cannot read directory");
+      std::vector<std::string> found;
+      while (auto* e = ::readdir(d)) {
+        const std::string n = e->d_name;
+        if (n.size() > 4 && n.compare(n.size() - 4, 4, ".eds") == 0) found.push_back(p + "/" + n);
+      }
+      ::closedir(d);
+      std::sort(found.begin(), found.end());
+      if (found.empty()) throw std::runtime_error(p + ": no .eds files in this directory");
+      files.insert(files.end(), found.begin(), found.end());
+    } else {
+      files.push_back(p);
+    }
+  }
+  return files;
+}
+
+// Known process data of the rig, in engineering units.
+void roleOf(PdoField& f) {
+  if (f.index == 0x6004 && f.sub == 0) {
+    f.role = "y", f.scale = 1e-3, f.unit = "mm";  // CiA 406 position, 0.001 mm steps
+  } else if (f.index == 0x6411 && f.sub == 1) {
+    f.role = "u", f.scale = 10.0 / 32767.0, f.offset = -5.0, f.unit = "V";  // command relative to mid-range
+  } else if (f.index == 0x6401 && f.sub == 1) {
+    f.role = "p", f.scale = 10.0 / 32767.0, f.unit = "bar";
+  }
+}
+
+}  // namespace
+
+BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
+  BusDictionary bd;
+  for (const auto& file : expand(paths)) {
+    const auto eds = canopen::EdsFile::load(file);
+    const std::uint8_t id = eds.node_id;
+    auto od = canopen::ObjectDictionary::fromEds(eds, id);
+    const std::string dev = stem(file);
+    bd.nodes[id] = dev;
+    if (od.hasObject(0x1005)) {
+      const auto cob = od.entry(0x1005, 0).get<std::uint32_t>();
+      if (cob & 0x40000000u) {
+        bd.sync_cob = cob & 0x7FFu;
+        if (od.hasObject(0x1006)) bd.sync_period_s = od.entry(0x1006, 0).get<std::uint32_t>() * 1e-6;
+      }
+    }
+    // TPDOs the node sends, and RPDOs it receives (whose sender may have no EDS here).
+    for (int dir = 0; dir < 2; ++dir) {
+      const std::uint16_t comm0 = dir == 0 ? 0x1800 : 0x1400, map0 = dir == 0 ? 0x1A00 : 0x1600;
+      for (std::uint16_t n = 0; n < 512; ++n) {
+        if (!od.hasObject(static_cast<std::uint16_t>(comm0 + n)) || !od.hasObject(static_cast<std::uint16_t>(map0 + n))) continue;
+        const auto cob = od.entry(static_cast<std::uint16_t>(comm0 + n), 1).get<std::uint32_t>();
+        if (cob & 0x80000000u) continue;  // not valid
+        PdoLayout l;
+        l.cob_id = cob & 0x7FFu;
+        l.device = dev;
+        l.node_id = id;
+        const auto count = od.entry(static_cast<std::uint16_t>(map0 + n), 0).get<std::uint8_t>();
+        for (std::uint8_t s = 1; s <= count; ++s) {
+          const auto m = od.entry(static_cast<std::uint16_t>(map0 + n), s).get<std::uint32_t>();
+          PdoField f;
+          f.index = static_cast<std::uint16_t>(m >> 16);
+          f.sub = static_cast<std::uint8_t>((m >> 8) & 0xFF);
+          f.bytes = static_cast<std::uint8_t>((m & 0xFF) / 8);
+          if (od.hasObject(f.index)) {
+            auto& e = od.entry(f.index, f.sub);
+            f.type = e.dataType();
+            f.column = dev + "." + sanitize(e.name());
+          } else {
+            f.column = dev + "." + std::to_string(f.index) + "_" + std::to_string(f.sub);  // dummy mapping
+          }
+          roleOf(f);
+          l.fields.push_back(f);
+          l.length = static_cast<std::uint8_t>(l.length + f.bytes);
+        }
+        // A COB-ID described twice (sender's TPDO and receiver's RPDO): keep the one with roles.
+        auto it = bd.pdos.find(l.cob_id);
+        const bool has_role = std::any_of(l.fields.begin(), l.fields.end(), [](const PdoField& f) { return !f.role.empty(); });
+        if (it == bd.pdos.end() || has_role) bd.pdos[l.cob_id] = l;
+      }
+    }
+  }
+  return bd;
+}
+
+bool decodePdo(const PdoLayout& l, const canopen::Frame& fr, std::vector<double>& out) {
+  if (fr.len < l.length) return false;
+  out.clear();
+  size_t off = 0;
+  for (const auto& f : l.fields) {
+    std::uint64_t raw = 0;
+    for (size_t b = 0; b < f.bytes && off + b < 8; ++b) raw |= static_cast<std::uint64_t>(fr.data[off + b]) << (8 * b);
+    double v;
+    using canopen::DataType;
+    switch (f.type) {
+      case DataType::Integer8: v = static_cast<std::int8_t>(raw); break;
+      case DataType::Integer16: v = static_cast<std::int16_t>(raw); break;
+      case DataType::Integer32: v = static_cast<std::int32_t>(raw); break;
+      case DataType::Integer64: v = static_cast<double>(static_cast<std::int64_t>(raw)); break;
+      case DataType::Real32: {
+        float x;
+        std::uint32_t r32 = static_cast<std::uint32_t>(raw);
+        std::memcpy(&x, &r32, 4);
+        v = x;
+        break;
+      }
+      case DataType::Real64: {
+        double x;
+        std::memcpy(&x, &raw, 8);
+        v = x;
+        break;
+      }
+      default: v = static_cast<double>(raw); break;
+    }
+    out.push_back(v * f.scale + f.offset);
+    off += f.bytes;
+  }
+  return true;
+}
+
+DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const BusDictionary& dict) {
+  DecodedRun run;
+  // Columns: the roles first, then every other field.
+  std::map<std::string, size_t> col;
+  run.columns = {"t", "u", "y", "p", "t_log"};
+  for (size_t i = 0; i < run.columns.size(); ++i) col[run.columns[i]] = i;
+  for (const auto& [cob, l] : dict.pdos)
+    for (const auto& f : l.fields)
+      if (f.role.empty() && !col.count(f.column)) {
+        col[f.column] = run.columns.size();
+        run.columns.push_back(f.column);
+      }
+  std::vector<double> cur(run.columns.size(), NAN);
+  std::vector<double> vals;
+  double latest_u = NAN, latched_prev = NAN, latched_now = NAN;
+  double t0 = NAN;
+  std::int64_t k = -1;
+  auto emit = [&](double sync_time) {
+    // Row for the cycle that started at the previous SYNC.
+    if (k >= 1 && !std::isnan(cur[col["y"]]) && !std::isnan(latched_prev)) {
+      std::vector<double> row = cur;
+      row[col["u"]] = latched_prev;
+      row[col["t_log"]] = sync_time;
+      run.rows.push_back(row);
+    }
+  };
+  double last_sync_t = 0;
+  for (const auto& rec : log) {
+    const auto& f = rec.frame;
+    ++run.frames;
+    const double ts = rec.unix_time_us * 1e-6;
+    if (std::isnan(t0)) t0 = ts;
+    if (f.id == dict.sync_cob && !f.extended()) {
+      emit(last_sync_t);
+      ++k;
+      ++run.syncs;
+      last_sync_t = ts - t0;
+      // The valve latches the last command it received; it holds over the cycle starting now.
+      latched_prev = latched_now;
+      latched_now = latest_u;
+      cur.assign(cur.size(), NAN);
+      continue;
+    }
+    auto it = dict.pdos.find(f.id);
+    if (it == dict.pdos.end() || f.extended()) {
+      // NMT, EMCY, SDO and heartbeats are expected traffic, just not process data.
+      const bool service = !f.extended() && (f.id == 0x000 || (f.id >= 0x081 && f.id <= 0x0FF) ||
+                                             (f.id >= 0x581 && f.id <= 0x67F) || (f.id >= 0x701 && f.id <= 0x77F));
+      if (!service) ++run.unknown;
+      continue;
+    }
+    if (!decodePdo(it->second, f, vals)) {
+      ++run.bad_length;
+      continue;
+    }
+    for (size_t i = 0; i < vals.size(); ++i) {
+      const auto& fl = it->second.fields[i];
+      if (fl.role == "u") latest_u = vals[i];
+      else if (!fl.role.empty()) cur[col[fl.role]] = vals[i];
+      else cur[col[fl.column]] = vals[i];
+    }
+  }
+  // Even time base from the SYNC period (the CSV reader wants an even step); t_log keeps the stamps.
+  double period = dict.sync_period_s;
+  if (run.rows.size() > 2) {
+    const double span = run.rows.back()[col["t_log"]] - run.rows.front()[col["t_log"]];
+    const double measured = span / static_cast<double>(run.rows.size() - 1);
+    if (measured > 0 && std::fabs(measured - period) > 0.2 * period) period = measured;
+  }
+  for (size_t i = 0; i < run.rows.size(); ++i) run.rows[i][0] = static_cast<double>(i) * period;
+  return run;
+}
+
+}  // namespace pamc::nodes

@@ -1,0 +1,59 @@
+// Reading a bus through the EDS files: which COB-ID carries which object, in engineering units.
+// Used by `pamc decode` (candump log -> measurement CSV) and `pamc monitor` (live view).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "canopen/candump_log.hpp"
+#include "canopen/frame.hpp"
+#include "canopen/od.hpp"
+
+namespace pamc::nodes {
+
+struct PdoField {
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+  canopen::DataType type = canopen::DataType::Unsigned8;
+  std::uint8_t bytes = 0;
+  std::string column;  // "sensor.position_value"
+  std::string role;    // "y", "u", "p" or ""
+  double scale = 1.0, offset = 0.0;  // engineering value = raw * scale + offset
+  std::string unit;
+};
+
+struct PdoLayout {
+  std::uint32_t cob_id = 0;
+  std::string device;  // EDS file stem
+  std::uint8_t node_id = 0;
+  std::vector<PdoField> fields;
+  std::uint8_t length = 0;
+};
+
+struct BusDictionary {
+  std::map<std::uint32_t, PdoLayout> pdos;    // by COB-ID
+  std::map<std::uint8_t, std::string> nodes;  // node-ID -> device name
+  std::uint32_t sync_cob = 0x80;
+  double sync_period_s = 1e-3;                // 0x1006 of the SYNC producer, if any
+};
+
+// EDS files, or directories holding them. Throws canopen::EdsError / std::runtime_error.
+BusDictionary loadBusDictionary(const std::vector<std::string>& paths);
+
+// Decodes one PDO's fields into engineering values (false on a length mismatch).
+bool decodePdo(const PdoLayout& l, const canopen::Frame& f, std::vector<double>& out);
+
+struct DecodedRun {
+  std::vector<std::string> columns;  // t, u, y, p, t_log, then every other mapped object
+  std::vector<std::vector<double>> rows;
+  std::uint64_t frames = 0, syncs = 0, unknown = 0, bad_length = 0;
+};
+
+// One row per SYNC cycle k: the values the nodes sent after SYNC k, and as u the valve command in
+// effect during the cycle that ended with SYNC k (latched by the valve at SYNC k-1) - the timing of
+// a measurement file, where u is the command in effect when y was taken.
+DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const BusDictionary& dict);
+
+}  // namespace pamc::nodes

@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Runs with vcan0 up (on the host or inside the throw-away VM): emulator and controller as separate
+# processes, candump recording the bus. Arguments: PAMC OD_DIR WORK_DIR.
+set -u
+PAMC="$1"; OD="$2"; W="$3"
+candump -L vcan0 > "$W/bus.log" &
+CD=$!
+# 200 Hz: the VM runs under software emulation and the point here is the plumbing, not timing.
+"$PAMC" emulator --iface vcan0 --od "$OD" --period-us 5000 --duration 120 > "$W/emulator.txt" 2>&1 &
+EM=$!
+sleep 0.5
+"$PAMC" controller --iface vcan0 --od "$OD" --period-us 5000 --controller pi --ki 1.5 \
+  --trajectory sine:0.5:15:5 --preroll 1 --duration 3 --csv "$W/controller.csv" --log "$W/controller.log" \
+  > "$W/controller.txt" 2>&1
+RC=$?
+kill "$EM" 2>/dev/null; wait "$EM" 2>/dev/null
+sleep 0.3
+kill "$CD" 2>/dev/null; wait "$CD" 2>/dev/null
+exit $RC
