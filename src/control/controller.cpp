@@ -219,11 +219,20 @@ class PiAmc final : public Controller {
       un_eff_prev_ = un_eff;
     } else {
       // Roll out from the last command sent plus the nominal controller's change.
-      y_next = am_.predictAhead(hist_.get(0) + (un - un_prev_), cfg_.amc_horizon, load);
+      const double u_hold = hist_.get(0) + (un - un_prev_);
+      y_next = am_.predictAhead(u_hold, cfg_.amc_horizon, load);
+      if (cfg_.amc_inverse > 0.0 && std::isfinite(y_next)) {
+        const double du = 0.01;
+        const double g = (am_.predictAhead(u_hold + du, cfg_.amc_horizon, load) - y_next) / du;
+        if (std::isfinite(g) && std::fabs(g) > 1e-3) inverse_gain_ = g;
+      }
     }
     un_prev_ = un;
     // Compensation, eq. (18), and total command, eqs. (14)/(19).
-    o.u_c = std::isfinite(y_next) ? cfg_.kc * (yd_next - y_next) : 0.0;
+    if (!std::isfinite(y_next)) o.u_c = 0.0;
+    else if (cfg_.amc_horizon > 1 && cfg_.amc_inverse > 0.0)
+      o.u_c = std::clamp(cfg_.amc_inverse * (yd_next - y_next) / inverse_gain_, cfg_.u_min - cfg_.u_max, cfg_.u_max - cfg_.u_min);
+    else o.u_c = cfg_.kc * (yd_next - y_next);
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
     hist_.push(o.u);
     return o;
@@ -237,6 +246,7 @@ class PiAmc final : public Controller {
   model::Model::State nom_;
   double un_eff_prev_ = 0.0;
   double un_prev_ = 0.0;
+  double inverse_gain_ = 1.0;  // model's response at the horizon to a unit command change [mm/V]
 };
 
 // PID + extended state observer, eqs. (22)-(25).

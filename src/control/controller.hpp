@@ -38,6 +38,10 @@ struct ControllerConfig {
   // AMC prediction horizon in samples: 1 is eq. (17); longer horizons roll the model out so that
   // its lags and delays shape the compensation (see docs/CONTROL.md).
   int amc_horizon = 1;
+  // With amc_horizon > 1: 0 uses u_c = kc e_hat (the paper's form); > 0 inverts the model over the
+  // horizon instead, u_c = amc_inverse * e_hat / g, g the model's response at the horizon to a change
+  // of the command - the compensation then depends on how well the model knows the plant's dynamics.
+  double amc_inverse = 0.0;
   // ESO, eq. (24): fal() with delta in mm; b0 [mm/(s^2 V)] is the input gain the observer
   // assumes (the paper's eq. (22) has b0 = 1).
   double beta1 = 100.0, beta2 = 100.0, beta3 = 100.0, delta = 500.0, b0 = 1.0;

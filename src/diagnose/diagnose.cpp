@@ -113,7 +113,10 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   }
   for (int round = 1; round <= s.max_effects; ++round) {
     const Rung& cur = res.ladder.back();
-    if (cur.rmse_val < 1.5 * noise) {
+    // At the noise level nothing is left to explain; the first round still runs, so the candidates
+    // and their evidence are reported.
+    const bool at_noise = cur.rmse_val < 1.5 * noise;
+    if (at_noise && round > 1) {
       stop_reason = "the validated error is at the sensor noise level (" + fmt("%.3g", noise) + " rms)";
       break;
     }
@@ -161,6 +164,10 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     res.rounds.push_back(results);
     const auto& best = results.front();
     const double gain = 1.0 - best.rmse_val / cur.rmse_val;
+    if (at_noise) {
+      stop_reason = "the validated error is already at the sensor noise level (" + fmt("%.3g", noise) + " rms)";
+      break;
+    }
     if (!(gain >= s.min_gain)) {
       stop_reason = gain > 0 ? "the best candidate, " + best.effect + ", lowers the validated RMSE by only " +
                                    fmt("%.1f", 100 * gain) + " % (at least " + fmt("%.0f", 100 * s.min_gain) + " % needed)"

@@ -1,0 +1,139 @@
+// The controller node's SYNC-to-setpoint path on the in-process bus, with and without background
+// traffic, and the bus load of a cycle. Run: build/tests/bench/pamc_bench_can
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <vector>
+
+#include "nodes/controller_node.hpp"
+#include "nodes/emulator_node.hpp"
+#include "nodes/monitor.hpp"
+#include "nodes/virtual_rig.hpp"
+
+using namespace pamc;
+
+namespace {
+const std::string kOd = std::string(PAMC_SOURCE_DIR) + "/od/";
+
+nodes::ControllerNodeConfig ctrlConfig(control::Kind kind) {
+  nodes::ControllerNodeConfig c;
+  c.eds_path = kOd + "controller.eds";
+  c.kind = static_cast<int>(kind);
+  c.gains_from_config = true;
+  c.has_trajectory = true;
+  c.trajectory = sim::Trajectory::triangle(0.05, 0.2, 30.0);
+  c.preroll_s = 0.5;
+  c.ctrl.model = model::Model({9.0, 1.6, 17.0, 1.0, 0.4, 0.5});
+  return c;
+}
+
+nodes::EmulatorConfig emuConfig() {
+  nodes::EmulatorConfig e;
+  e.sensor_eds = kOd + "sensor.eds";
+  e.valve_eds = kOd + "valve.eds";
+  return e;
+}
+
+// Wall-clock time of the SYNC path of the controller node: SYNC frame in -> RPDOs latched ->
+// estimator and controller -> valve setpoint TPDO handed to the transport. `background` frames of
+// other COB-IDs (higher priority than the position PDO) reach the node each cycle.
+void syncToSetpoint(benchmark::State& state, control::Kind kind, int background) {
+  canopen::VirtualBus bus;
+  auto& cport = bus.addPort();
+  auto& eport = bus.addPort();
+  nodes::ControllerNode ctrl(ctrlConfig(kind), cport, [&bus] { return bus.now(); });
+  nodes::EmulatorNodes emu(emuConfig(), eport);
+  cport.setClient(&ctrl.node());
+  eport.setClient(&emu);
+  emu.start(bus.now());
+  ctrl.start(bus.now());
+  bus.advanceBy(1'000'000);  // boot, NMT, first cycles
+  // The node produces the SYNC itself: time its advance() at the SYNC deadline, which sends the
+  // SYNC, latches the RPDOs, runs the cycle and hands the setpoint TPDO to the transport.
+  std::vector<double> ns;
+  ns.reserve(1 << 20);
+  canopen::Frame bg;
+  bg.id = 0x050;  // higher priority than every PDO, unknown to the node: counted and ignored
+  bg.len = 8;
+  for (auto _ : state) {
+    const canopen::TimeUs deadline = ctrl.node().nextDeadline();
+    bus.advanceTo(deadline - 1);
+    for (int i = 0; i < background; ++i) ctrl.node().onFrame(bg, bus.now());
+    const auto t0 = std::chrono::steady_clock::now();
+    ctrl.node().advance(deadline);
+    const auto t1 = std::chrono::steady_clock::now();
+    ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count());
+    bus.advanceTo(deadline);
+  }
+  std::sort(ns.begin(), ns.end());
+  state.counters["median_us"] = ns[ns.size() / 2] * 1e-3;
+  state.counters["p99_us"] = ns[std::min(ns.size() - 1, ns.size() * 99 / 100)] * 1e-3;
+  state.counters["max_us"] = ns.back() * 1e-3;
+}
+
+void BM_SyncToSetpoint_PI(benchmark::State& s) { syncToSetpoint(s, control::Kind::PI, 0); }
+void BM_SyncToSetpoint_AMC(benchmark::State& s) { syncToSetpoint(s, control::Kind::PiAmc, 0); }
+void BM_SyncToSetpoint_AMC_Traffic(benchmark::State& s) { syncToSetpoint(s, control::Kind::PiAmc, 50); }
+
+// A whole 1 ms cycle of the rig on the in-process bus (SYNC, 3 PDOs, heartbeats, both node sides,
+// emulator physics, AMC): how much faster than real time the CAN-level simulation runs.
+void BM_RigCycle(benchmark::State& state) {
+  canopen::VirtualBus bus;
+  auto& cport = bus.addPort();
+  auto& eport = bus.addPort();
+  nodes::ControllerNode ctrl(ctrlConfig(control::Kind::PiAmc), cport, [&bus] { return bus.now(); });
+  nodes::EmulatorNodes emu(emuConfig(), eport);
+  cport.setClient(&ctrl.node());
+  eport.setClient(&emu);
+  emu.start(bus.now());
+  ctrl.start(bus.now());
+  nodes::CycleRecord r;
+  for (auto _ : state) {
+    bus.advanceBy(1000);
+    while (ctrl.records().pop(r)) {
+    }
+  }
+  state.counters["x_realtime"] = benchmark::Counter(1e-3 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+// Bits on the wire per cycle against the 1 ms period at 1 Mbit/s.
+void BM_BusLoadPerCycle(benchmark::State& state) {
+  canopen::VirtualBus bus;
+  auto& cport = bus.addPort();
+  auto& eport = bus.addPort();
+  nodes::ControllerNode ctrl(ctrlConfig(control::Kind::PI), cport, [&bus] { return bus.now(); });
+  nodes::EmulatorNodes emu(emuConfig(), eport);
+  cport.setClient(&ctrl.node());
+  eport.setClient(&emu);
+  double bits = 0;
+  std::uint64_t frames = 0;
+  bus.addTap([&](const canopen::Frame& f, canopen::TimeUs) {
+    bits += nodes::frameBits(f);
+    ++frames;
+  });
+  emu.start(bus.now());
+  ctrl.start(bus.now());
+  bus.advanceBy(1'000'000);
+  bits = 0;
+  frames = 0;
+  std::uint64_t cycles = 0;
+  for (auto _ : state) {
+    bus.advanceBy(1000);
+    ++cycles;
+  }
+  const double per = bits / static_cast<double>(cycles);
+  state.counters["frames_per_cycle"] = static_cast<double>(frames) / static_cast<double>(cycles);
+  state.counters["bits_per_cycle"] = per;
+  state.counters["us_at_1Mbit"] = per;           // 1 bit = 1 us at 1 Mbit/s
+  state.counters["load_pct_1kHz"] = per / 1000.0 * 100.0;
+}
+}  // namespace
+
+BENCHMARK(BM_SyncToSetpoint_PI)->Iterations(20000);
+BENCHMARK(BM_SyncToSetpoint_AMC)->Iterations(20000);
+BENCHMARK(BM_SyncToSetpoint_AMC_Traffic)->Iterations(20000);
+BENCHMARK(BM_RigCycle);
+BENCHMARK(BM_BusLoadPerCycle)->Iterations(10000);
+
+BENCHMARK_MAIN();
