@@ -35,7 +35,8 @@ std::vector<std::string> expand(const std::vector<std::string>& paths) {
   std::vector<std::string> files;
   for (const auto& p : paths) {
     struct stat st {};
-    if (::stat(p.c_str(), &st) != 0) throw std::runtime_error(p + ": no such file or directory");
+    if (::stat(p.c_str(), &st) != 0)
+      throw std::runtime_error(p + ": no such file or directory (give --od with the EDS files or their directory)");
     if (S_ISDIR(st.st_mode)) {
       DIR* d = ::opendir(p.c_str());
       if (!d) throw std::runtime_error(p + ": cannot read directory");

@@ -48,5 +48,27 @@ check "fit writes the model" grep -q '"pamc-model/1"' "$work/m.json"
 "$PAMC" experiments --only nonsense --out "$work/x" 2> "$work/err5.txt" > /dev/null
 check "unknown experiment exits non-zero" test $? -ne 0
 
+# CANopen side: corrupt EDS, bad candump log, missing interface.
+SRC="$(cd "$(dirname "$0")/../.." && pwd)"
+mkdir -p "$work/od"; cp "$SRC"/od/*.eds "$work/od/"
+sed -i '0,/DataType=0x0007/s//DataType=0xZZ07/' "$work/od/controller.eds"
+"$PAMC" rig --od "$work/od" --duration 1 > /dev/null 2> "$work/err6.txt"
+check "corrupt EDS exits non-zero" test $? -ne 0
+check "corrupt EDS error names file and line" grep -q "controller.eds:[0-9]*: \[1000\] DataType" "$work/err6.txt"
+printf '(1700000000.000001) vcan0 080#\n(1700000000.001000) vcan0 18G#0102\n' > "$work/bad.log"
+"$PAMC" decode "$work/bad.log" --od "$SRC/od" --out "$work/bad_decoded.csv" > /dev/null 2> "$work/err7.txt"
+check "bad candump log exits non-zero" test $? -ne 0
+check "bad candump log error names the line" grep -q "bad.log:2:" "$work/err7.txt"
+check "bad candump log leaves no CSV" test ! -e "$work/bad_decoded.csv"
+"$PAMC" controller --iface pamc_no_such_if --od "$SRC/od" --duration 1 > /dev/null 2> "$work/err8.txt"
+check "missing interface exits non-zero" test $? -ne 0
+check "missing interface is named" grep -q "pamc_no_such_if" "$work/err8.txt"
+"$PAMC" rig --od "$SRC/od" --duration 2 --preroll 1 --log "$work/rig.log" --csv "$work/rig.csv" > /dev/null
+check "rig runs on the in-process bus" test -s "$work/rig.csv"
+"$PAMC" decode "$work/rig.log" --od "$SRC/od" --out "$work/rig_dec.csv" > /dev/null
+check "decode of the rig's log" grep -q "^t,u,y,p,t_log" "$work/rig_dec.csv"
+"$PAMC" monitor --log "$work/rig.log" --od "$SRC/od" --once > "$work/mon.txt"
+check "monitor shows the nodes operational" test "$(grep -c operational "$work/mon.txt")" -eq 3
+
 echo "$passes passed, $fails failed"
 test $fails -eq 0

@@ -16,4 +16,16 @@ RC=$?
 kill "$EM" 2>/dev/null; wait "$EM" 2>/dev/null
 sleep 0.3
 kill "$CD" 2>/dev/null; wait "$CD" 2>/dev/null
+# The nodes' own log replays with can-utils' canplayer: every frame comes back on the bus.
+candump -L vcan0 > "$W/replayed.log" &
+CD=$!
+sleep 0.3
+canplayer -I "$W/controller.log"
+sleep 0.5
+kill "$CD" 2>/dev/null; wait "$CD" 2>/dev/null
+# The monitor runs live on the interface (a short look while the player runs again).
+canplayer -I "$W/controller.log" &
+PL=$!
+timeout 10 "$PAMC" monitor --iface vcan0 --od "$OD" --duration 2 > "$W/monitor.txt" 2>&1
+kill "$PL" 2>/dev/null; wait "$PL" 2>/dev/null
 exit $RC

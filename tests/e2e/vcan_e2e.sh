@@ -42,5 +42,9 @@ check "decoded log reproduces the controller's positions (>= 99 %)" test $((matc
 check "the run is 3 s at 200 Hz" test "$n_ctrl" -ge 590
 "$PAMC" fit "$W/decoded.csv" --generations 5 --quiet > /dev/null
 check "the decoded log is a measurement the modelling tools read" test $? -eq 0
-echo "$((5 + 3 - fails)) passed, $fails failed"
+n_log=$(wc -l < "$W/controller.log"); n_rep=$(wc -l < "$W/replayed.log")
+echo "controller log: $n_log frames, replayed by canplayer: $n_rep"
+check "canplayer replays the node's log frame for frame" test "$n_rep" -eq "$n_log"
+check "the live monitor decoded the bus" grep -q "sensor.position_value" "$W/monitor.txt"
+echo "$((5 + 5 - fails)) passed, $fails failed"
 [ $fails -eq 0 ]
