@@ -13,15 +13,13 @@
 #include "io/model_file.hpp"
 #include "sim/figures.hpp"
 
+#include "io/text.hpp"
+
 namespace pamc::diagnose {
 
 namespace {
 
-std::string fmt(const char* f, double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, v);
-  return b;
-}
+using io::fmt;
 
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

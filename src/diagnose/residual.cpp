@@ -6,6 +6,8 @@
 #include <numeric>
 #include <sstream>
 
+#include "io/text.hpp"
+
 namespace pamc::diagnose {
 
 namespace {
@@ -52,11 +54,7 @@ struct Acc {
   double mean() const { return n ? s / static_cast<double>(n) : 0.0; }
 };
 
-std::string fmt(const char* f, double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, v);
-  return b;
-}
+using io::fmt;
 
 }  // namespace
 

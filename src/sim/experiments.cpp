@@ -15,15 +15,13 @@
 #include "sim/figures.hpp"
 #include "sim/lockstep.hpp"
 
+#include "io/text.hpp"
+
 namespace pamc::sim {
 
 namespace {
 
-std::string fmt(const char* f, double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, v);
-  return b;
-}
+using io::fmt;
 
 bool wanted(const ExperimentSettings& s, const std::string& name) {
   return s.only.empty() || std::find(s.only.begin(), s.only.end(), name) != s.only.end();
