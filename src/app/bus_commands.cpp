@@ -397,7 +397,7 @@ struct BusCommands::Impl {
   }
 };
 
-BusCommands::BusCommands(CLI::App& app) : impl_(new Impl) {
+BusCommands::BusCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) {
   auto& m = *impl_;
   m.rig = app.add_subcommand("rig", "controller and emulator as CANopen nodes on the in-process bus (virtual time, "
                                     "no CAN hardware): the whole rig through the CANopen layer");
@@ -436,6 +436,8 @@ BusCommands::BusCommands(CLI::App& app) : impl_(new Impl) {
   m.monitor->add_option("--duration", m.duration, "stop after this many seconds (0: until Ctrl-C)");
   m.monitor->add_flag("--once", m.once, "print one screen at the end and exit");
 }
+
+BusCommands::~BusCommands() = default;
 
 int BusCommands::run() {
   auto& m = *impl_;

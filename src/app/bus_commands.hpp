@@ -4,17 +4,22 @@
 
 #include <CLI/CLI.hpp>
 
+#include <memory>
+
 namespace pamc::app {
 
 class BusCommands {
  public:
   explicit BusCommands(CLI::App& app);
+  ~BusCommands();
+  BusCommands(const BusCommands&) = delete;
+  BusCommands& operator=(const BusCommands&) = delete;
   // Runs the chosen subcommand; returns -1 if none of them was chosen.
   int run();
 
  private:
   struct Impl;
-  Impl* impl_;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace pamc::app

@@ -110,7 +110,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     noise = std::max(noise, analyze(vv, std::vector<double>(vv.size(), 0.0)).noise_floor);
   }
   for (int round = 1; round <= s.max_effects; ++round) {
-    const Rung& cur = res.ladder.back();
+    const Rung cur = res.ladder.back();  // a copy: the ladder grows below
     // At the noise level nothing is left to explain; the first round still runs, so the candidates
     // and their evidence are reported.
     const bool at_noise = cur.rmse_val < 1.5 * noise;
