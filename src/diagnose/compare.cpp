@@ -53,9 +53,10 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
   io::writeCsvAtomic(p + "acf.csv", {"lag_s", "acf", "upper", "lower"}, {&lag, &acf, &up, &dn});
   io::writeCsvAtomic(p + "ccf.csv", {"lag_s", "ccf", "upper", "lower"}, {&clag, &ccf, &cup, &cdn});
   {
-    std::string t = "group,label,n,rmse,mean\n";
+    std::string t = "group,label,n,rmse,mean,where\n";
     for (const auto& b : r.bins)
-      t += b.group + "," + b.label + "," + std::to_string(b.n) + "," + std::to_string(b.rmse) + "," + std::to_string(b.mean) + "\n";
+      t += b.group + "," + b.label + "," + std::to_string(b.n) + "," + std::to_string(b.rmse) + "," +
+           std::to_string(b.mean) + "," + b.group + ": " + b.label + "\n";
     io::writeFileAtomic(p + "breakdown.csv", t);
   }
   io::writeFileAtomic(p + "compare.json", toJson(c).dump(2) + "\n");
@@ -72,6 +73,9 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
                           {"loops: y against u", "u", "y", {{cc, "u", "y", "measured"}, {cc, "u", "y_model", "model"}}},
                           {"residual over time", "t [s]", "y - model", {{cc, "t", "residual", "residual"}}}},
                          err))
+    warnings += err + "; ";
+  if (!sim::renderBars(p + "breakdown.png", "Where the error is: RMSE of y - model by group", p + "breakdown.csv", 6, 4,
+                       "RMSE", err))
     warnings += err + "; ";
   if (!sim::renderFigure(p + "residual_tests.png", "Residual tests with 95 % bounds",
                          {{"auto-correlation of the residual", "lag [s]", "acf",

@@ -89,4 +89,37 @@ bool renderFigure(const std::string& png, const std::string& title, const std::v
   return true;
 }
 
+bool renderBars(const std::string& png, const std::string& title, const std::string& csv, int label_col,
+                int value_col, const std::string& ylabel, std::string& error) {
+  if (!haveGnuplot()) {
+    error = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
+    return false;
+  }
+  std::ostringstream gp;
+  const std::string tmp_png = png + ".tmp.png";
+  gp << "set terminal pngcairo size 1100,720 font 'DejaVu Sans,9'\nset output " << quote(tmp_png) << "\n";
+  gp << "set datafile separator ','\nset termoption noenhanced\nset title " << quote(title) << "\n";
+  gp << "set ylabel " << quote(ylabel) << "\nset style fill solid 0.6\nset boxwidth 0.8\nset grid ytics\n";
+  gp << "set xtics rotate by -45 left\nset bmargin 18\nset rmargin 8\nunset key\nset yrange [0:*]\n";
+  gp << "plot " << quote(csv) << " skip 1 using 0:" << value_col << ":xtic(" << label_col << ") with boxes\n";
+  gp << "set output\n";
+  const std::string script = png + ".gp";
+  {
+    std::ofstream f(script);
+    f << gp.str();
+  }
+  const std::string cmd = "gnuplot " + quote(script) + " 2>" + quote(png + ".log");
+  if (std::system(cmd.c_str()) != 0) {
+    error = "gnuplot failed on " + script + " (see " + png + ".log)";
+    std::remove(tmp_png.c_str());
+    return false;
+  }
+  std::remove((png + ".log").c_str());
+  if (std::rename(tmp_png.c_str(), png.c_str()) != 0) {
+    error = "cannot move " + tmp_png + " into place";
+    return false;
+  }
+  return true;
+}
+
 }  // namespace pamc::sim

@@ -25,6 +25,10 @@ struct Panel {
 bool renderFigure(const std::string& png, const std::string& title, const std::vector<Panel>& panels,
                   std::string& error, int width = 1000, int panel_height = 330);
 
+// A bar chart of one CSV column against a label column (1-based column numbers), one bar per row.
+bool renderBars(const std::string& png, const std::string& title, const std::string& csv, int label_col,
+                int value_col, const std::string& ylabel, std::string& error);
+
 bool haveGnuplot();
 
 }  // namespace pamc::sim
