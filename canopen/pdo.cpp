@@ -204,6 +204,7 @@ void Rpdo::reset() {
   rx_since_sync_ = false;
   timed_out_ = false;
   last_rx_us_ = kNever;
+  syncs_since_rx_ = UINT32_MAX;
 }
 
 void Rpdo::onFrame(const Frame& f, TimeUs now) {

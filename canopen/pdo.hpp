@@ -73,6 +73,7 @@ class Rpdo {
   std::uint64_t received() const { return received_; }
   std::uint64_t wrongLength() const { return wrong_length_; }
   // SYNCs since data last arrived (0: fresh this cycle); lets the application count missing PDOs.
+  // SYNCs since data last arrived (0: in the cycle before this SYNC); UINT32_MAX before the first.
   std::uint32_t syncsSinceReception() const { return syncs_since_rx_; }
   bool timedOut() const { return timed_out_; }  // event timer (deadline monitoring) expired
   TimeUs lastReceptionUs() const { return last_rx_us_; }
@@ -96,7 +97,7 @@ class Rpdo {
   TimeUs last_rx_us_ = kNever;
   std::uint64_t received_ = 0;
   std::uint64_t wrong_length_ = 0;
-  std::uint32_t syncs_since_rx_ = 0;
+  std::uint32_t syncs_since_rx_ = UINT32_MAX;  // UINT32_MAX: nothing received yet
 };
 
 class Tpdo {

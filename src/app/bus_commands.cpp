@@ -108,7 +108,7 @@ class Logger {
     if (dump_) dump_->flush();
     nodes::CycleRecord r;
     while (records && records->pop(r)) {
-      kept.push_back(r);
+      if (kept.size() < 10'000'000) kept.push_back(r);  // the summary's statistics; the CSV has everything
       if (csv_)
         std::fprintf(csv_, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%u,%.1f\n", r.t, r.yd, r.y, r.u, r.u_n, r.u_c, r.y_hat,
                      r.fault, static_cast<double>(r.latency_us));
@@ -147,6 +147,7 @@ struct BusCommands::Impl {
   // controller options
   std::string iface = "vcan0", od_dir = "od", ctrl_kind = "pi", traj = "triangle:0.05:0.2:30", model_file, plant_file;
   double duration = 40.0, preroll = 5.0;
+  double emu_duration = 0.0;  // the emulator runs until stopped unless told
   unsigned period_us = 0;
   bool consume_sync = false, rt = false;
   int cpu = -1, prio = 80;
@@ -202,8 +203,12 @@ struct BusCommands::Impl {
     if (!payload.empty()) {
       const auto c = payload.find(':');
       if (c == std::string::npos) throw std::invalid_argument("--payload: expected TIME:NEWTONS, got '" + payload + "'");
-      ec.payload_at_s = std::stod(payload.substr(0, c));
-      ec.payload_N = std::stod(payload.substr(c + 1));
+      try {
+        ec.payload_at_s = std::stod(payload.substr(0, c));
+        ec.payload_N = std::stod(payload.substr(c + 1));
+      } catch (const std::exception&) {
+        throw std::invalid_argument("--payload: expected TIME:NEWTONS with numbers, got '" + payload + "'");
+      }
     }
   }
   nodes::ControllerNodeConfig controllerConfig() {
@@ -262,6 +267,14 @@ struct BusCommands::Impl {
     logger.start();
     std::fprintf(stderr, "controller node 1 on %s: %s, %s%s\n", iface.c_str(), control::toString(node.kind()),
                  c.trajectory.describe().c_str(), c.produce_sync ? ", producing SYNC" : ", consuming SYNC");
+    // The watcher is joined however run() ends (a destroyed joinable thread would abort).
+    struct Joiner {
+      std::thread& t;
+      ~Joiner() {
+        g_stop = true;
+        if (t.joinable()) t.join();
+      }
+    };
     std::thread watch([&] {
       nodes::Fault last = nodes::Fault::None;
       while (!g_stop) {
@@ -278,10 +291,11 @@ struct BusCommands::Impl {
         if (duration > 0 && node.runTime() >= duration) loop.stop();
       }
     });
-    node.start(canopen::monotonicNowUs());
-    loop.run();
-    g_stop = true;
-    watch.join();
+    {
+      Joiner j{watch};
+      node.start(canopen::monotonicNowUs());
+      loop.run();
+    }
     g_loop = nullptr;
     logger.stop();
     printStats(node.stats(), logger.kept);
@@ -307,16 +321,24 @@ struct BusCommands::Impl {
     logger.start();
     std::fprintf(stderr, "emulator on %s: sensor node %u, valve node %u; stepped by SYNC\n", iface.c_str(),
                  emu.sensor().nodeId(), emu.valve().nodeId());
+    struct Joiner {
+      std::thread& t;
+      ~Joiner() {
+        g_stop = true;
+        if (t.joinable()) t.join();
+      }
+    };
     std::thread watch([&] {
       while (!g_stop) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
-        if (duration > 0 && emu.time() >= duration) loop.stop();
+        if (emu_duration > 0 && emu.time() >= emu_duration) loop.stop();
       }
     });
-    emu.start(canopen::monotonicNowUs());
-    loop.run();
-    g_stop = true;
-    watch.join();
+    {
+      Joiner j{watch};
+      emu.start(canopen::monotonicNowUs());
+      loop.run();
+    }
     g_loop = nullptr;
     logger.stop();
     std::printf("emulated %.3f s (%llu position PDOs dropped by fault injection)\n", emu.time(),
@@ -418,7 +440,7 @@ BusCommands::BusCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) {
   m.emulator->add_option("--iface", m.iface, "CAN interface")->capture_default_str();
   m.emulator->add_option("--od", m.od_dir, "directory with sensor.eds and valve.eds")->capture_default_str();
   m.addEmulatorOptions(m.emulator);
-  m.emulator->add_option("--duration", m.duration, "stop after this many seconds of SYNCs (0: until stopped)");
+  m.emulator->add_option("--duration", m.emu_duration, "stop after this many seconds of SYNCs (0: until stopped)")->capture_default_str();
   m.emulator->add_option("--period-us", m.period_us, "SYNC period the physics steps by (default 1000 us)");
   m.emulator->add_option("--log", m.candump, "write every frame as a candump -l log");
   m.emulator->add_flag("--rt", m.rt, "mlockall, SCHED_FIFO, CPU affinity (warns when not permitted)");

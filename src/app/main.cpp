@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
   ex->add_option("--amc-horizon", ex_cc.amc_horizon, "AMC prediction horizon [samples]; 1 = eq. (17)")->capture_default_str()->check(CLI::Range(1, 2000));
   ex->add_option("--amc-inverse", ex_cc.amc_inverse, "with --amc-horizon > 1: fraction of the predicted error corrected through the model's inverse (0: kc e_hat)")->capture_default_str()->check(CLI::Range(0.0, 1.0));
   ex->add_option("--eso-b0", ex_cc.b0, "ESO input gain b0 [mm/(s^2 V)]")->capture_default_str()->check(CLI::PositiveNumber);
-  ex->add_option("--delay", ex_cc.delay_cycles, "cycles from command to valve (1 on the CAN bus)")->capture_default_str()->check(CLI::Range(0, 7));
+  ex->add_option("--delay", ex_cc.delay_cycles, "cycles from command to the measurement that shows it, beyond one sample (2 on the CAN bus)")->capture_default_str()->check(CLI::Range(0, 7));
 
   // fit
   auto* fit = app.add_subcommand("fit", "identify a model from a measurement CSV (t,u,y[,load,...]) by GA + Nelder-Mead");

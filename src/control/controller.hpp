@@ -10,8 +10,8 @@
 //  - all gains are continuous-time, as the ESO's observer gains of eq. (24) are: kp [V/mm],
 //    ki [V/(mm s)] multiplying the integral of the error, taken as the sum of e_i * Ts. Read
 //    literally (ki times the bare sum at 1 kHz, i.e. 150 V/(mm s)) the integral would close the
-//    loop near 900 rad/s, unstable against a valve-and-muscle lag of tens of milliseconds and the
-//    one-cycle bus delay (docs/CONTROL.md has the numbers);
+//    loop at hundreds of rad/s, unstable against a valve-and-muscle lag of tens of milliseconds and
+//    the bus delay (docs/CONTROL.md has the numbers);
 //  - kc [V/mm] multiplies the predicted error of eq. (18).
 #pragma once
 
@@ -45,10 +45,11 @@ struct ControllerConfig {
   // ESO, eq. (24): fal() with delta in mm; b0 [mm/(s^2 V)] is the input gain the observer
   // assumes (the paper's eq. (22) has b0 = 1).
   double beta1 = 100.0, beta2 = 100.0, beta3 = 100.0, delta = 500.0, b0 = 1.0;
-  // Samples between issuing a command and the first measurement that reflects it, beyond
-  // the one sample of any sampled loop (1 on the CANopen bus: the valve applies a synchronous
-  // RPDO at the next SYNC).
-  int delay_cycles = 1;
+  // Cycles between issuing a command and the first measurement that reflects it, beyond the one
+  // sample of any sampled loop. 2 on the CANopen bus: the valve applies a synchronous RPDO at the
+  // next SYNC, and the controller latches the position (sent after the SYNC at which it was
+  // sampled) at the SYNC after that.
+  int delay_cycles = 2;
   model::Model model;  // identified reference model (open loop, AMC)
   estimation::ActiveModelSettings ukf;
 };

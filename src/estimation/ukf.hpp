@@ -5,7 +5,8 @@
 //   lambda = a^2 (n + kappa) - n,  Wm0 = lambda / (n + lambda),  Wc0 = Wm0 + 1 - a^2 + b,
 //   Wi = 1 / (2 (n + lambda)).
 // (The paper's eq. (13) swaps these; its settings a = 1e-3, kappa = 3 - n, b = 2 give
-// Wm0 ~ -1e6, so sums are taken about the central sigma point and the covariance is guarded:
+// Wm0 ~ -1e6, so means and covariances are taken about the central sigma point (exactly equal to the
+// weighted sums, without the cancellation) and the covariance is guarded:
 // symmetrised, checked by Cholesky, repaired by an eigenvalue floor, reset when that fails.)
 // predict() and update() are noexcept and allocation-free; they return a status, never throw.
 #pragma once
@@ -62,6 +63,7 @@ class Ukf {
     wm0_ = lambda_ / (n + lambda_);
     wc0_ = wm0_ + 1.0 - s.alpha * s.alpha + s.beta;
     wi_ = 1.0 / (2.0 * (n + lambda_));
+    central_ = s.beta - s.alpha * s.alpha;  // Wc0 - Wm0 - 1 + ... reduces to this (see predict())
   }
 
   void reset(const Vec& x0, const Mat& P0) noexcept {
@@ -77,11 +79,15 @@ class Ukf {
     if (!sigmaPoints(st)) return UkfStatus::Reset;
     for (int i = 0; i < kSigma; ++i) Xp_.col(i) = f(static_cast<const Vec&>(X_.col(i)));
     x_ = weightedMean(Xp_);
+    // About the central point: P = sum_i Wi d_i d_i' + (b - a^2) m m', d_i = X_i - X_0, m = x - X_0 -
+    // algebraically the weighted sum about the mean, without the ~1e6 weights cancelling.
     Mat P = Mat::Zero();
-    for (int i = 0; i < kSigma; ++i) {
-      const Vec d = Xp_.col(i) - x_;
-      P.noalias() += (i == 0 ? wc0_ : wi_) * d * d.transpose();
+    for (int i = 1; i < kSigma; ++i) {
+      const Vec d = Xp_.col(i) - Xp_.col(0);
+      P.noalias() += wi_ * d * d.transpose();
     }
+    const Vec m = x_ - Xp_.col(0);
+    P.noalias() += central_ * m * m.transpose();
     P_ = P + Q;
     return worst(st, guard());
   }
@@ -97,13 +103,16 @@ class Ukf {
     if (!z.allFinite()) return UkfStatus::MeasurementRejected;
     MMat S = MMat::Zero();
     Eigen::Matrix<double, N, M> C = Eigen::Matrix<double, N, M>::Zero();
-    for (int i = 0; i < kSigma; ++i) {
-      const double w = i == 0 ? wc0_ : wi_;
-      const MVec dz = Z_.col(i) - z_pred_;
-      const Vec dx = X_.col(i) - x_;
-      S.noalias() += w * dz * dz.transpose();
-      C.noalias() += w * dx * dz.transpose();
+    for (int i = 1; i < kSigma; ++i) {
+      const MVec dz = Z_.col(i) - Z_.col(0);
+      const Vec dx = X_.col(i) - X_.col(0);
+      S.noalias() += wi_ * dz * dz.transpose();
+      C.noalias() += wi_ * dx * dz.transpose();
     }
+    const MVec mz = z_pred_ - Z_.col(0);
+    const Vec mx = x_ - X_.col(0);  // zero: these sigma points are centred on x
+    S.noalias() += central_ * mz * mz.transpose();
+    C.noalias() += central_ * mx * mz.transpose();
     S += R;
     Eigen::LLT<MMat> llt(S);
     if (llt.info() != Eigen::Success) return worst(st, hardReset());
@@ -189,6 +198,7 @@ class Ukf {
 
   UkfSettings settings_;
   double lambda_ = 0, gamma_ = 0, wm0_ = 0, wc0_ = 0, wi_ = 0;
+  double central_ = 0;  // b - a^2: weight of the mean offset in the covariance about X_0
   Vec x_ = Vec::Zero();
   Mat P_ = Mat::Identity();
   Mat P0_ = Mat::Identity();

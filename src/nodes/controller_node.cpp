@@ -30,7 +30,7 @@ std::uint16_t emcyCode(Fault f) {
     case Fault::SensorHeartbeat: return 0x8130;  // life guard / heartbeat error
     case Fault::PositionMissing: return 0x8250;  // RPDO timeout
     case Fault::Estimator: return 0x6100;        // internal software
-    case Fault::BusError: return 0x8120;         // CAN in error passive mode
+    case Fault::BusError: return 0x8120;         // CAN in error passive mode (or bus off)
     case Fault::ValveHeartbeat: return 0x8130;
   }
   return 0xFF00;
@@ -53,7 +53,8 @@ sim::Trajectory trajectoryFromOd(canopen::ObjectDictionary& od) {
   throw std::invalid_argument("0x2011 trajectory choice " + std::to_string(choice) + " is not 0..5");
 }
 
-void trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t) {
+// False when the shape has no representation in 0x2011/0x2012 (it then runs from the command line).
+bool trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t) {
   using S = sim::Trajectory::Shape;
   int choice = 0;
   switch (t.shape) {
@@ -63,7 +64,7 @@ void trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t) {
     case S::SineDescending: choice = 3; break;
     case S::Square: choice = 4; break;
     case S::Sawtooth: choice = 5; break;
-    default: return;  // shapes without an OD representation run from the command line only
+    default: return false;
   }
   od.ref<std::uint8_t>(0x2011, 0).set(static_cast<std::uint8_t>(choice));
   od.ref<double>(0x2012, 1).set(t.freq_hz);
@@ -73,6 +74,7 @@ void trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t) {
   od.ref<double>(0x2012, 5).set(t.amplitude);
   od.ref<double>(0x2012, 6).set(t.amplitude_end);
   od.ref<double>(0x2012, 7).set(t.duration);
+  return true;
 }
 }  // namespace
 
@@ -80,8 +82,44 @@ ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transpo
                                std::function<TimeUs()> clock)
     : cfg_(cfg), clock_(std::move(clock)) {
   node_ = canopen::Node::fromEds(cfg.eds_path, transport);
+  applyOverrides();
+  auto& od = node_->od();
+  position_ = od.ref<std::int32_t>(0x3000, 0);
+  valve_cmd_ = od.ref<std::int16_t>(0x3002, 0);
+  configureFromOd();
+
+  node_->onSync([this](std::uint8_t counter, TimeUs now) { onSync(counter, now); });
+  node_->onHeartbeat([this](std::uint8_t id, HeartbeatEvent ev, NmtState, TimeUs) {
+    if (ev == HeartbeatEvent::Timeout) raise(id == cfg_.sensor_id ? Fault::SensorHeartbeat : Fault::ValveHeartbeat);
+    // A slave that rebooted waits in Pre-operational: start it again.
+    if (ev == HeartbeatEvent::BootUp) node_->sendNmt(NmtCommand::Start, id);
+  });
+  node_->onErrorFrame([this](const canopen::Frame& f, TimeUs) {
+    // Linux error-frame classes (linux/can/error.h): bus off (0x40), or a controller problem (0x04)
+    // reporting error passive (data[1] 0x10 rx / 0x20 tx). Other classes are counted by the layer.
+    const bool bus_off = (f.id & 0x40u) != 0;
+    const bool passive = (f.id & 0x04u) != 0 && (f.data[1] & 0x30u) != 0;
+    if (bus_off || passive) raise(Fault::BusError);
+  });
+  node_->onStateChange([this](NmtState, NmtState to, TimeUs) {
+    if (to != NmtState::Operational) return;
+    // Parameters set over SDO take effect here; a set that does not configure keeps the running
+    // controller and raises a fault instead of escaping into the event loop.
+    try {
+      configureFromOd();
+    } catch (const std::exception&) {
+      ++config_errors_;
+      raise(Fault::Estimator);
+    }
+  });
+  // A reset restores the EDS defaults: put the command line's choices back.
+  node_->onReset([this](NmtCommand, TimeUs) { applyOverrides(); });
+}
+
+void ControllerNode::applyOverrides() {
   auto& od = node_->od();
   // Command-line choices go into the dictionary, so SDO reads show what runs.
+  const auto& cfg = cfg_;
   if (cfg.kind >= 0) od.ref<std::uint8_t>(0x2010, 0).set(static_cast<std::uint8_t>(cfg.kind));
   if (cfg.gains_from_config) {
     const auto& c = cfg.ctrl;
@@ -93,26 +131,12 @@ ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transpo
     const double v[] = {m.k, m.rho, m.b, m.alpha, m.beta, m.gamma};
     for (std::uint8_t i = 0; i < 6; ++i) od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).set(v[i]);
   }
-  if (cfg.has_trajectory) trajectoryToOd(od, cfg.trajectory);
+  if (cfg.has_trajectory) traj_override_ = !trajectoryToOd(od, cfg.trajectory);
   if (cfg.period_us) od.ref<std::uint32_t>(0x1006, 0).set(cfg.period_us);
   if (!cfg.produce_sync) {
     auto cob = od.ref<std::uint32_t>(0x1005, 0);
     cob.set(cob.get() & ~0x40000000u);  // consume SYNC from another master
   }
-  position_ = od.ref<std::int32_t>(0x3000, 0);
-  valve_cmd_ = od.ref<std::int16_t>(0x3002, 0);
-  configureFromOd();
-
-  node_->onSync([this](std::uint8_t counter, TimeUs now) { onSync(counter, now); });
-  node_->onHeartbeat([this](std::uint8_t id, HeartbeatEvent ev, NmtState, TimeUs) {
-    if (ev == HeartbeatEvent::Timeout) raise(id == cfg_.sensor_id ? Fault::SensorHeartbeat : Fault::ValveHeartbeat);
-    // A slave that rebooted waits in Pre-operational: start it again.
-    if (ev == HeartbeatEvent::BootUp) node_->sendNmt(NmtCommand::Start, id);
-  });
-  node_->onErrorFrame([this](const canopen::Frame&, TimeUs) { raise(Fault::BusError); });
-  node_->onStateChange([this](NmtState, NmtState to, TimeUs) {
-    if (to == NmtState::Operational) configureFromOd();  // parameters set over SDO take effect here
-  });
 }
 
 void ControllerNode::configureFromOd() {
@@ -140,22 +164,25 @@ void ControllerNode::configureFromOd() {
   c.ukf.R = od.ref<double>(0x2002, 5).get();
   const std::uint32_t period_us = od.ref<std::uint32_t>(0x1006, 0).get();
   if (period_us == 0) throw std::invalid_argument(cfg_.eds_path + ": 0x1006 communication cycle period is 0");
+  // Build everything first, then swap: a failure leaves the running controller in place.
   Ts_ = period_us * 1e-6;
   c.Ts = Ts_;
-  c.delay_cycles = 1;
+  c.delay_cycles = 2;  // see controller_node.hpp: y_k reflects u_{k-3}
   kind_ = static_cast<control::Kind>(od.ref<std::uint8_t>(0x2010, 0).get());
   traj_ = trajectoryFromOd(od);
-  if (cfg_.has_trajectory) traj_ = cfg_.trajectory;  // shapes the OD cannot hold
+  if (traj_override_) traj_ = cfg_.trajectory;  // shapes the OD cannot hold
   safe_u_ = std::clamp(od.ref<double>(0x2020, 0).get(), 0.0, 10.0) - 5.0;
   missing_limit_ = od.ref<std::uint8_t>(0x2021, 0).get();
-  ctrl_ = control::makeController(kind_, c);
-  cfg_.ctrl = c;
+  auto fresh_ctrl = control::makeController(kind_, c);
+  ctrl_ = std::move(fresh_ctrl);
+  cfg_.ctrl.Ts = c.Ts;
   active_ = false;
   run_started_ = false;
   cycle_ = 0;
   preroll_cycles_ = static_cast<std::uint64_t>(std::llround(cfg_.preroll_s / Ts_));
   last_u_ = safe_u_;
   valve_cmd_.set(0);
+  run_time_pub_.store(0.0, std::memory_order_relaxed);
 }
 
 void ControllerNode::start(TimeUs now) {
@@ -163,10 +190,6 @@ void ControllerNode::start(TimeUs now) {
   node_->applyNmt(NmtCommand::Start);
   node_->sendNmt(NmtCommand::Start, cfg_.sensor_id);
   node_->sendNmt(NmtCommand::Start, cfg_.valve_id);
-}
-
-double ControllerNode::runTime() const noexcept {
-  return run_started_ ? static_cast<double>(cycle_ - preroll_cycles_) * Ts_ : 0.0;
 }
 
 void ControllerNode::raise(Fault f) noexcept {
@@ -190,13 +213,18 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
 
   // Latch: the position RPDO of this cycle, or a fault if it has been missing too long.
   const auto& rp = node_->rpdo(1);
-  const bool fresh = rp.syncsSinceReception() <= 1;
-  if (!active_ && fresh && position_.get() != 0) {
+  const bool fresh = rp.syncsSinceReception() == 0;  // a position arrived in the last cycle
+  if (!active_ && fresh) {
     ctrl_->activate(last_u_, position_.get() * 1e-3);
     active_ = true;
   }
   if (active_ && rp.syncsSinceReception() > missing_limit_) raise(Fault::PositionMissing);
-  if (node_->heartbeatConsumer().timedOut(cfg_.sensor_id)) raise(Fault::SensorHeartbeat);
+  // Polled every cycle (the heartbeat hook fires once per timeout): a fault must not clear while
+  // its cause persists.
+  const auto& hb = node_->heartbeatConsumer();
+  if (hb.timedOut(cfg_.sensor_id)) raise(Fault::SensorHeartbeat);
+  if (active_ && (hb.timedOut(cfg_.valve_id) || hb.remoteState(cfg_.valve_id) == NmtState::Stopped))
+    raise(Fault::ValveHeartbeat);
 
   CycleRecord rec;
   const double y = position_.get() * 1e-3;
@@ -241,6 +269,8 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   const double lat = clock_ ? static_cast<double>(clock_() - now) : 0.0;
   stats_.latency_us.add(lat);
   if (lat > Ts_ * 1e6) ++stats_.overruns;
+  fault_pub_.store(fault_, std::memory_order_relaxed);
+  run_time_pub_.store(t, std::memory_order_relaxed);
   if (active_ && run_started_) {
     rec.u = last_u_;
     rec.fault = static_cast<std::uint8_t>(fault_);

@@ -2,15 +2,17 @@
 // nodes, SYNC producer (or consumer), and in the SYNC callback the whole control cycle:
 //   SYNC -> RPDOs latched (position of the sensor, pressure of the valve) -> estimate -> control ->
 //   valve setpoint into the TPDO, sent right after the callback.
-// The valve applies the setpoint at the next SYNC (synchronous RPDO), so the position the sensor
-// sends after SYNC k reflects the setpoint computed at SYNC k-2: the one-cycle bus delay the
-// lockstep simulation models with delay_cycles = 1.
+// The valve applies the setpoint at the next SYNC (synchronous RPDO); the sensor samples at each SYNC
+// and sends right after it; the controller latches that position at the following SYNC. So the
+// position the controller works with at SYNC k was taken at SYNC k-1 and reflects the setpoint
+// computed at SYNC k-3: the lockstep simulation models this with delay_cycles = 2.
 //
 // Its parameters live in the object dictionary (gains 0x2000, model 0x2001, UKF 0x2002, controller
 // 0x2010, trajectory 0x2011/0x2012, safe valve voltage 0x2020, missing-PDO limit 0x2021), so they can
 // be read and set over SDO; they are taken into use when the node enters Operational.
 #pragma once
 
+#include <atomic>
 #include <functional>
 #include <memory>
 #include <string>
@@ -57,16 +59,18 @@ class ControllerNode {
   // Boot-up, then Operational; NMT start to both slaves (and again whenever one boots).
   void start(canopen::TimeUs now);
 
-  Fault fault() const noexcept { return fault_; }
+  // Safe to call from another thread (the command line's watcher).
+  Fault fault() const noexcept { return fault_pub_.load(std::memory_order_relaxed); }
   const CycleStats& stats() const noexcept { return stats_; }
   SpscRing<CycleRecord, 1 << 15>& records() noexcept { return records_; }
   bool running() const noexcept { return run_started_; }
-  double runTime() const noexcept;  // seconds of trajectory time so far
+  double runTime() const noexcept { return run_time_pub_.load(std::memory_order_relaxed); }  // trajectory seconds so far; any thread
   std::uint64_t faultsRaised() const noexcept { return faults_raised_; }
   control::Kind kind() const noexcept { return kind_; }
 
  private:
   void configureFromOd();
+  void applyOverrides();
   void onSync(std::uint8_t counter, canopen::TimeUs now) noexcept;
   void raise(Fault f) noexcept;
 
@@ -89,7 +93,11 @@ class ControllerNode {
   Fault pending_ = Fault::None;  // raised from hooks, taken in the cycle
   int clear_cycles_ = 0;
   std::uint64_t faults_raised_ = 0;
+  std::uint64_t config_errors_ = 0;
+  bool traj_override_ = false;
   double last_u_ = -5.0;
+  std::atomic<Fault> fault_pub_{Fault::None};
+  std::atomic<double> run_time_pub_{0.0};
   canopen::TimeUs last_sync_ = 0;
   CycleStats stats_;
   SpscRing<CycleRecord, 1 << 15> records_;

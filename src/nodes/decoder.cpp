@@ -190,7 +190,7 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
     ++run.frames;
     const double ts = rec.unix_time_us * 1e-6;
     if (std::isnan(t0)) t0 = ts;
-    if (f.id == dict.sync_cob && !f.extended()) {
+    if (f.id == dict.sync_cob && !f.extended() && !f.error() && !f.remote()) {
       emit(last_sync_t);
       ++k;
       ++run.syncs;

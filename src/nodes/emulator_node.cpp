@@ -46,13 +46,13 @@ bool EmulatorNodes::FaultyLink::send(const Frame& f) {
 }
 
 void EmulatorNodes::onFrame(const Frame& f, TimeUs now) {
-  if ((f.id & 0x7FFu) == sync_cob_ && !f.remote()) {
+  if ((f.id & 0x7FFu) == sync_cob_ && !f.remote() && !f.error() && !f.extended()) {
     // Physics over the cycle that just ended, under the command held during it.
     ++syncs_;
     const double F = cfg_.payload_at_s >= 0 && time() >= cfg_.payload_at_s ? cfg_.payload_N : 0.0;
     plant_.step(u_held_, F);
     const double y = plant_.measure();
-    const auto counts = static_cast<std::int32_t>(std::lround(y * 1000.0));
+    const auto counts = static_cast<std::int32_t>(std::lround(std::clamp(y, -2.0e6, 2.0e6) * 1000.0));
     late_[syncs_ % late_.size()] = counts;
     const int lag = std::clamp(cfg_.late_pdo_cycles, 0, static_cast<int>(late_.size()) - 1);
     position_.set(syncs_ > static_cast<std::uint64_t>(lag) ? late_[(syncs_ - static_cast<std::uint64_t>(lag)) % late_.size()] : counts);
@@ -60,7 +60,7 @@ void EmulatorNodes::onFrame(const Frame& f, TimeUs now) {
   }
   if (!sensorSilent()) sensor_->onFrame(f, now);
   valve_->onFrame(f, now);
-  if ((f.id & 0x7FFu) == sync_cob_) {
+  if ((f.id & 0x7FFu) == sync_cob_ && !f.remote() && !f.error() && !f.extended()) {
     // The valve latched the command of the last cycle at this SYNC: it holds until the next one.
     u_held_ = command_.get() * 10.0 / 32767.0 - 5.0;
   }

@@ -8,6 +8,7 @@
 // late by whole cycles, a payload step.
 #pragma once
 
+#include <atomic>
 #include <memory>
 #include <random>
 #include <string>
@@ -42,7 +43,8 @@ class EmulatorNodes : public canopen::BusClient {
   canopen::Node& sensor() { return *sensor_; }
   canopen::Node& valve() { return *valve_; }
   const plant::Plant& plant() const { return plant_; }
-  double time() const { return static_cast<double>(syncs_) * plant_.config().Ts; }
+  // Safe from another thread.
+  double time() const { return static_cast<double>(syncs_.load(std::memory_order_relaxed)) * plant_.config().Ts; }
   std::uint64_t pdosDropped() const { return dropped_; }
 
  private:
@@ -68,7 +70,7 @@ class EmulatorNodes : public canopen::BusClient {
   std::uint32_t sync_cob_ = 0x80;
   std::uint32_t pdo_cob_ = 0x182;
   double u_held_ = -5.0;
-  std::uint64_t syncs_ = 0;
+  std::atomic<std::uint64_t> syncs_{0};
   std::uint64_t dropped_ = 0;
   std::mt19937_64 rng_;
   std::array<std::int32_t, 256> late_{};

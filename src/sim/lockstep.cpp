@@ -148,7 +148,10 @@ RecoveryStats recovery(const Record& r, double t_event, double band_mm) {
     s.peak_dev_mm = std::max(s.peak_dev_mm, e);
     if (e > band_mm) last_out = i;
   }
-  if (any && last_out + 1 >= r.t.size()) s.recovered = false;
+  // Recovered only if the error then stays in the band for at least half a second before the end.
+  const double Ts = r.t.size() > 1 ? r.t[1] - r.t[0] : 1e-3;
+  const auto dwell = static_cast<size_t>(0.5 / Ts);
+  if (any && last_out + dwell >= r.t.size()) s.recovered = false;
   if (any && last_out >= i0) s.recovery_s = r.t[last_out] - r.t[i0] + (r.t.size() > 1 ? r.t[1] - r.t[0] : 0);
   return s;
 }

@@ -1,8 +1,8 @@
 // Lockstep simulation in virtual time: plant emulator and controller advance together, one
 // 1 kHz cycle at a time, with the cycle order of the CANopen node:
 //   SYNC -> latch position y_k -> estimate -> control -> send u_k
-// and the valve applying u_k from the next SYNC on (delay_cycles = 1), so the plant holds
-// u_{k-1} during (k, k+1].
+// and the valve applying u_k from the next SYNC on, the position reaching the controller one SYNC
+// after it was sampled (delay_cycles = 2 on the bus): the plant holds u_{k-2} during (k, k+1].
 #pragma once
 
 #include <functional>
@@ -27,7 +27,7 @@ struct ClosedLoopRun {
   double duration_s = 40.0;
   double force_step_time_s = -1.0;  // < 0: no payload step
   double force_N = 0.0;
-  int delay_cycles = 1;
+  int delay_cycles = 2;
   // Before t = 0 the loop holds the first setpoint this long, as one homes a rig before a run;
   // not recorded.
   double preroll_s = 5.0;

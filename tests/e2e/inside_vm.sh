@@ -6,7 +6,7 @@ PAMC="$1"; OD="$2"; W="$3"
 candump -L vcan0 > "$W/bus.log" &
 CD=$!
 # 200 Hz: the VM runs under software emulation and the point here is the plumbing, not timing.
-"$PAMC" emulator --iface vcan0 --od "$OD" --period-us 5000 --duration 120 > "$W/emulator.txt" 2>&1 &
+"$PAMC" emulator --iface vcan0 --od "$OD" --period-us 5000 > "$W/emulator.txt" 2>&1 &
 EM=$!
 sleep 0.5
 "$PAMC" controller --iface vcan0 --od "$OD" --period-us 5000 --controller pi --ki 1.5 \

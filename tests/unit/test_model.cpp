@@ -76,7 +76,7 @@ TEST(BoucWen, LargeCommandJumpStaysBounded) {
   StepContext c;
   m.init(st, 0.0, c);
   for (double v : u) m.step(st, v, c);
-  EXPECT_LE(std::fabs(st.h), 1.0 / (0.9 - 0.8) + 1e-9);
+  EXPECT_LE(std::fabs(st.h), 1.0 / (0.9 + 0.8) + 1e-9);  // alpha / (beta + gamma)
 }
 
 TEST(Effects, PressureLagIsFirstOrder) {

@@ -43,8 +43,10 @@ double rmse(const std::vector<double>& a, const std::vector<double>& b) {
 
 class RigMatchesLockstep : public ::testing::TestWithParam<control::Kind> {};
 
-// The same controller on the same emulator, once through the CANopen layer and once in lockstep:
-// tracking RMSE within 5 % (or 0.02 mm) of each other.
+// The same controller on the same emulator, once through the CANopen layer and once in lockstep
+// (delay_cycles = 2): tracking RMSE within 1 % of each other. (Start-up differs by a few cycles -
+// the rig waits for the first position PDO - so the traces are close, not identical; the timing
+// itself is pinned by RigTiming below.)
 TEST_P(RigMatchesLockstep, TrackingRmseAgrees) {
   const auto traj = sim::Trajectory::triangle(0.1, 5.0, 25.0);
   const double duration = 10.0;
@@ -54,25 +56,65 @@ TEST_P(RigMatchesLockstep, TrackingRmseAgrees) {
   EXPECT_EQ(rig.faults, 0u);
   std::vector<double> e_rig;
   for (const auto& r : rig.records) e_rig.push_back(r.yd - r.y);
-
   control::ControllerConfig lc = cc.ctrl;
+  lc.delay_cycles = 2;
   auto ctrl = control::makeController(GetParam(), lc);
   plant::Plant p(emulatorConfig().plant);
   sim::ClosedLoopRun run;
   run.reference = traj;
   run.duration_s = duration;
   run.preroll_s = cc.preroll_s;
-  run.delay_cycles = 1;
+  run.delay_cycles = 2;
   const auto rec = sim::runClosedLoop(*ctrl, p, run, -5.0);
   std::vector<double> e_ls;
   for (size_t i = 0; i < rec.t.size(); ++i) e_ls.push_back(rec.yd[i] - rec.y[i]);
   const double r_rig = rmse(e_rig, std::vector<double>(e_rig.size(), 0.0));
   const double r_ls = rmse(e_ls, std::vector<double>(e_ls.size(), 0.0));
-  EXPECT_NEAR(r_rig, r_ls, std::max(0.05 * r_ls, 0.02)) << "rig " << r_rig << " lockstep " << r_ls;
-  std::printf("rig %.4f lockstep %.4f records %zu\n", r_rig, r_ls, rig.records.size());
-  RecordProperty("rmse_rig", std::to_string(r_rig));
-  RecordProperty("rmse_lockstep", std::to_string(r_ls));
+  EXPECT_NEAR(r_rig, r_ls, 0.01 * r_ls) << "rig " << r_rig << " lockstep " << r_ls;
   EXPECT_GT(r_ls, 0.01);  // a real run, not a flat line
+}
+
+namespace {
+// Cycles from the first command jump after the start until the position moves.
+int cyclesUntilResponse(const std::vector<double>& u, const std::vector<double>& y) {
+  for (size_t i = 10; i + 6 < u.size(); ++i) {
+    if (std::fabs(u[i] - u[i - 1]) < 0.1) continue;
+    for (size_t k = i + 1; k < i + 6; ++k)
+      if (std::fabs(y[k] - y[k - 1]) > 0.01) return static_cast<int>(k - i);
+    return -1;
+  }
+  return -2;
+}
+}  // namespace
+
+// The pipeline, cycle for cycle: a command computed at SYNC k first shows in the position the
+// controller latches at SYNC k+3 (valve applies it at k+1, sensor samples at k+2, controller
+// latches at k+3) - on the bus and in the lockstep simulation with delay_cycles = 2.
+TEST(RigTiming, CommandShowsInThePositionThreeCyclesLater) {
+  const auto traj = sim::Trajectory::square(0.5, 10.0, 20.0);
+  auto cc = controllerConfig(control::Kind::OpenLoop, traj);
+  cc.preroll_s = 3.0;
+  auto ec = emulatorConfig();
+  // No inertia or friction, so the first sample after the command moves visibly.
+  ec.plant = plant::PlantConfig::fromJson(
+      nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},"friction_hysteresis":{"enabled":false}}})"), "test");
+  ec.plant.sensor_noise = false;
+  cc.ctrl.model = ec.plant.truth;
+  const auto rig = nodes::runVirtualRig(cc, ec, 2.0);
+  std::vector<double> u, y;
+  for (const auto& r : rig.records) u.push_back(r.u), y.push_back(r.y);
+  EXPECT_EQ(cyclesUntilResponse(u, y), 3);
+
+  control::ControllerConfig lc = cc.ctrl;
+  auto ctrl = control::makeController(control::Kind::OpenLoop, lc);
+  plant::Plant p(ec.plant);
+  sim::ClosedLoopRun run;
+  run.reference = traj;
+  run.duration_s = 2.0;
+  run.preroll_s = 3.0;
+  run.delay_cycles = 2;
+  const auto rec = sim::runClosedLoop(*ctrl, p, run, -5.0);
+  EXPECT_EQ(cyclesUntilResponse(rec.u, rec.y), 3);
 }
 
 INSTANTIATE_TEST_SUITE_P(Controllers, RigMatchesLockstep,
