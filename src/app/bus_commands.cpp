@@ -257,8 +257,11 @@ struct BusCommands::Impl {
     realtimeSetup(rt, cpu, prio);
     auto canp = openCan();
     auto& can = *canp;
-    nodes::ControllerNode node(c, can, [] { return canopen::monotonicNowUs(); });
-    Logger logger(candump, iface, csv);
+    // On the heap: the record rings are megabytes.
+    auto nodep = std::make_unique<nodes::ControllerNode>(c, can, [] { return canopen::monotonicNowUs(); });
+    auto& node = *nodep;
+    auto loggerp = std::make_unique<Logger>(candump, iface, csv);
+    auto& logger = *loggerp;
     logger.records = &node.records();
     can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
     canopen::EventLoop loop(can, node.node());
@@ -312,8 +315,10 @@ struct BusCommands::Impl {
     realtimeSetup(rt, cpu, prio);
     auto canp = openCan();
     auto& can = *canp;
-    nodes::EmulatorNodes emu(ec, can);
-    Logger logger(candump, iface, "");
+    auto emup = std::make_unique<nodes::EmulatorNodes>(ec, can);
+    auto& emu = *emup;
+    auto loggerp = std::make_unique<Logger>(candump, iface, "");
+    auto& logger = *loggerp;
     can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
     canopen::EventLoop loop(can, emu);
     g_loop = &loop;
@@ -366,6 +371,9 @@ struct BusCommands::Impl {
     }
     const std::string dst = out.empty() ? log_in + ".csv" : out;
     io::writeFileAtomic(dst, text);
+    if (run.held)
+      std::fprintf(stderr, "warning: %llu cycles had no position PDO; their position holds the last value\n",
+                   static_cast<unsigned long long>(run.held));
     std::printf("%s: %llu frames, %llu SYNCs -> %zu rows (%zu columns) in %s; %llu frames of unknown COB-ID, %llu of "
                 "wrong length\n",
                 log_in.c_str(), static_cast<unsigned long long>(run.frames), static_cast<unsigned long long>(run.syncs),

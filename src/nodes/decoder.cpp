@@ -74,6 +74,8 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
   for (const auto& file : expand(paths)) {
     const auto eds = canopen::EdsFile::load(file);
     const std::uint8_t id = eds.node_id;
+    if (id == 0)
+      throw std::runtime_error(file + ": no NodeID in [DeviceComissioning]; the COB-IDs ($NODEID) cannot be resolved");
     auto od = canopen::ObjectDictionary::fromEds(eds, id);
     const std::string dev = stem(file);
     bd.nodes[id] = dev;
@@ -101,6 +103,9 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
           PdoField f;
           f.index = static_cast<std::uint16_t>(m >> 16);
           f.sub = static_cast<std::uint8_t>((m >> 8) & 0xFF);
+          if ((m & 0xFF) % 8 != 0)
+            throw std::runtime_error(file + ": 0x" + std::to_string(map0 + n) + " maps " + std::to_string(m & 0xFF) +
+                                     " bits; only whole bytes are decoded");
           f.bytes = static_cast<std::uint8_t>((m & 0xFF) / 8);
           if (od.hasObject(f.index)) {
             auto& e = od.entry(f.index, f.sub);
@@ -171,18 +176,28 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
         run.columns.push_back(f.column);
       }
   std::vector<double> cur(run.columns.size(), NAN);
+  std::vector<double> last(run.columns.size(), NAN);  // last value seen of every column
   std::vector<double> vals;
   double latest_u = NAN, latched_prev = NAN, latched_now = NAN;
   double t0 = NAN;
-  std::int64_t k = -1;
+  std::int64_t k = -1, k_first = -1;
+  const size_t iy = col["y"];
   auto emit = [&](double sync_time) {
-    // Row for the cycle that started at the previous SYNC.
-    if (k >= 1 && !std::isnan(cur[col["y"]]) && !std::isnan(latched_prev)) {
-      std::vector<double> row = cur;
-      row[col["u"]] = latched_prev;
-      row[col["t_log"]] = sync_time;
-      run.rows.push_back(row);
+    // Row for the cycle that started at the previous SYNC. A value that did not arrive in this
+    // cycle (a lost PDO) holds its last one, so the time base stays even; such cycles are counted.
+    if (k < 1 || std::isnan(latched_prev)) return;
+    if (std::isnan(cur[iy]) && std::isnan(last[iy])) return;  // no position yet
+    if (std::isnan(cur[iy])) ++run.held;
+    std::vector<double> row(cur.size());
+    for (size_t i = 0; i < cur.size(); ++i) {
+      if (!std::isnan(cur[i])) last[i] = cur[i];
+      row[i] = last[i];
     }
+    row[col["u"]] = latched_prev;
+    row[col["t_log"]] = sync_time;
+    row[0] = static_cast<double>(k - 1);  // SYNC index of the cycle; scaled to seconds below
+    if (k_first < 0) k_first = k - 1;
+    run.rows.push_back(row);
   };
   double last_sync_t = 0;
   for (const auto& rec : log) {
@@ -220,14 +235,33 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
       else cur[col[fl.column]] = vals[i];
     }
   }
-  // Even time base from the SYNC period (the CSV reader wants an even step); t_log keeps the stamps.
+  // Even time base: SYNC index times the SYNC period (from the EDS, or measured from the log when the
+  // two disagree); t_log keeps the log's own stamps.
   double period = dict.sync_period_s;
   if (run.rows.size() > 2) {
     const double span = run.rows.back()[col["t_log"]] - run.rows.front()[col["t_log"]];
-    const double measured = span / static_cast<double>(run.rows.size() - 1);
+    const double cycles = run.rows.back()[0] - run.rows.front()[0];
+    const double measured = cycles > 0 ? span / cycles : period;
     if (measured > 0 && std::fabs(measured - period) > 0.2 * period) period = measured;
   }
-  for (size_t i = 0; i < run.rows.size(); ++i) run.rows[i][0] = static_cast<double>(i) * period;
+  for (auto& r : run.rows) r[0] = (r[0] - static_cast<double>(k_first)) * period;
+  // Columns that never had a value are left out.
+  std::vector<size_t> keep;
+  for (size_t c = 0; c < run.columns.size(); ++c) {
+    bool any = false;
+    for (const auto& r : run.rows) any = any || !std::isnan(r[c]);
+    if (any || c < 3) keep.push_back(c);
+  }
+  if (keep.size() < run.columns.size()) {
+    std::vector<std::string> cols;
+    for (size_t c : keep) cols.push_back(run.columns[c]);
+    for (auto& r : run.rows) {
+      std::vector<double> nr;
+      for (size_t c : keep) nr.push_back(r[c]);
+      r.swap(nr);
+    }
+    run.columns = cols;
+  }
   return run;
 }
 

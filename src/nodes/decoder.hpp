@@ -49,11 +49,13 @@ struct DecodedRun {
   std::vector<std::string> columns;  // t, u, y, p, t_log, then every other mapped object
   std::vector<std::vector<double>> rows;
   std::uint64_t frames = 0, syncs = 0, unknown = 0, bad_length = 0;
+  std::uint64_t held = 0;  // cycles without a position PDO (last value held)
 };
 
 // One row per SYNC cycle k: the values the nodes sent after SYNC k, and as u the valve command in
 // effect during the cycle that ended with SYNC k (latched by the valve at SYNC k-1) - the timing of
-// a measurement file, where u is the command in effect when y was taken.
+// a measurement file, where u is the command in effect when y was taken. t = SYNC index x period; a
+// value lost in a cycle holds its last one (counted in `held`), so the time base stays even.
 DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const BusDictionary& dict);
 
 }  // namespace pamc::nodes

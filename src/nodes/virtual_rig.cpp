@@ -12,8 +12,10 @@ VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConf
   canopen::VirtualBus bus;
   auto& cport = bus.addPort();
   auto& eport = bus.addPort();
-  ControllerNode ctrl(c, cport, [&bus] { return bus.now(); });
-  EmulatorNodes emu(e, eport);
+  auto ctrlp = std::make_unique<ControllerNode>(c, cport, [&bus] { return bus.now(); });  // rings: heap
+  auto& ctrl = *ctrlp;
+  auto emup = std::make_unique<EmulatorNodes>(e, eport);
+  auto& emu = *emup;
   cport.setClient(&ctrl.node());
   eport.setClient(&emu);
   std::unique_ptr<canopen::CandumpWriter> log;

@@ -58,7 +58,7 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
   onlyKeys(j, {"Ts", "core", "effects", "stroke", "sensor", "valve", "seed"}, where);
   if (j.contains("Ts")) {
     c.Ts = num(j["Ts"], "Ts", where);
-    if (!(c.Ts > 0)) fail(where, "'Ts' must be positive");
+    if (!(c.Ts >= 1e-5 && c.Ts <= 1.0)) fail(where, "'Ts' must be between 1e-5 and 1 s");
   }
   if (j.contains("core")) {
     const auto& k = j["core"];

@@ -9,6 +9,7 @@
 
 #include "control/controller.hpp"
 #include "plant/plant.hpp"
+#include "sim/trajectory.hpp"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define PAMC_COUNT_ALLOCATIONS 0  // AddressSanitizer owns operator new; counting is for normal builds
@@ -85,3 +86,52 @@ INSTANTIATE_TEST_SUITE_P(Controllers, AllocationFree,
                          ::testing::Values(control::Kind::OpenLoop, control::Kind::PI, control::Kind::PidEso,
                                            control::Kind::PiAmc),
                          [](const auto& info) { return std::string(control::toString(info.param)); });
+
+// The whole rig on the in-process bus - controller node (SYNC, RPDO latch, PI + AMC with a rolled-out
+// prediction, setpoint TPDO, heartbeats, EMCY path), emulator nodes and physics - for 10 000 cycles.
+#include "nodes/controller_node.hpp"
+#include "nodes/emulator_node.hpp"
+
+TEST(Allocation, RigCyclesOnTheBusAllocateNothing) {
+  if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  const std::string od = std::string(PAMC_SOURCE_DIR) + "/od/";
+  nodes::ControllerNodeConfig c;
+  c.eds_path = od + "controller.eds";
+  c.kind = static_cast<int>(control::Kind::PiAmc);
+  c.gains_from_config = true;
+  c.ctrl.amc_horizon = 20;
+  c.ctrl.amc_inverse = 0.2;
+  c.ctrl.model = plant::PlantConfig::defaults().truth;
+  c.has_trajectory = true;
+  c.trajectory = sim::Trajectory::triangle(0.5, 5.0, 25.0);
+  c.preroll_s = 0.2;
+  nodes::EmulatorConfig e;
+  e.sensor_eds = od + "sensor.eds";
+  e.valve_eds = od + "valve.eds";
+  e.payload_at_s = 5.0;
+  canopen::VirtualBus bus;
+  auto& cp = bus.addPort();
+  auto& ep = bus.addPort();
+  auto ctrl = std::make_unique<nodes::ControllerNode>(c, cp, [&bus] { return bus.now(); });
+  auto emu = std::make_unique<nodes::EmulatorNodes>(e, ep);
+  cp.setClient(&ctrl->node());
+  ep.setClient(emu.get());
+  emu->start(bus.now());
+  ctrl->start(bus.now());
+  nodes::CycleRecord r;
+  bus.advanceBy(1'000'000);
+  while (ctrl->records().pop(r)) {
+  }
+  long allocs = 0;
+  {
+    CountAllocations count;
+    for (int k = 0; k < 10000; ++k) {
+      bus.advanceBy(1000);
+      while (ctrl->records().pop(r)) {
+      }
+    }
+    allocs = count.count();
+  }
+  EXPECT_TRUE(ctrl->running());
+  EXPECT_EQ(allocs, 0);
+}

@@ -73,6 +73,27 @@ TEST(Decoder, RowsCarryTheCommandInEffectWhenThePositionWasTaken) {
   EXPECT_EQ(run.bad_length, 1u);
 }
 
+// A lost position PDO: the cycle keeps its row with the last position, and t stays SYNC index x period.
+TEST(Decoder, LostPositionHoldsTheLastValueAndKeepsTheTimeBase) {
+  const auto d = nodes::loadBusDictionary({kOd});
+  std::vector<canopen::CandumpRecord> log;
+  for (int k = 0; k < 8; ++k) {
+    const double t = 1.0 + k * 1e-3;
+    log.push_back(rec(t, 0x80, {}));
+    if (k != 4) log.push_back(rec(t + 1e-4, 0x182, i32(1000 * (k + 1))));
+    log.push_back(rec(t + 3e-4, 0x203, i16(20000)));
+  }
+  log.push_back(rec(1.008, 0x80, {}));
+  const auto run = nodes::decodeCandump(log, d);
+  EXPECT_EQ(run.held, 1u);
+  ASSERT_EQ(run.rows.size(), 6u);  // cycles 2..7
+  for (size_t i = 0; i < run.rows.size(); ++i) EXPECT_NEAR(run.rows[i][0], i * 1e-3, 1e-12);
+  EXPECT_DOUBLE_EQ(run.rows[2][2], 4.0);  // cycle 4 lost: holds cycle 3's 4 mm
+  EXPECT_DOUBLE_EQ(run.rows[3][2], 6.0);
+  // The pressure never came: its column is left out rather than written empty.
+  EXPECT_EQ(run.columns, (std::vector<std::string>{"t", "u", "y", "t_log"}));
+}
+
 TEST(Monitor, ShowsStatesValuesAndEmergencies) {
   nodes::Monitor m(nodes::loadBusDictionary({kOd}));
   canopen::Frame hb;
