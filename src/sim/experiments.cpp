@@ -203,7 +203,8 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     r.writeCsv(dir + tag + "_" + control::toString(kind) + ".csv");
     return r;
   };
-  auto figure = [&](const std::string& tag, const std::string& title, const std::vector<control::Kind>& kinds) {
+  auto figure = [&](const std::string& tag, const std::string& title, const std::vector<control::Kind>& kinds,
+                    double zoom_lo = 0, double zoom_hi = 0) {
     if (!figs) return;
     std::vector<Series> time, loop, volts;
     bool first = true;
@@ -223,6 +224,12 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     std::vector<Panel> panels = {{"(a) time plot", "t [s]", "y [mm]", time},
                                  {"(b) hysteresis compensation: y against yd", "yd [mm]", "y [mm]", loop},
                                  {"(c) control voltages", "t [s]", "u [V]", volts}};
+    if (zoom_hi > zoom_lo) {
+      // A held setpoint has no loop to show: zoom on the transient instead (the paper's insets).
+      panels[1] = Panel{"(b) the transient, zoomed", "t [s]", "y [mm]", time};
+      panels[1].x_lo = zoom_lo;
+      panels[1].x_hi = zoom_hi;
+    }
     if (!renderFigure(dir + tag + ".png", title, panels, fig_error)) log("warning: " + fig_error);
   };
 
@@ -330,7 +337,8 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
                                   {"recovered", st.recovered}};
     }
     txt << "\n\n";
-    figure("payload", "Payload step of 40 N while holding 15 mm", kinds);
+    figure("payload", "Payload step of 40 N while holding 15 mm", kinds, run.force_step_time_s - 0.2,
+           run.force_step_time_s + 2.0);
     rep.json["payload"] = pj;
   }
 

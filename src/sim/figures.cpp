@@ -56,6 +56,8 @@ bool renderFigure(const std::string& png, const std::string& title, const std::v
     gp << "set title " << quote(p.title) << "\nset xlabel " << quote(p.xlabel) << "\nset ylabel " << quote(p.ylabel)
        << "\n";
     gp << (p.equal_axes ? "set size ratio -1\n" : "set size noratio\n");
+    if (p.x_hi > p.x_lo) gp << "set xrange [" << p.x_lo << ":" << p.x_hi << "]\nset autoscale y\n";
+    else gp << "set autoscale x\n";
     gp << "plot ";
     bool first = true;
     for (const auto& s : p.series) {

@@ -18,6 +18,7 @@ struct Panel {
   std::string title, xlabel, ylabel;
   std::vector<Series> series;
   bool equal_axes = false;
+  double x_lo = 0, x_hi = 0;  // x range when x_hi > x_lo (a zoom), else automatic
 };
 
 // Renders panels stacked vertically into a PNG (pngcairo). Returns false with `error` set when
