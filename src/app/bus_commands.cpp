@@ -62,6 +62,15 @@ void realtimeSetup(bool enable, int cpu, int priority) {
   }
 }
 
+// Joins a watcher thread however the event loop ends (a destroyed joinable thread would abort).
+struct Joiner {
+  std::thread& t;
+  ~Joiner() {
+    g_stop = true;
+    if (t.joinable()) t.join();
+  }
+};
+
 struct LogItem {
   canopen::Frame frame;
   canopen::TimeUs unix_us;
@@ -270,14 +279,6 @@ struct BusCommands::Impl {
     logger.start();
     std::fprintf(stderr, "controller node 1 on %s: %s, %s%s\n", iface.c_str(), control::toString(node.kind()),
                  c.trajectory.describe().c_str(), c.produce_sync ? ", producing SYNC" : ", consuming SYNC");
-    // The watcher is joined however run() ends (a destroyed joinable thread would abort).
-    struct Joiner {
-      std::thread& t;
-      ~Joiner() {
-        g_stop = true;
-        if (t.joinable()) t.join();
-      }
-    };
     std::thread watch([&] {
       nodes::Fault last = nodes::Fault::None;
       while (!g_stop) {
@@ -326,13 +327,6 @@ struct BusCommands::Impl {
     logger.start();
     std::fprintf(stderr, "emulator on %s: sensor node %u, valve node %u; stepped by SYNC\n", iface.c_str(),
                  emu.sensor().nodeId(), emu.valve().nodeId());
-    struct Joiner {
-      std::thread& t;
-      ~Joiner() {
-        g_stop = true;
-        if (t.joinable()) t.join();
-      }
-    };
     std::thread watch([&] {
       while (!g_stop) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));

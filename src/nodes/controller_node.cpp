@@ -37,6 +37,15 @@ std::uint16_t emcyCode(Fault f) {
 }
 
 namespace {
+// The parameters in 0x2000 (gains) and 0x2001 (model) by sub-index 1..n, read and written alike.
+constexpr double control::ControllerConfig::*kGains[] = {
+    &control::ControllerConfig::kp,    &control::ControllerConfig::ki,    &control::ControllerConfig::kc,
+    &control::ControllerConfig::beta1, &control::ControllerConfig::beta2, &control::ControllerConfig::beta3,
+    &control::ControllerConfig::delta, &control::ControllerConfig::b0};
+constexpr double model::BoucWenParams::*kModel[] = {&model::BoucWenParams::k,     &model::BoucWenParams::rho,
+                                                    &model::BoucWenParams::b,     &model::BoucWenParams::alpha,
+                                                    &model::BoucWenParams::beta,  &model::BoucWenParams::gamma};
+
 // Trajectory choice 0x2011 and its parameters 0x2012: frequency, low, high, offset, amplitude,
 // amplitude at end, duration.
 sim::Trajectory trajectoryFromOd(canopen::ObjectDictionary& od) {
@@ -121,16 +130,10 @@ void ControllerNode::applyOverrides() {
   // Command-line choices go into the dictionary, so SDO reads show what runs.
   const auto& cfg = cfg_;
   if (cfg.kind >= 0) od.ref<std::uint8_t>(0x2010, 0).set(static_cast<std::uint8_t>(cfg.kind));
-  if (cfg.gains_from_config) {
-    const auto& c = cfg.ctrl;
-    const double g[] = {c.kp, c.ki, c.kc, c.beta1, c.beta2, c.beta3, c.delta, c.b0};
-    for (std::uint8_t i = 0; i < 8; ++i) od.ref<double>(0x2000, static_cast<std::uint8_t>(i + 1)).set(g[i]);
-  }
-  {
-    const auto& m = cfg.ctrl.model.core();
-    const double v[] = {m.k, m.rho, m.b, m.alpha, m.beta, m.gamma};
-    for (std::uint8_t i = 0; i < 6; ++i) od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).set(v[i]);
-  }
+  if (cfg.gains_from_config)
+    for (std::uint8_t i = 0; i < 8; ++i) od.ref<double>(0x2000, static_cast<std::uint8_t>(i + 1)).set(cfg.ctrl.*kGains[i]);
+  for (std::uint8_t i = 0; i < 6; ++i)
+    od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).set(cfg.ctrl.model.core().*kModel[i]);
   if (cfg.has_trajectory) traj_override_ = !trajectoryToOd(od, cfg.trajectory);
   if (cfg.period_us) od.ref<std::uint32_t>(0x1006, 0).set(cfg.period_us);
   if (!cfg.produce_sync) {
@@ -142,21 +145,9 @@ void ControllerNode::applyOverrides() {
 void ControllerNode::configureFromOd() {
   auto& od = node_->od();
   control::ControllerConfig c = cfg_.ctrl;
-  c.kp = od.ref<double>(0x2000, 1).get();
-  c.ki = od.ref<double>(0x2000, 2).get();
-  c.kc = od.ref<double>(0x2000, 3).get();
-  c.beta1 = od.ref<double>(0x2000, 4).get();
-  c.beta2 = od.ref<double>(0x2000, 5).get();
-  c.beta3 = od.ref<double>(0x2000, 6).get();
-  c.delta = od.ref<double>(0x2000, 7).get();
-  c.b0 = od.ref<double>(0x2000, 8).get();
-  auto& m = c.model.core();
-  m.k = od.ref<double>(0x2001, 1).get();
-  m.rho = od.ref<double>(0x2001, 2).get();
-  m.b = od.ref<double>(0x2001, 3).get();
-  m.alpha = od.ref<double>(0x2001, 4).get();
-  m.beta = od.ref<double>(0x2001, 5).get();
-  m.gamma = od.ref<double>(0x2001, 6).get();
+  for (std::uint8_t i = 0; i < 8; ++i) c.*kGains[i] = od.ref<double>(0x2000, static_cast<std::uint8_t>(i + 1)).get();
+  for (std::uint8_t i = 0; i < 6; ++i)
+    c.model.core().*kModel[i] = od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).get();
   c.ukf.P0_h = od.ref<double>(0x2002, 1).get();
   c.ukf.P0_f = od.ref<double>(0x2002, 2).get();
   c.ukf.Q_h = od.ref<double>(0x2002, 3).get();

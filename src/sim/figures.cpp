@@ -35,6 +35,28 @@ std::string quote(const std::string& s) {
   for (char c : s) o += c == '\'' ? std::string("''") : std::string(1, c);
   return o + "'";
 }
+// Writes the script beside the figure, runs gnuplot on it into tmp_png and moves that into place,
+// so a failed run leaves no half-written picture.
+bool runGnuplot(const std::string& script_text, const std::string& png, const std::string& tmp_png,
+                std::string& error) {
+  const std::string script = png + ".gp";
+  {
+    std::ofstream f(script);
+    f << script_text;
+  }
+  const std::string cmd = "gnuplot " + quote(script) + " 2>" + quote(png + ".log");
+  if (std::system(cmd.c_str()) != 0) {
+    error = "gnuplot failed on " + script + " (see " + png + ".log)";
+    std::remove(tmp_png.c_str());
+    return false;
+  }
+  std::remove((png + ".log").c_str());
+  if (std::rename(tmp_png.c_str(), png.c_str()) != 0) {
+    error = "cannot move " + tmp_png + " into place";
+    return false;
+  }
+  return true;
+}
 }  // namespace
 
 bool haveGnuplot() { return std::system("command -v gnuplot >/dev/null 2>&1") == 0; }
@@ -71,24 +93,7 @@ bool renderFigure(const std::string& png, const std::string& title, const std::v
     gp << "\n";
   }
   gp << "unset multiplot\nset output\n";
-  const std::string script = png + ".gp";
-  {
-    std::ofstream f(script);
-    f << gp.str();
-  }
-  const std::string cmd = "gnuplot " + quote(script) + " 2>" + quote(png + ".log");
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0) {
-    error = "gnuplot failed on " + script + " (see " + png + ".log)";
-    std::remove(tmp_png.c_str());
-    return false;
-  }
-  std::remove((png + ".log").c_str());
-  if (std::rename(tmp_png.c_str(), png.c_str()) != 0) {
-    error = "cannot move " + tmp_png + " into place";
-    return false;
-  }
-  return true;
+  return runGnuplot(gp.str(), png, tmp_png, error);
 }
 
 bool renderBars(const std::string& png, const std::string& title, const std::string& csv, int label_col,
@@ -105,23 +110,7 @@ bool renderBars(const std::string& png, const std::string& title, const std::str
   gp << "set xtics rotate by -45 left\nset bmargin 18\nset rmargin 8\nunset key\nset yrange [0:*]\n";
   gp << "plot " << quote(csv) << " skip 1 using 0:" << value_col << ":xtic(" << label_col << ") with boxes\n";
   gp << "set output\n";
-  const std::string script = png + ".gp";
-  {
-    std::ofstream f(script);
-    f << gp.str();
-  }
-  const std::string cmd = "gnuplot " + quote(script) + " 2>" + quote(png + ".log");
-  if (std::system(cmd.c_str()) != 0) {
-    error = "gnuplot failed on " + script + " (see " + png + ".log)";
-    std::remove(tmp_png.c_str());
-    return false;
-  }
-  std::remove((png + ".log").c_str());
-  if (std::rename(tmp_png.c_str(), png.c_str()) != 0) {
-    error = "cannot move " + tmp_png + " into place";
-    return false;
-  }
-  return true;
+  return runGnuplot(gp.str(), png, tmp_png, error);
 }
 
 }  // namespace pamc::sim
