@@ -126,10 +126,10 @@ bool parseCandumpLine(std::string_view line, CandumpRecord& out, std::string* er
   std::int64_t sec = 0;
   std::size_t digits = 0;
   while (i < line.size() && std::isdigit(static_cast<unsigned char>(line[i]))) {
+    if (++digits > 12) return setError(error, "timestamp seconds have more than 12 digits");
     sec = sec * 10 + (line[i++] - '0');
-    ++digits;
   }
-  if (digits == 0 || digits > 12 || i >= line.size() || line[i] != '.') return setError(error, "bad timestamp seconds");
+  if (digits == 0 || i >= line.size() || line[i] != '.') return setError(error, "bad timestamp seconds");
   ++i;
   std::int64_t frac = 0;
   std::size_t frac_digits = 0;

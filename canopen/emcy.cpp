@@ -25,7 +25,17 @@ std::uint8_t errorRegisterBit(std::uint16_t code) {
 
 void Emcy::registerHooks() {
   ObjectDictionary& od = ctx_.od;
-  if (od.find(kEmcyCobId, 0) != nullptr) od.addObserver(kEmcyCobId, 0, [this](Entry&) { configure(); });
+  if (od.find(kEmcyCobId, 0) != nullptr) {
+    // 11-bit identifiers only (bits 11-30 zero), and a valid EMCY may not use a restricted CAN-ID.
+    od.addValidator(kEmcyCobId, 0, [](const Entry&, const std::uint8_t* d, std::size_t len) {
+      if (len != 4) return kSdoOk;
+      const std::uint32_t v = getU32(d);
+      if ((v & 0x7FFFF800u) != 0) return kAbortValueRange;
+      if ((v & 0x80000000u) == 0 && restrictedCobId(v & kStandardIdMask)) return kAbortValueRange;
+      return kSdoOk;
+    });
+    od.addObserver(kEmcyCobId, 0, [this](Entry&) { configure(); });
+  }
   if (od.find(kEmcyInhibit, 0) != nullptr) od.addObserver(kEmcyInhibit, 0, [this](Entry&) { configure(); });
   if (od.find(kErrorHistory, 0) != nullptr) {
     // CiA 301: only 0 may be written to 0x1003:00, which clears the history.

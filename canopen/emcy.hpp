@@ -25,9 +25,15 @@ inline constexpr std::uint8_t kErrRegManufacturer = 0x80;
 inline constexpr std::uint16_t kEmcyNoError = 0x0000;
 inline constexpr std::uint16_t kEmcyGeneric = 0x1000;
 inline constexpr std::uint16_t kEmcyCommunication = 0x8100;
+inline constexpr std::uint16_t kEmcyCanOverrun = 0x8110;
+inline constexpr std::uint16_t kEmcyErrorPassive = 0x8120;
 inline constexpr std::uint16_t kEmcyHeartbeat = 0x8130;
+inline constexpr std::uint16_t kEmcyBusOffRecovered = 0x8140;
+inline constexpr std::uint16_t kEmcyCanIdCollision = 0x8150;
 inline constexpr std::uint16_t kEmcyPdoLength = 0x8210;
+inline constexpr std::uint16_t kEmcySyncLength = 0x8240;
 inline constexpr std::uint16_t kEmcyRpdoTimeout = 0x8250;
+inline constexpr std::uint16_t kEmcySoftware = 0x6100;
 inline constexpr std::uint16_t kEmcyDeviceSpecific = 0xFF00;
 
 struct EmcyMessage {
@@ -58,6 +64,9 @@ class Emcy {
   void clearAll();
   bool active(std::uint16_t error_code) const;
   std::uint8_t errorRegister() const { return register_; }
+  // The COB-ID this node sends its EMCY on (0x1014), and whether it is enabled.
+  std::uint32_t cobId() const { return cob_id_; }
+  bool enabled() const { return enabled_; }
 
   void onFrame(const Frame& f, TimeUs now);
   void advance(TimeUs now);

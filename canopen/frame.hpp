@@ -37,6 +37,13 @@ inline bool operator==(const Frame& a, const Frame& b) {
 }
 inline bool operator!=(const Frame& a, const Frame& b) { return !(a == b); }
 
+// CiA 301 (7.3.5) restricted CAN-IDs: NMT, the default SDO and NMT error control identifiers and the
+// reserved ranges. No configurable communication object (SYNC, EMCY, PDO) may be set to one.
+inline bool restrictedCobId(std::uint32_t id) {
+  return id <= 0x07F || (id >= 0x101 && id <= 0x180) || (id >= 0x581 && id <= 0x5FF) || (id >= 0x601 && id <= 0x67F) ||
+         (id >= 0x6E0 && id <= 0x6FF) || (id >= 0x701 && id <= 0x7FF);
+}
+
 // Builds a standard data frame; bytes beyond len stay zero.
 inline Frame makeFrame(std::uint32_t id, std::uint8_t len, const std::uint8_t* bytes = nullptr) {
   Frame f;

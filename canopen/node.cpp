@@ -116,7 +116,25 @@ void Node::onFrame(const Frame& frame, TimeUs now) {
     ++counters_.ignored_in_state;
     return;
   }
+  // A node never receives its own frames (no CAN_RAW_RECV_OWN_MSGS, and the in-process bus skips the
+  // sender), so one of its own identifiers coming in was sent by somebody else.
+  if (transmitsOn(frame.id)) {
+    ++counters_.cob_id_collisions;
+    if (collision_cb_) collision_cb_(frame, now);
+    return;
+  }
   if (!dispatcher_.dispatch(frame, now)) ++counters_.unknown_cob_id;
+}
+
+bool Node::transmitsOn(std::uint32_t id) const {
+  if (id == kHeartbeatCobIdBase + ctx_.node_id) return true;
+  if (emcy_.enabled() && id == emcy_.cobId()) return true;
+  if (id == sdo_server_.responseCobId()) return true;
+  if (sync_.producer() && id == sync_.cobId()) return true;
+  for (const auto& p : tpdos_) {
+    if (p->valid() && id == p->cobId()) return true;
+  }
+  return false;
 }
 
 void Node::advance(TimeUs now) {

@@ -38,6 +38,9 @@ class Node : public BusClient {
   using StateCallback = std::function<void(NmtState from, NmtState to, TimeUs now)>;
   using ResetCallback = std::function<void(NmtCommand cmd, TimeUs now)>;
   using ErrorFrameCallback = std::function<void(const Frame& frame, TimeUs now)>;
+  // A frame arrived on a COB-ID this node transmits itself (heartbeat/boot-up, EMCY, SDO response,
+  // TPDO, SYNC when producing): another node uses this node's ID or identifiers. Not dispatched.
+  using CollisionCallback = std::function<void(const Frame& frame, TimeUs now)>;
 
   // Configures every service from od; throws OdError for an inconsistent dictionary (e.g. a bad PDO mapping).
   Node(ObjectDictionary od, std::uint8_t node_id, Transport& transport, NodeOptions options = {});
@@ -66,12 +69,21 @@ class Node : public BusClient {
   void onEmcy(Emcy::ConsumerHook cb) { emcy_.setConsumerHook(std::move(cb)); }
   void onRpdoTimeout(Rpdo::TimeoutHook cb);
   void onErrorFrame(ErrorFrameCallback cb) { error_cb_ = std::move(cb); }
+  void onCollision(CollisionCallback cb) { collision_cb_ = std::move(cb); }
+  // SYNC consumer: no SYNC within 1.5 periods of 0x1006 (see Sync).
+  void onSyncTimeout(Sync::TimeoutHook cb) { sync_.setTimeoutHook(std::move(cb)); }
+  // True if this node itself transmits on cob_id (what the collision check uses).
+  bool transmitsOn(std::uint32_t cob_id) const;
 
   std::uint8_t nodeId() const { return ctx_.node_id; }
   NmtState nmtState() const { return ctx_.state; }
   TimeUs now() const { return ctx_.now; }
   ObjectDictionary& od() { return od_; }
   const Counters& counters() const { return counters_; }
+  // Frames the transport holds that have not gone out yet (0 on an ideal bus).
+  std::size_t txBacklog() const { return ctx_.transport.queued(); }
+  // Frames the transport dropped at their deadline (SYNC, synchronous TPDOs that could not go out in time).
+  std::uint64_t txExpired() const { return ctx_.transport.expiredCount(); }
 
   // NMT: apply a command to this node / send one as master (does not change this node's state).
   void applyNmt(NmtCommand cmd) { nmt_.apply(cmd, ctx_.now); }
@@ -115,6 +127,7 @@ class Node : public BusClient {
   StateCallback state_cb_;
   ResetCallback reset_cb_;
   ErrorFrameCallback error_cb_;
+  CollisionCallback collision_cb_;
 };
 
 }  // namespace pamc::canopen

@@ -240,8 +240,11 @@ ObjectDictionary::ObjectDictionary(std::vector<ObjectInfo> objects, std::vector<
   defaults_.assign(total, 0);
   for (std::size_t i = 0; i < specs.size(); ++i) {
     Entry& e = entries_[i];
-    std::memcpy(&defaults_[e.offset_], specs[i].default_value.data(), specs[i].default_value.size());
-    std::memcpy(&values_[e.offset_], specs[i].default_value.data(), specs[i].default_value.size());
+    const std::vector<std::uint8_t>& def = specs[i].default_value;
+    if (!def.empty()) {  // an empty string/domain default has no data pointer to copy from
+      std::memcpy(&defaults_[e.offset_], def.data(), def.size());
+      std::memcpy(&values_[e.offset_], def.data(), def.size());
+    }
     e.value_ = values_.data() + e.offset_;
     e.default_ = defaults_.data() + e.offset_;
   }
@@ -363,6 +366,19 @@ void ObjectDictionary::addObserver(std::uint16_t index, WriteObserver obs) {
 
 std::uint32_t ObjectDictionary::remoteWrite(Entry& e, const std::uint8_t* data, std::size_t len) {
   if (!e.writable()) return kAbortReadOnly;
+  std::uint32_t code = checkValue(e, data, len);
+  if (code != kSdoOk) return code;
+  for (const WriteValidator& v : e.validators_) {
+    code = v(e, data, len);
+    if (code != kSdoOk) return code;
+  }
+  std::memcpy(e.value_, data, len);
+  e.size_ = len;
+  for (const WriteObserver& o : e.observers_) o(e);
+  return kSdoOk;
+}
+
+std::uint32_t ObjectDictionary::checkValue(const Entry& e, const std::uint8_t* data, std::size_t len) const {
   std::size_t fixed = dataTypeSize(e.type_);
   if (fixed != 0) {
     if (len > fixed) return kAbortLengthTooHigh;
@@ -380,13 +396,6 @@ std::uint32_t ObjectDictionary::remoteWrite(Entry& e, const std::uint8_t* data, 
   } else if (len > e.capacity_) {
     return kAbortLengthTooHigh;
   }
-  for (const WriteValidator& v : e.validators_) {
-    std::uint32_t code = v(e, data, len);
-    if (code != kSdoOk) return code;
-  }
-  std::memcpy(e.value_, data, len);
-  e.size_ = len;
-  for (const WriteObserver& o : e.observers_) o(e);
   return kSdoOk;
 }
 

@@ -231,6 +231,9 @@ class ObjectDictionary {
   // Remote write as the SDO server does it: access, length, EDS limits, validators, store, observers.
   // Returns kSdoOk or the abort code. No allocation.
   std::uint32_t remoteWrite(Entry& e, const std::uint8_t* data, std::size_t len);
+  // The checks of remoteWrite that need no hook: length, EDS limits, boolean range (not the access).
+  // Lets an application check values it set locally against the same rules. No allocation.
+  std::uint32_t checkValue(const Entry& e, const std::uint8_t* data, std::size_t len) const;
   // Remote read: checks access, copies at most cap bytes; len gets the entry size.
   std::uint32_t remoteRead(const Entry& e, std::uint8_t* out, std::size_t cap, std::size_t& len) const;
 

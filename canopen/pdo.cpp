@@ -52,6 +52,7 @@ void installHooks(NodeContext& ctx, Pdo* pdo, std::uint16_t comm, std::uint16_t 
         if (new_valid && (id == 0 || (receive && !ctx.dispatcher.available(id, pdo)))) {
           return kAbortParameterIncompatible;
         }
+        if (new_valid && restrictedCobId(id)) return kAbortValueRange;
         return kSdoOk;
       }
       case kTypeSub:
@@ -202,6 +203,8 @@ void Rpdo::configure() {
 void Rpdo::reset() {
   has_pending_ = false;
   rx_since_sync_ = false;
+  conflict_ = false;
+  conflict_latched_ = false;
   timed_out_ = false;
   last_rx_us_ = kNever;
   syncs_since_rx_ = UINT32_MAX;
@@ -217,6 +220,33 @@ void Rpdo::onFrame(const Frame& f, TimeUs now) {
     ++wrong_length_;
     ++ctx_.counters.wrong_length;
     return;
+  }
+  if (synchronous()) {
+    // CiA 301: synchronous PDOs belong in the synchronous window after the SYNC; later ones are discarded.
+    if (ctx_.sync_window_us > 0 && ctx_.last_sync_us != kNever && now - ctx_.last_sync_us > ctx_.sync_window_us) {
+      ++late_;
+      ++ctx_.counters.rpdo_late;
+      return;
+    }
+    if (conflict_) {
+      ++conflicts_;
+      ++ctx_.counters.rpdo_conflicts;
+      return;
+    }
+    if (rx_since_sync_) {
+      if (has_pending_ && std::memcmp(pending_, f.data, f.len) == 0) {
+        ++duplicates_;
+        ++ctx_.counters.rpdo_duplicates;
+        return;
+      }
+      // Two different values for one cycle: neither can be trusted, the cycle counts as missing.
+      ++conflicts_;
+      ++ctx_.counters.rpdo_conflicts;
+      conflict_ = true;
+      has_pending_ = false;
+      rx_since_sync_ = false;
+      return;
+    }
   }
   ++received_;
   rx_since_sync_ = true;
@@ -243,6 +273,8 @@ void Rpdo::onSync(TimeUs /*now*/) {
     ++syncs_since_rx_;
   }
   rx_since_sync_ = false;
+  conflict_latched_ = conflict_;
+  conflict_ = false;
 }
 
 void Rpdo::advance(TimeUs now) {
@@ -301,7 +333,12 @@ void Tpdo::transmit(TimeUs now) {
   f.id = cob_id_;
   f.len = map_.size();
   map_.encode(f.data);
-  ctx_.send(f);
+  // CiA 301: a synchronous TPDO not sent within the synchronous window (0x1007) is discarded.
+  if (synchronous() && ctx_.sync_window_us > 0 && ctx_.last_sync_us != kNever) {
+    ctx_.sendUntil(f, ctx_.last_sync_us + ctx_.sync_window_us);
+  } else {
+    ctx_.send(f);
+  }
   std::memcpy(last_, f.data, f.len);
   has_sent_ = true;
   last_tx_us_ = now;

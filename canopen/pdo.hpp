@@ -72,6 +72,14 @@ class Rpdo {
   const PdoMap& map() const { return map_; }
   std::uint64_t received() const { return received_; }
   std::uint64_t wrongLength() const { return wrong_length_; }
+  // Synchronous RPDOs: one frame per SYNC cycle is expected. Frames after the synchronous window
+  // (0x1007) are discarded (late); a repeat with the same data is ignored (duplicate); a repeat with
+  // other data discards the cycle's data (conflict: two producers, or a frame from an earlier cycle).
+  std::uint64_t late() const { return late_; }
+  std::uint64_t duplicates() const { return duplicates_; }
+  std::uint64_t conflicts() const { return conflicts_; }
+  // The cycle latched at the last SYNC had a conflict (its data were discarded).
+  bool conflictInLastCycle() const { return conflict_latched_; }
   // SYNCs since data last arrived (0: fresh this cycle); lets the application count missing PDOs.
   // SYNCs since data last arrived (0: in the cycle before this SYNC); UINT32_MAX before the first.
   std::uint32_t syncsSinceReception() const { return syncs_since_rx_; }
@@ -97,6 +105,11 @@ class Rpdo {
   TimeUs last_rx_us_ = kNever;
   std::uint64_t received_ = 0;
   std::uint64_t wrong_length_ = 0;
+  std::uint64_t late_ = 0;
+  std::uint64_t duplicates_ = 0;
+  std::uint64_t conflicts_ = 0;
+  bool conflict_ = false;          // in the cycle being received
+  bool conflict_latched_ = false;  // in the cycle latched at the last SYNC
   std::uint32_t syncs_since_rx_ = UINT32_MAX;  // UINT32_MAX: nothing received yet
 };
 

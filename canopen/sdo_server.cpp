@@ -163,7 +163,13 @@ void SdoServer::uploadSegment(const Frame& f, TimeUs now) {
 }
 
 void SdoServer::advance(TimeUs now) {
-  if (state_ != State::Idle && now >= deadline_us_) abort(index_, sub_, kAbortTimeout);
+  if (state_ == State::Idle || now < deadline_us_) return;
+  // A Stopped node sends no SDO frame (CiA 301): the transfer ends without an abort, as the client's does.
+  if (!ctx_.communicating()) {
+    state_ = State::Idle;
+    return;
+  }
+  abort(index_, sub_, kAbortTimeout);
 }
 
 TimeUs SdoServer::nextDeadline() const { return state_ == State::Idle ? kNever : deadline_us_; }

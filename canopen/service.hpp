@@ -30,6 +30,11 @@ struct Counters {
   std::uint64_t sdo_aborts_sent = 0;
   std::uint64_t sdo_aborts_received = 0;
   std::uint64_t emcy_dropped = 0;       // EMCY queue full while the inhibit time ran
+  std::uint64_t sync_timeouts = 0;      // SYNC consumer: no SYNC within 1.5 periods of 0x1006
+  std::uint64_t rpdo_late = 0;          // synchronous RPDO after the synchronous window (0x1007): discarded
+  std::uint64_t rpdo_duplicates = 0;    // synchronous RPDO repeated with the same data in one cycle: ignored
+  std::uint64_t rpdo_conflicts = 0;     // synchronous RPDO repeated with other data in one cycle: cycle discarded
+  std::uint64_t cob_id_collisions = 0;  // a frame on a COB-ID this node transmits (another node with its ID)
 };
 
 struct NodeContext {
@@ -40,9 +45,20 @@ struct NodeContext {
   Counters& counters;
   NmtState state = NmtState::Initialising;
   TimeUs now = 0;  // the last time the node was told (onFrame/advance); services never read a clock
+  TimeUs last_sync_us = kNever;  // last SYNC produced or consumed (kNever: none since configuration)
+  TimeUs sync_window_us = 0;     // 0x1007 synchronous window length (0: not used)
 
   bool send(const Frame& f) {
     if (transport.send(f)) {
+      ++counters.tx_frames;
+      return true;
+    }
+    ++counters.tx_dropped;
+    return false;
+  }
+  // A frame that must not go out after deadline (SYNC, synchronous TPDO).
+  bool sendUntil(const Frame& f, TimeUs deadline) {
+    if (transport.sendUntil(f, deadline)) {
       ++counters.tx_frames;
       return true;
     }

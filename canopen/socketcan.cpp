@@ -35,7 +35,9 @@ TimeUs realtimeNowUs() { return clockUs(CLOCK_REALTIME); }
 TimeUs monotonicNowUs() { return clockUs(CLOCK_MONOTONIC); }
 
 SocketCanTransport::SocketCanTransport(const std::string& interface, SocketCanOptions options)
-    : interface_(interface), queue_(options.tx_queue_capacity == 0 ? 1 : options.tx_queue_capacity) {
+    : interface_(interface),
+      queue_(options.tx_queue_capacity == 0 ? 1 : options.tx_queue_capacity),
+      deadline_(queue_.size(), kNever) {
   if (interface.empty() || interface.size() >= IFNAMSIZ) {
     errno = EINVAL;
     fail("invalid interface name", interface);
@@ -68,7 +70,10 @@ SocketCanTransport::SocketCanTransport(const std::string& interface, SocketCanOp
 }
 
 SocketCanTransport::SocketCanTransport(int fd, const std::string& name, SocketCanOptions options)
-    : interface_(name), fd_(fd), queue_(options.tx_queue_capacity == 0 ? 1 : options.tx_queue_capacity) {
+    : interface_(name),
+      fd_(fd),
+      queue_(options.tx_queue_capacity == 0 ? 1 : options.tx_queue_capacity),
+      deadline_(queue_.size(), kNever) {
   int flags = ::fcntl(fd_, F_GETFL, 0);
   if (flags < 0 || ::fcntl(fd_, F_SETFL, flags | O_NONBLOCK) < 0) {
     ::close(fd_);
@@ -106,7 +111,7 @@ int SocketCanTransport::writeFrame(const Frame& frame) {
   return -1;
 }
 
-bool SocketCanTransport::send(const Frame& frame) {
+bool SocketCanTransport::sendUntil(const Frame& frame, TimeUs deadline) {
   // Frames already waiting go first so the order on the bus is the order of send() calls.
   if (queue_count_ == 0) {
     int r = writeFrame(frame);
@@ -117,13 +122,21 @@ bool SocketCanTransport::send(const Frame& frame) {
     return false;
   }
   queue_[(queue_head_ + queue_count_) % queue_.size()] = frame;
+  deadline_[(queue_head_ + queue_count_) % queue_.size()] = deadline;
   ++queue_count_;
   ++stats_.tx_queued;
   return true;
 }
 
 bool SocketCanTransport::flush() {
+  const TimeUs now = queue_count_ > 0 ? monotonicNowUs() : 0;
   while (queue_count_ > 0) {
+    if (deadline_[queue_head_] < now) {  // too late to be of use
+      ++stats_.tx_expired;
+      queue_head_ = (queue_head_ + 1) % queue_.size();
+      --queue_count_;
+      continue;
+    }
     int r = writeFrame(queue_[queue_head_]);
     if (r == 0) return false;  // still full: wait for the next POLLOUT
     // A hard error drops the frame (counted) rather than blocking the queue forever.

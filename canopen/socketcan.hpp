@@ -27,6 +27,7 @@ struct SocketCanStats {
   std::uint64_t tx_frames = 0;
   std::uint64_t tx_queued = 0;   // send() hit ENOBUFS/EAGAIN and queued the frame
   std::uint64_t tx_dropped = 0;  // queue full
+  std::uint64_t tx_expired = 0;  // queued with a deadline (sendUntil) that passed before it could be written
   std::uint64_t tx_errors = 0;   // other write errors (e.g. ENETDOWN)
   std::uint64_t rx_errors = 0;   // read errors other than EAGAIN
   std::uint64_t error_frames = 0;
@@ -47,10 +48,15 @@ class SocketCanTransport : public Transport {
   SocketCanTransport& operator=(const SocketCanTransport&) = delete;
 
   // Writes now, or queues behind earlier frames; false only if the queue is full or the write failed hard.
-  bool send(const Frame& frame) override;
+  bool send(const Frame& frame) override { return sendUntil(frame, kNever); }
+  // The same; a queued frame still waiting at deadline (monotonic us) is dropped, not written late.
+  // (Frames the kernel has accepted cannot be recalled: this covers the queue behind ENOBUFS.)
+  bool sendUntil(const Frame& frame, TimeUs deadline) override;
   // Retries queued frames (call when poll() reports POLLOUT); true when the queue is empty.
   bool flush();
   bool hasPendingTx() const { return queue_count_ > 0; }
+  std::size_t queued() const override { return queue_count_; }
+  std::uint64_t expiredCount() const override { return stats_.tx_expired; }
   // Reads one frame if available; unix_time_us is the kernel receive timestamp.
   bool receive(Frame& out, TimeUs& unix_time_us);
 
@@ -69,6 +75,7 @@ class SocketCanTransport : public Transport {
   SocketCanStats stats_;
   Tap tap_;
   std::vector<Frame> queue_;  // ring buffer, allocated once
+  std::vector<TimeUs> deadline_;
   std::size_t queue_head_ = 0;
   std::size_t queue_count_ = 0;
 };

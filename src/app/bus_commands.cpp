@@ -20,6 +20,7 @@
 #include "nodes/controller_node.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/emulator_node.hpp"
+#include "nodes/fault_rig.hpp"
 #include "nodes/monitor.hpp"
 #include "nodes/virtual_rig.hpp"
 #include "sim/trajectory.hpp"
@@ -169,6 +170,9 @@ struct BusCommands::Impl {
   std::string log_in, out;
   std::vector<std::string> od_paths;
   bool once = false;
+  // rig --faults / --sdo-guards
+  bool faults = false, sdo_guards = false;
+  std::string only;
 
   void addControllerOptions(CLI::App* a) {
     a->add_option("--od", od_dir, "directory with controller.eds, sensor.eds, valve.eds")->capture_default_str();
@@ -238,7 +242,38 @@ struct BusCommands::Impl {
     return c;
   }
 
+  // The fault table and the parameter guard, reproduced on the in-process rig (docs/RELIABILITY.md).
+  int runRigChecks() {
+    nodes::FaultRigOptions o;
+    o.od_dir = od_dir;
+    if (sdo_guards) {
+      std::printf("%s", nodes::guardTableMarkdown(nodes::runParameterGuards(o)).c_str());
+      if (!faults) return 0;
+      std::printf("\n");
+    }
+    std::vector<nodes::BusFault> list;
+    std::string rest = only;
+    while (!rest.empty()) {
+      const auto c = rest.find(',');
+      const std::string name = rest.substr(0, c);
+      rest = c == std::string::npos ? "" : rest.substr(c + 1);
+      bool found = false;
+      for (auto f : nodes::allBusFaults())
+        if (name == nodes::busFaultName(f)) list.push_back(f), found = true;
+      if (!found) {
+        std::string names;
+        for (auto f : nodes::allBusFaults()) names += std::string(names.empty() ? "" : ", ") + nodes::busFaultName(f);
+        throw std::invalid_argument("--only: unknown fault '" + name + "' (one of: " + names + ")");
+      }
+    }
+    std::fprintf(stderr, "in-process bus, %s, fault injected after %g s of a 0.2 Hz sine, run on %g s after it cleared\n",
+                 control::toString(o.kind), o.inject_at_s, o.after_s);
+    std::printf("%s", nodes::faultTableMarkdown(nodes::runFaultTable(list, o)).c_str());
+    return 0;
+  }
+
   int runRig() {
+    if (faults || sdo_guards) return runRigChecks();
     prepare();
     const auto c = controllerConfig();
     std::fprintf(stderr, "in-process bus: controller (node 1) + sensor (2) + valve (3), %g s pre-roll + %g s run\n",
@@ -285,7 +320,10 @@ struct BusCommands::Impl {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
         const auto f = node.fault();
         if (f != last) {
-          if (f != nodes::Fault::None)
+          if (f == nodes::Fault::IdCollision)
+            std::fprintf(stderr, "fault: %s (frame on COB-ID 0x%03X from another node) -> valve to its safe value, "
+                         "EMCY 0x%04X sent\n", nodes::toString(f), node.lastCollisionCob(), nodes::emcyCode(f));
+          else if (f != nodes::Fault::None)
             std::fprintf(stderr, "fault: %s -> valve to its safe value, EMCY 0x%04X sent\n", nodes::toString(f),
                          nodes::emcyCode(f));
           else
@@ -304,10 +342,10 @@ struct BusCommands::Impl {
     logger.stop();
     printStats(node.stats(), logger.kept);
     const auto& st = can.stats();
-    std::printf("socket: rx %llu, tx %llu, tx queued %llu, tx dropped %llu, error frames %llu\n",
+    std::printf("socket: rx %llu, tx %llu, tx queued %llu, tx dropped %llu, tx expired %llu, error frames %llu\n",
                 static_cast<unsigned long long>(st.rx_frames), static_cast<unsigned long long>(st.tx_frames),
                 static_cast<unsigned long long>(st.tx_queued), static_cast<unsigned long long>(st.tx_dropped),
-                static_cast<unsigned long long>(st.error_frames));
+                static_cast<unsigned long long>(st.tx_expired), static_cast<unsigned long long>(st.error_frames));
     return 0;
   }
 
@@ -428,6 +466,12 @@ BusCommands::BusCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) {
   m.addControllerOptions(m.rig);
   m.addEmulatorOptions(m.rig);
   m.rig->add_option("--log", m.candump, "write every frame as a candump -l log");
+  m.rig->add_flag("--faults", m.faults,
+                  "run each fault on the bus (seeded) and print the fault table: reaction, cycles to the safe "
+                  "valve value, EMCY, recovery, data lost");
+  m.rig->add_option("--only", m.only, "with --faults: comma list of faults, e.g. sync-stop,bus-off (an unknown name lists them)");
+  m.rig->add_flag("--sdo-guards", m.sdo_guards, "write parameters over SDO to the running controller and print "
+                                                "the abort codes and what the loop saw");
 
   m.controller = app.add_subcommand("controller", "run the controller node on a SocketCAN interface");
   m.controller->add_option("--iface", m.iface, "CAN interface (can0, vcan0, ...)")->capture_default_str();

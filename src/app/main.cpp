@@ -94,8 +94,8 @@ int main(int argc, char** argv) {
   ex->add_option("--kp", ex_cc.kp, "PI proportional gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
   ex->add_option("--ki", ex_cc.ki, "PI integral gain [V/(mm s)]")->capture_default_str()->check(CLI::NonNegativeNumber);
   ex->add_option("--kc", ex_cc.kc, "AMC compensation gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
-  ex->add_option("--amc-horizon", ex_cc.amc_horizon, "AMC prediction horizon [samples]; 1 = eq. (17)")->capture_default_str()->check(CLI::Range(1, 2000));
-  ex->add_option("--amc-inverse", ex_cc.amc_inverse, "with --amc-horizon > 1: fraction of the predicted error corrected through the model's inverse (0: kc e_hat)")->capture_default_str()->check(CLI::Range(0.0, 1.0));
+  ex->add_option("--amc-horizon", ex_cc.amc_horizon, "AMC prediction horizon [samples]; 1 = eq. (17), 0 = automatic (bus delay + the model's response time)")->capture_default_str()->check(CLI::Range(0, 2000));
+  ex->add_option("--amc-inverse", ex_cc.amc_inverse, "predictive AMC: fraction of the predicted error at the horizon corrected through the model's response (0: the paper's kc e_hat)")->capture_default_str()->check(CLI::Range(0.0, 1.0));
   ex->add_option("--eso-b0", ex_cc.b0, "ESO input gain b0 [mm/(s^2 V)]")->capture_default_str()->check(CLI::PositiveNumber);
   ex->add_option("--delay", ex_cc.delay_cycles, "cycles from command to the measurement that shows it, beyond one sample (2 on the CAN bus)")->capture_default_str()->check(CLI::Range(0, 7));
 

@@ -81,6 +81,31 @@ double InverseStatic::forward(double u) const noexcept {
   return y_[i - 1] + t * (y_[i] - y_[i - 1]);
 }
 
+int modelResponseSamples(const model::Model& m, double Ts, double u_min, double u_max, double fraction) {
+  constexpr int kMax = 2000;
+  const double u0 = 0.5 * (u_min + u_max), du = 0.1 * (u_max - u_min);
+  model::Model::State st;
+  model::StepContext c;
+  c.Ts = Ts;
+  m.init(st, u0 - du, c);
+  // Approach the start from below so the step continues the same branch of the loop.
+  const int settle = static_cast<int>(std::ceil(2.0 / Ts));
+  double y0 = 0.0;
+  for (int i = 0; i < settle; ++i) y0 = m.step(st, u0 - du + du * std::min(1.0, 2.0 * i / settle), c);
+  std::vector<double> y(kMax);
+  for (int i = 0; i < kMax; ++i) y[static_cast<size_t>(i)] = m.step(st, u0 + du, c);
+  const double target = y0 + fraction * (y.back() - y0);
+  for (int i = 0; i < kMax; ++i)
+    if ((y[static_cast<size_t>(i)] - target) * (y.back() - y0) >= 0.0) return i + 1;
+  return kMax;
+}
+
+int amcHorizon(const ControllerConfig& c) {
+  if (c.amc_horizon > 0) return c.amc_horizon;
+  if (c.amc_inverse <= 0.0) return 1;
+  return std::min(2000, c.delay_cycles + modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1));
+}
+
 namespace {
 
 void validate(const ControllerConfig& c) {
@@ -91,7 +116,10 @@ void validate(const ControllerConfig& c) {
     if (!std::isfinite(g) || g < 0) bad("gains must be finite and non-negative");
   if (!(c.delta > 0) || !(c.b0 > 0)) bad("ESO delta and b0 must be positive");
   if (c.delay_cycles < 0 || c.delay_cycles > 7) bad("delay_cycles must be 0..7");
-  if (c.amc_horizon < 1 || c.amc_horizon > 2000) bad("amc_horizon must be 1..2000 samples");
+  if (c.amc_horizon < 0 || c.amc_horizon > 2000) bad("amc_horizon must be 0 (automatic) .. 2000 samples");
+  if (!(c.amc_inverse >= 0.0 && c.amc_inverse <= 1.0)) bad("amc_inverse must be in [0, 1]");
+  if (c.amc_inverse > 0.0 && c.amc_horizon > 0 && c.amc_horizon <= c.delay_cycles)
+    bad("the predictive AMC needs amc_horizon above delay_cycles (the command must act within the horizon)");
 }
 
 // The commands of the last few cycles, to tell the estimators which one was in effect when a
@@ -187,6 +215,7 @@ class PiAmc final : public Controller {
   explicit PiAmc(const ControllerConfig& c) : cfg_(c) {
     pi_.configure(c);
     am_.configure(c.model, c.ukf, c.Ts);
+    cfg_.amc_horizon = amcHorizon(c);
   }
   Kind kind() const override { return Kind::PiAmc; }
   int lookahead() const override { return cfg_.amc_horizon; }
@@ -213,7 +242,19 @@ class PiAmc final : public Controller {
     ctx.Ts = cfg_.Ts;
     ctx.load = load;
     double y_next;
-    if (cfg_.amc_horizon <= 1) {
+    if (cfg_.amc_inverse > 0.0) {
+      // Predictive form: the commands already on their way first, then the nominal command held.
+      const int d = cfg_.delay_cycles;
+      std::array<double, 8> in_flight{};
+      for (int j = 0; j < d; ++j) in_flight[static_cast<size_t>(j)] = hist_.get(d - 1 - j);
+      y_next = am_.predictAhead(in_flight.data(), d, un, cfg_.amc_horizon, load);
+      if (std::isfinite(y_next)) {
+        // Slope of the response in the direction the correction will move (hysteresis differs).
+        const double du = std::copysign(0.02 * (cfg_.u_max - cfg_.u_min), yd_next - y_next);
+        const double g = (am_.predictAhead(in_flight.data(), d, un + du, cfg_.amc_horizon, load) - y_next) / du;
+        if (std::isfinite(g) && std::fabs(g) > 1e-3) inverse_gain_ = g;
+      }
+    } else if (cfg_.amc_horizon <= 1) {
       const double un_eff = cfg_.model.inputStage(nom_, un, ctx);
       y_next = am_.predictNext(un_eff_prev_, un_eff, load);
       un_eff_prev_ = un_eff;
@@ -221,16 +262,11 @@ class PiAmc final : public Controller {
       // Roll out from the last command sent plus the nominal controller's change.
       const double u_hold = hist_.get(0) + (un - un_prev_);
       y_next = am_.predictAhead(u_hold, cfg_.amc_horizon, load);
-      if (cfg_.amc_inverse > 0.0 && std::isfinite(y_next)) {
-        const double du = 0.01;
-        const double g = (am_.predictAhead(u_hold + du, cfg_.amc_horizon, load) - y_next) / du;
-        if (std::isfinite(g) && std::fabs(g) > 1e-3) inverse_gain_ = g;
-      }
     }
     un_prev_ = un;
     // Compensation, eq. (18), and total command, eqs. (14)/(19).
     if (!std::isfinite(y_next)) o.u_c = 0.0;
-    else if (cfg_.amc_horizon > 1 && cfg_.amc_inverse > 0.0)
+    else if (cfg_.amc_inverse > 0.0)
       o.u_c = std::clamp(cfg_.amc_inverse * (yd_next - y_next) / inverse_gain_, cfg_.u_min - cfg_.u_max, cfg_.u_max - cfg_.u_min);
     else o.u_c = cfg_.kc * (yd_next - y_next);
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);

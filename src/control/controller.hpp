@@ -36,11 +36,16 @@ struct ControllerConfig {
   double ki = 0.15;                  // [V/(mm s)], see above
   double kc = 0.06;                  // [V/mm]
   // AMC prediction horizon in samples: 1 is eq. (17); longer horizons roll the model out so that
-  // its lags and delays shape the compensation (see docs/CONTROL.md).
+  // its lags and delays shape the compensation (see docs/CONTROL.md). 0: automatic - 1 with
+  // amc_inverse = 0, otherwise the bus delay plus the time the model takes to make 10 % of its response
+  // to a command step (modelResponseSamples): the correction then amplifies sensor noise at most about
+  // ten times more than a static inverse would.
   int amc_horizon = 1;
-  // With amc_horizon > 1: 0 uses u_c = kc e_hat (the paper's form); > 0 inverts the model over the
-  // horizon instead, u_c = amc_inverse * e_hat / g, g the model's response at the horizon to a change
-  // of the command - the compensation then depends on how well the model knows the plant's dynamics.
+  // 0 uses u_c = kc e_hat (the paper's form, eq. 18). > 0 is the predictive form: the model is rolled
+  // out over the horizon from the UKF's posterior, the commands still in flight on the bus first and
+  // then the nominal command held; u_c = amc_inverse * e_hat / g cancels that fraction of the predicted
+  // error, g the model's response at the horizon to a change of the command. The compensation then
+  // rests on how well the model knows the plant's dynamics.
   double amc_inverse = 0.0;
   // ESO, eq. (24): fal() with delta in mm; b0 [mm/(s^2 V)] is the input gain the observer
   // assumes (the paper's eq. (22) has b0 = 1).
@@ -74,6 +79,14 @@ class Controller {
   // One cycle: setpoint now and lookahead() cycles ahead, measured position (and load if measured).
   virtual ControlOutput update(double yd, double yd_next, double y, double load = 0.0) noexcept = 0;
 };
+
+// Samples until the model's output has made `fraction` of its response to a small command step from
+// mid-range (1 for the plain Bouc-Wen model, which responds at once; about 0.1 tau/Ts for 10 % with a
+// pressure lag of time constant tau).
+int modelResponseSamples(const model::Model& m, double Ts, double u_min, double u_max, double fraction);
+
+// The AMC horizon in effect for a configuration (resolves amc_horizon = 0).
+int amcHorizon(const ControllerConfig& c);
 
 // Throws std::invalid_argument on a bad configuration.
 std::unique_ptr<Controller> makeController(Kind kind, const ControllerConfig& cfg);

@@ -86,7 +86,8 @@ double ActiveModel::predictNext(double u_eff_prev, double u_eff_next, double loa
   return y_post_ + (y1 - y0);
 }
 
-double ActiveModel::predictAhead(double u_hold, int horizon, double load) const noexcept {
+double ActiveModel::predictAhead(const double* in_flight, int n_in_flight, double u_hold, int horizon,
+                                 double load) const noexcept {
   model::StepContext c;
   c.Ts = Ts_;
   c.load = load;
@@ -97,7 +98,7 @@ double ActiveModel::predictAhead(double u_hold, int horizon, double load) const 
   double y = y_post_;
   for (int i = 0; i < horizon; ++i) {
     h = model::boucWenNext(model_.core(), h, du, f, Ts_);
-    const double ue = model_.inputStage(s, u_hold, c);
+    const double ue = model_.inputStage(s, i < n_in_flight ? in_flight[i] : u_hold, c);
     c.u_eff = ue;
     y = model_.outputStage(s, model_.coreOutput(ue, h), c);
     du = ue - s.u_eff_prev;

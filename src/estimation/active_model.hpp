@@ -45,7 +45,12 @@ class ActiveModel {
 
   // Output `horizon` samples ahead if the command u_hold is applied from the next sample on: the
   // model rolled out from the posterior [h, f_h] and its effect states (lags, delays, inertia).
-  double predictAhead(double u_hold, int horizon, double load) const noexcept;
+  double predictAhead(double u_hold, int horizon, double load) const noexcept {
+    return predictAhead(nullptr, 0, u_hold, horizon, load);
+  }
+  // The same with the commands already sent but not yet in effect at the last measurement applied
+  // first (in_flight[0] the oldest), then u_hold for the rest of the horizon.
+  double predictAhead(const double* in_flight, int n_in_flight, double u_hold, int horizon, double load) const noexcept;
 
   const Filter& filter() const { return ukf_; }
   const model::Model::State& modelState() const { return st_; }

@@ -8,6 +8,30 @@
 
 namespace pamc::io {
 
+namespace {
+
+// Names from the file (keys, effect names) may hold control characters; an error stays one line.
+std::string printable(const std::string& s) {
+  std::string out;
+  for (const char c : s) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '\n') out += "\\n";
+    else if (c == '\r') out += "\\r";
+    else if (c == '\t') out += "\\t";
+    else if (u < 0x20 || u == 0x7F) {
+      static constexpr char kHex[] = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[u >> 4];
+      out += kHex[u & 0x0F];
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 nlohmann::json modelToJson(const model::Model& m) {
   nlohmann::json j;
   j["format"] = "pamc-model/1";
@@ -25,7 +49,7 @@ nlohmann::json modelToJson(const model::Model& m) {
 }
 
 model::Model modelFromJson(const nlohmann::json& j, const std::string& where) {
-  auto fail = [&](const std::string& what) -> void { throw InputError(where + ": " + what); };
+  auto fail = [&](const std::string& what) -> void { throw InputError(where + ": " + printable(what)); };
   auto num = [&](const nlohmann::json& v, const std::string& key) {
     if (!v.is_number()) fail("'" + key + "' must be a number");
     const double d = v.get<double>();
@@ -77,6 +101,11 @@ model::Model readModelFile(const std::string& path) {
     j = nlohmann::json::parse(f);
   } catch (const nlohmann::json::parse_error& e) {
     throw InputError(path + ": byte " + std::to_string(e.byte) + ": not valid JSON");
+  } catch (const nlohmann::json::exception& e) {
+    // The parser reports a number it cannot hold ("1e999") as out_of_range, not parse_error.
+    const std::string what = e.what();
+    const auto tag = what.find("] ");
+    throw InputError(path + ": not valid JSON: " + (tag == std::string::npos ? what : what.substr(tag + 2)));
   }
   return modelFromJson(j, path);
 }

@@ -40,8 +40,9 @@ inline double boucWenNext(const BoucWenParams& p, double h, double du, double f_
   const double stiff = (std::fabs(p.beta) + std::fabs(p.gamma)) * std::fabs(du);
   int n = 1;
   if (stiff > 0.25) {
-    n = static_cast<int>(std::ceil(stiff / 0.25));
-    if (n > 256) n = 256;
+    // Capped before the conversion: a huge beta, gamma or du must not overflow the int.
+    const double steps = std::ceil(stiff / 0.25);
+    n = steps < 256.0 ? static_cast<int>(steps) : 256;
   }
   const double d = du / n;
   const double ad = std::fabs(d);

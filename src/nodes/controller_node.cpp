@@ -2,10 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <stdexcept>
+
+#include "model/bouc_wen.hpp"
 
 namespace pamc::nodes {
 
+using canopen::Entry;
 using canopen::HeartbeatEvent;
 using canopen::NmtCommand;
 using canopen::NmtState;
@@ -17,8 +22,18 @@ const char* toString(Fault f) {
     case Fault::SensorHeartbeat: return "sensor heartbeat lost";
     case Fault::PositionMissing: return "position PDO missing";
     case Fault::Estimator: return "estimator failure (non-finite or reset)";
-    case Fault::BusError: return "CAN bus error";
+    case Fault::BusError: return "CAN error passive";
     case Fault::ValveHeartbeat: return "valve heartbeat lost";
+    case Fault::SyncLost: return "SYNC lost";
+    case Fault::SensorState: return "sensor rebooted or not operational";
+    case Fault::ValveState: return "valve rebooted, stopped or not operational";
+    case Fault::ValvePdoMissing: return "valve PDO missing";
+    case Fault::CanOverrun: return "CAN overrun (frames lost)";
+    case Fault::BusOff: return "CAN bus off";
+    case Fault::IdCollision: return "another node uses this node-ID";
+    case Fault::SensorConflict: return "two sources of the position PDO";
+    case Fault::PdoLength: return "PDO with wrong length discarded";
+    case Fault::SyncLength: return "SYNC with wrong length discarded";
   }
   return "?";
 }
@@ -27,16 +42,33 @@ const char* toString(Fault f) {
 std::uint16_t emcyCode(Fault f) {
   switch (f) {
     case Fault::None: return 0x0000;
-    case Fault::SensorHeartbeat: return 0x8130;  // life guard / heartbeat error
-    case Fault::PositionMissing: return 0x8250;  // RPDO timeout
-    case Fault::Estimator: return 0x6100;        // internal software
-    case Fault::BusError: return 0x8120;         // CAN in error passive mode (or bus off)
-    case Fault::ValveHeartbeat: return 0x8130;
+    case Fault::SensorHeartbeat: return canopen::kEmcyHeartbeat;      // life guard / heartbeat error
+    case Fault::PositionMissing: return canopen::kEmcyRpdoTimeout;    // RPDO timeout
+    case Fault::Estimator: return canopen::kEmcySoftware;             // internal software
+    case Fault::BusError: return canopen::kEmcyErrorPassive;          // CAN in error passive mode
+    case Fault::ValveHeartbeat: return canopen::kEmcyHeartbeat;
+    case Fault::SyncLost: return canopen::kEmcyCommunication;         // no SYNC code in CiA 301: generic
+    case Fault::SensorState: return canopen::kEmcyHeartbeat;          // heartbeat event (remote reset / state)
+    case Fault::ValveState: return canopen::kEmcyHeartbeat;
+    case Fault::ValvePdoMissing: return canopen::kEmcyRpdoTimeout;
+    case Fault::CanOverrun: return canopen::kEmcyCanOverrun;          // CAN overrun (objects lost)
+    case Fault::BusOff: return canopen::kEmcyBusOffRecovered;         // sent once the controller restarted
+    case Fault::IdCollision: return canopen::kEmcyCanIdCollision;     // CAN-ID collision
+    case Fault::SensorConflict: return canopen::kEmcyCanIdCollision;
+    case Fault::PdoLength: return canopen::kEmcyPdoLength;            // PDO not processed due to length error
+    case Fault::SyncLength: return canopen::kEmcySyncLength;          // unexpected SYNC data length
   }
   return 0xFF00;
 }
 
+bool isWarning(Fault f) { return f == Fault::PdoLength || f == Fault::SyncLength; }
+
 namespace {
+constexpr std::uint32_t bit(Fault f) { return 1u << static_cast<unsigned>(f); }
+constexpr std::uint32_t kWarnMask = bit(Fault::PdoLength) | bit(Fault::SyncLength);
+constexpr std::uint32_t kSafetyMask = ((1u << kFaultCount) - 2u) & ~kWarnMask;
+constexpr TimeUs kStartGraceUs = 300'000;  // a started slave must report Operational within 3 heartbeats
+
 // The parameters in 0x2000 (gains) and 0x2001 (model) by sub-index 1..n, read and written alike.
 constexpr double control::ControllerConfig::*kGains[] = {
     &control::ControllerConfig::kp,    &control::ControllerConfig::ki,    &control::ControllerConfig::kc,
@@ -45,6 +77,9 @@ constexpr double control::ControllerConfig::*kGains[] = {
 constexpr double model::BoucWenParams::*kModel[] = {&model::BoucWenParams::k,     &model::BoucWenParams::rho,
                                                     &model::BoucWenParams::b,     &model::BoucWenParams::alpha,
                                                     &model::BoucWenParams::beta,  &model::BoucWenParams::gamma};
+constexpr double estimation::ActiveModelSettings::*kUkf[] = {
+    &estimation::ActiveModelSettings::P0_h, &estimation::ActiveModelSettings::P0_f,
+    &estimation::ActiveModelSettings::Q_h, &estimation::ActiveModelSettings::Q_f, &estimation::ActiveModelSettings::R};
 
 // Trajectory choice 0x2011 and its parameters 0x2012: frequency, low, high, offset, amplitude,
 // amplitude at end, duration.
@@ -85,40 +120,116 @@ bool trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t) {
   od.ref<double>(0x2012, 7).set(t.duration);
   return true;
 }
+
+// Ranges the controller accepts beyond the EDS limits: kp and kc up to 10 V/mm (the valve's whole
+// range for 1 mm of error), ki up to 100 V/(mm s); the divisors ESO delta, ESO b0 and UKF R above 0.
+std::uint32_t applicationRange(std::uint16_t idx, std::uint8_t sub, double v) {
+  if (idx == 0x2000 && (sub == 1 || sub == 3) && v > 10.0) return canopen::kAbortValueTooHigh;
+  if (idx == 0x2000 && sub == 2 && v > 100.0) return canopen::kAbortValueTooHigh;
+  if (((idx == 0x2000 && (sub == 7 || sub == 8)) || (idx == 0x2002 && sub == 5)) && !(v > 0.0))
+    return canopen::kAbortValueTooLow;
+  return canopen::kSdoOk;
+}
+
+std::int16_t toValve(double u) noexcept {
+  const double v = std::clamp(u + 5.0, 0.0, 10.0);  // valve volts
+  return static_cast<std::int16_t>(std::lround(v * 32767.0 / 10.0));
+}
+
+// Bouc-Wen stability of the model core (eq. 6 with m = 1). With h' = h / alpha the h-equation has
+// alpha' = 1, beta' = beta sign(alpha), gamma' = gamma; it is bounded for every input when
+// beta' + gamma' > 0 (Ikhouane and Rodellar, classes I-III from h = 0) and unbounded otherwise. The
+// discrete form is then driven through sweeps and steps over the whole command range as a check.
+bool boucWenStable(const model::BoucWenParams& p, std::string* why) {
+  if (p.alpha != 0.0 && !(std::copysign(1.0, p.alpha) * p.beta + p.gamma > 0.0)) {
+    if (why) *why = "Bouc-Wen parameters unstable: beta * sign(alpha) + gamma must be > 0";
+    return false;
+  }
+  double h = 0.0, u_prev = 0.0, h_max = 0.0;
+  const int periods[] = {20, 200, 2000};
+  for (int per : periods) {
+    for (int k = 0; k < 2 * per; ++k) {
+      const double ph = static_cast<double>(k % per) / per;
+      const double u = -5.0 + 10.0 * (ph < 0.5 ? 2.0 * ph : 2.0 - 2.0 * ph);
+      h = model::boucWenNext(p, h, u - u_prev, 0.0, 1e-3);
+      u_prev = u;
+      h_max = std::max(h_max, std::fabs(h));
+    }
+  }
+  for (int k = 0; k < 200; ++k) {  // full-range steps
+    const double u = (k % 2) ? 5.0 : -5.0;
+    h = model::boucWenNext(p, h, u - u_prev, 0.0, 1e-3);
+    u_prev = u;
+    h_max = std::max(h_max, std::fabs(h));
+  }
+  const double y = model::boucWenOutput(p, u_prev, h);
+  if (!std::isfinite(h) || !std::isfinite(y) || h_max > 1e6) {
+    if (why) *why = "Bouc-Wen model diverges on a full-range sweep";
+    return false;
+  }
+  return true;
+}
 }  // namespace
 
 ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport,
                                std::function<TimeUs()> clock)
     : cfg_(cfg), clock_(std::move(clock)) {
   node_ = canopen::Node::fromEds(cfg.eds_path, transport);
+  sensor_.id = cfg.sensor_id;
+  valve_.id = cfg.valve_id;
+  running_.ctrl = cfg_.ctrl;
   applyOverrides();
   auto& od = node_->od();
   position_ = od.ref<std::int32_t>(0x3000, 0);
   valve_cmd_ = od.ref<std::int16_t>(0x3002, 0);
+  staged_flag_ = od.ref<std::uint8_t>(0x2003, 2);
+  sets_applied_ = od.ref<std::uint8_t>(0x2003, 3);
   configureFromOd();
+  installGuards();
 
   node_->onSync([this](std::uint8_t counter, TimeUs now) { onSync(counter, now); });
-  node_->onHeartbeat([this](std::uint8_t id, HeartbeatEvent ev, NmtState, TimeUs) {
-    if (ev == HeartbeatEvent::Timeout) raise(id == cfg_.sensor_id ? Fault::SensorHeartbeat : Fault::ValveHeartbeat);
-    // A slave that rebooted waits in Pre-operational: start it again.
-    if (ev == HeartbeatEvent::BootUp) node_->sendNmt(NmtCommand::Start, id);
+  node_->onHeartbeat([this](std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) {
+    onHeartbeatEvent(id, ev, st, now);
   });
-  node_->onErrorFrame([this](const canopen::Frame& f, TimeUs) {
-    // Linux error-frame classes (linux/can/error.h): bus off (0x40), or a controller problem (0x04)
-    // reporting error passive (data[1] 0x10 rx / 0x20 tx). Other classes are counted by the layer.
-    const bool bus_off = (f.id & 0x40u) != 0;
-    const bool passive = (f.id & 0x04u) != 0 && (f.data[1] & 0x30u) != 0;
-    if (bus_off || passive) raise(Fault::BusError);
+  node_->onErrorFrame([this](const canopen::Frame& f, TimeUs) { onErrorFrame(f); });
+  // SYNC consumer: without SYNC no cycle runs, so act in the hook: safe value, EMCY, and the valve to
+  // Pre-operational, where it outputs its error value (it would hold the last command otherwise).
+  node_->onSyncTimeout([this](TimeUs now) {
+    raise(Fault::SyncLost);
+    takeCauses(now);
+    hold(kHoldSync);
   });
-  node_->onStateChange([this](NmtState, NmtState to, TimeUs) {
-    if (to != NmtState::Operational) return;
-    // Parameters set over SDO take effect here; a set that does not configure keeps the running
-    // controller and raises a fault instead of escaping into the event loop.
-    try {
-      configureFromOd();
-    } catch (const std::exception&) {
-      ++config_errors_;
-      raise(Fault::Estimator);
+  node_->onCollision([this](const canopen::Frame& f, TimeUs now) {
+    ++fc_.collisions;
+    fc_.last_collision_cob = f.id;
+    collision_pub_.store(f.id, std::memory_order_relaxed);
+    raise(Fault::IdCollision, static_cast<std::uint8_t>(f.id & 0xFF));
+    takeCauses(now);
+    // The other node may command the valve too: keep it in Pre-operational until the collision is gone.
+    hold(kHoldCollision);
+  });
+  node_->onStateChange([this](NmtState from, NmtState to, TimeUs now) {
+    if (to == NmtState::Operational) {
+      // Parameters set over SDO take effect here; a set that does not configure keeps the running
+      // controller and raises a fault instead of escaping into the event loop.
+      try {
+        configureFromOd();
+      } catch (const std::exception&) {
+        ++config_errors_;
+        ++fc_.sets_refused;
+        raise(Fault::Estimator);
+      }
+      startSlave(sensor_, now);
+      if ((hold_ & kHoldSelf) != 0) release(kHoldSelf, now);  // starts the valve once nothing else holds it
+      else if (hold_ == 0) startSlave(valve_, now);
+      push_valve_ = true;
+      pushValveErrorValue();
+    } else if (from == NmtState::Operational) {
+      // No more setpoints from here: the valve goes to its error value instead of holding the last one.
+      // The loop stops (PDOs do not move outside Operational); NMT start configures it afresh.
+      hold(kHoldSelf);
+      active_ = run_started_ = false;
+      ramp_ = slew_ = false;
     }
   });
   // A reset restores the EDS defaults: put the command line's choices back.
@@ -135,40 +246,141 @@ void ControllerNode::applyOverrides() {
   for (std::uint8_t i = 0; i < 6; ++i)
     od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).set(cfg.ctrl.model.core().*kModel[i]);
   if (cfg.has_trajectory) traj_override_ = !trajectoryToOd(od, cfg.trajectory);
-  if (cfg.period_us) od.ref<std::uint32_t>(0x1006, 0).set(cfg.period_us);
+  if (cfg.period_us) {
+    od.ref<std::uint32_t>(0x1006, 0).set(cfg.period_us);
+    // The synchronous window keeps its share of the period (0x1007 default: 800 of 1000 us).
+    if (auto* w = od.find(0x1007, 0)) w->set<std::uint32_t>(cfg.period_us / 5 * 4);
+  }
   if (!cfg.produce_sync) {
     auto cob = od.ref<std::uint32_t>(0x1005, 0);
     cob.set(cob.get() & ~0x40000000u);  // consume SYNC from another master
   }
 }
 
+void ControllerNode::installGuards() {
+  using canopen::kAbortDeviceState;
+  using canopen::kAbortValueRange;
+  using canopen::kAbortValueTooLow;
+  using canopen::kSdoOk;
+  auto& od = node_->od();
+  // What the loop is wired to cannot change under it: the controller choice, the trajectory, the
+  // process data, and the communication objects of the cycle are refused while Operational.
+  auto while_running = [this](const Entry&, const std::uint8_t*, std::size_t) -> std::uint32_t {
+    return node_->nmtState() == NmtState::Operational ? kAbortDeviceState : kSdoOk;
+  };
+  for (std::uint16_t idx : {0x1005, 0x1006, 0x1007, 0x1016, 0x1400, 0x1401, 0x1600, 0x1601, 0x1800, 0x1A00, 0x2010,
+                            0x2011, 0x2012, 0x3000, 0x3001, 0x3002}) {
+    if (od.hasObject(idx)) od.addValidator(idx, while_running);
+  }
+  // Numbers: finite (the EDS limits are checked before the validators run).
+  auto finite = [](const Entry& e, const std::uint8_t* d, std::size_t len) -> std::uint32_t {
+    if (e.dataType() != canopen::DataType::Real64 || len != 8) return kSdoOk;
+    double v;
+    std::memcpy(&v, d, 8);
+    return std::isfinite(v) ? kSdoOk : kAbortValueRange;
+  };
+  for (std::uint16_t idx : {0x2000, 0x2001, 0x2002, 0x2012, 0x2020}) od.addValidator(idx, finite);
+  // The application's ranges, narrower than the EDS limits (which are those of the data type).
+  for (std::uint8_t sub = 1; sub <= 8; ++sub) {
+    od.validate<double>(0x2000, sub, [sub](double v) { return applicationRange(0x2000, sub, v); });
+  }
+  od.validate<double>(0x2002, 5, [](double v) { return applicationRange(0x2002, 5, v); });
+  // A parameter written while the loop runs is staged: the dictionary shows it, the loop does not use it.
+  auto staged = [this](Entry&) { staged_flag_.set(1); };
+  for (std::uint16_t idx : {0x2000, 0x2001, 0x2002, 0x2020, 0x2021}) od.addObserver(idx, staged);
+  // 0x2003:01: 1 commits the staged set (checked here, taken at the next SYNC), 0 discards it.
+  od.addValidator(0x2003, 1, [this](const Entry&, const std::uint8_t* d, std::size_t len) -> std::uint32_t {
+    if (len != 1) return kSdoOk;
+    if (d[0] == 1) return commit();
+    discard();
+    return kSdoOk;
+  });
+  od.addObserver(0x2003, 1, [](Entry& e) { e.set<std::uint8_t>(0); });
+}
+
+ControllerNode::Params ControllerNode::readParams() {
+  auto& od = node_->od();
+  Params p;
+  p.ctrl = running_.ctrl;
+  for (std::uint8_t i = 0; i < 8; ++i) p.ctrl.*kGains[i] = od.ref<double>(0x2000, static_cast<std::uint8_t>(i + 1)).get();
+  for (std::uint8_t i = 0; i < 6; ++i)
+    p.ctrl.model.core().*kModel[i] = od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).get();
+  for (std::uint8_t i = 0; i < 5; ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).get();
+  p.safe_u = od.ref<double>(0x2020, 0).get() - 5.0;
+  p.missing_limit = od.ref<std::uint8_t>(0x2021, 0).get();
+  return p;
+}
+
+void ControllerNode::writeParams(const Params& p) {
+  auto& od = node_->od();
+  for (std::uint8_t i = 0; i < 8; ++i) od.ref<double>(0x2000, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.*kGains[i]);
+  for (std::uint8_t i = 0; i < 6; ++i)
+    od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.model.core().*kModel[i]);
+  for (std::uint8_t i = 0; i < 5; ++i) od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.ukf.*kUkf[i]);
+  od.ref<double>(0x2020, 0).set(p.safe_u + 5.0);
+  od.ref<std::uint8_t>(0x2021, 0).set(static_cast<std::uint8_t>(p.missing_limit));
+}
+
+std::uint32_t ControllerNode::checkParams(const Params& p, std::string* why) {
+  using canopen::kSdoOk;
+  auto& od = node_->od();
+  // Every value against the rules an SDO write would meet (values set locally skip those).
+  auto check = [&](std::uint16_t idx, std::uint8_t sub, double v) -> std::uint32_t {
+    const Entry& e = od.entry(idx, sub);
+    std::uint32_t code = std::isfinite(v) ? kSdoOk : canopen::kAbortValueRange;
+    if (code == kSdoOk) code = od.checkValue(e, reinterpret_cast<const std::uint8_t*>(&v), sizeof v);
+    if (code == kSdoOk) code = applicationRange(idx, sub, v);
+    if (code != kSdoOk && why) {
+      char b[160];
+      std::snprintf(b, sizeof b, "%s %s = %g: %s", canopen::entryName(idx, sub).c_str(), e.name().c_str(), v,
+                    canopen::sdoAbortText(code));
+      *why = b;
+    }
+    return code;
+  };
+  for (std::uint8_t i = 0; i < 8; ++i)
+    if (auto c = check(0x2000, static_cast<std::uint8_t>(i + 1), p.ctrl.*kGains[i])) return c;
+  for (std::uint8_t i = 0; i < 6; ++i)
+    if (auto c = check(0x2001, static_cast<std::uint8_t>(i + 1), p.ctrl.model.core().*kModel[i])) return c;
+  for (std::uint8_t i = 0; i < 5; ++i)
+    if (auto c = check(0x2002, static_cast<std::uint8_t>(i + 1), p.ctrl.ukf.*kUkf[i])) return c;
+  if (auto c = check(0x2020, 0, p.safe_u + 5.0)) return c;
+  // Each value may be fine alone and the set still unusable: CiA 301 "general parameter incompatibility".
+  if (!boucWenStable(p.ctrl.model.core(), why)) return canopen::kAbortParameterIncompatible;
+  return kSdoOk;
+}
+
 void ControllerNode::configureFromOd() {
   auto& od = node_->od();
-  control::ControllerConfig c = cfg_.ctrl;
-  for (std::uint8_t i = 0; i < 8; ++i) c.*kGains[i] = od.ref<double>(0x2000, static_cast<std::uint8_t>(i + 1)).get();
-  for (std::uint8_t i = 0; i < 6; ++i)
-    c.model.core().*kModel[i] = od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).get();
-  c.ukf.P0_h = od.ref<double>(0x2002, 1).get();
-  c.ukf.P0_f = od.ref<double>(0x2002, 2).get();
-  c.ukf.Q_h = od.ref<double>(0x2002, 3).get();
-  c.ukf.Q_f = od.ref<double>(0x2002, 4).get();
-  c.ukf.R = od.ref<double>(0x2002, 5).get();
+  Params p = readParams();
+  std::string why;
+  if (checkParams(p, &why) != canopen::kSdoOk) throw std::invalid_argument(cfg_.eds_path + ": parameter set refused: " + why);
   const std::uint32_t period_us = od.ref<std::uint32_t>(0x1006, 0).get();
   if (period_us == 0) throw std::invalid_argument(cfg_.eds_path + ": 0x1006 communication cycle period is 0");
   // Build everything first, then swap: a failure leaves the running controller in place.
-  Ts_ = period_us * 1e-6;
-  c.Ts = Ts_;
-  c.delay_cycles = 2;  // see controller_node.hpp: y_k reflects u_{k-3}
-  kind_ = static_cast<control::Kind>(od.ref<std::uint8_t>(0x2010, 0).get());
-  traj_ = trajectoryFromOd(od);
-  if (traj_override_) traj_ = cfg_.trajectory;  // shapes the OD cannot hold
-  safe_u_ = std::clamp(od.ref<double>(0x2020, 0).get(), 0.0, 10.0) - 5.0;
-  missing_limit_ = od.ref<std::uint8_t>(0x2021, 0).get();
-  auto fresh_ctrl = control::makeController(kind_, c);
+  const double Ts = period_us * 1e-6;
+  p.ctrl.Ts = Ts;
+  p.ctrl.delay_cycles = 2;  // see controller_node.hpp: y_k reflects u_{k-3}
+  const auto kind = static_cast<control::Kind>(od.ref<std::uint8_t>(0x2010, 0).get());
+  auto traj = trajectoryFromOd(od);
+  if (traj_override_) traj = cfg_.trajectory;  // shapes the OD cannot hold
+  auto fresh_ctrl = control::makeController(kind, p.ctrl);
+  Ts_ = Ts;
+  kind_ = kind;
+  traj_ = traj;
   ctrl_ = std::move(fresh_ctrl);
-  cfg_.ctrl.Ts = c.Ts;
+  running_ = std::move(p);
+  safe_u_ = std::clamp(running_.safe_u, -5.0, 5.0);
+  missing_limit_ = running_.missing_limit;
+  cfg_.ctrl.Ts = Ts;
+  next_ctrl_.reset();
+  commit_ready_ = false;
+  staged_flag_.set(0);
+  ++fc_.sets_applied;
+  sets_applied_.set(static_cast<std::uint8_t>(fc_.sets_applied));
   active_ = false;
   run_started_ = false;
+  ramp_ = false;
   cycle_ = 0;
   preroll_cycles_ = static_cast<std::uint64_t>(std::llround(cfg_.preroll_s / Ts_));
   last_u_ = safe_u_;
@@ -176,20 +388,286 @@ void ControllerNode::configureFromOd() {
   run_time_pub_.store(0.0, std::memory_order_relaxed);
 }
 
+std::uint32_t ControllerNode::commit() {
+  // Runs in the SDO server (between cycles, never inside one): check, build, hand over.
+  Params p = readParams();
+  std::string why;
+  std::uint32_t code = checkParams(p, &why);
+  std::unique_ptr<control::Controller> c;
+  if (code == canopen::kSdoOk) {
+    try {
+      c = control::makeController(kind_, p.ctrl);
+    } catch (const std::exception&) {
+      code = canopen::kAbortParameterIncompatible;
+    }
+  }
+  if (code != canopen::kSdoOk) {
+    ++fc_.sets_refused;
+    last_refusal_ = code;
+    return code;
+  }
+  retired_.reset();  // the controller replaced at the last cycle boundary
+  next_ctrl_ = std::move(c);
+  next_ = std::move(p);
+  commit_ready_ = true;
+  staged_flag_.set(0);
+  return canopen::kSdoOk;
+}
+
+void ControllerNode::discard() {
+  writeParams(running_);
+  staged_flag_.set(0);
+}
+
+void ControllerNode::takeCommitted(double y) noexcept {
+  // Pointer and struct swaps only: nothing is allocated or freed in the cycle.
+  std::swap(ctrl_, next_ctrl_);
+  retired_.swap(next_ctrl_);
+  std::swap(running_, next_);
+  commit_ready_ = false;
+  const bool safe_changed = running_.safe_u != next_.safe_u;
+  safe_u_ = std::clamp(running_.safe_u, -5.0, 5.0);
+  missing_limit_ = running_.missing_limit;
+  ++fc_.sets_applied;
+  sets_applied_.set(static_cast<std::uint8_t>(fc_.sets_applied));
+  if (safe_changed) push_valve_ = true;
+  // Bumpless: the new controller starts from the command in effect; the setpoint ramps from here.
+  if (active_ && fault_ == Fault::None) {
+    ctrl_->activate(last_u_, y);
+    startRamp(y);
+  }
+}
+
 void ControllerNode::start(TimeUs now) {
   node_->start(now);
-  node_->applyNmt(NmtCommand::Start);
-  node_->sendNmt(NmtCommand::Start, cfg_.sensor_id);
-  node_->sendNmt(NmtCommand::Start, cfg_.valve_id);
+  node_->applyNmt(NmtCommand::Start);  // the state hook starts the slaves
 }
 
-void ControllerNode::raise(Fault f) noexcept {
-  if (pending_ == Fault::None) pending_ = f;
+void ControllerNode::raise(Fault f, std::uint8_t detail) noexcept {
+  pending_ |= bit(f);
+  detail_[static_cast<unsigned>(f)] = detail;
 }
 
-static std::int16_t toValve(double u) noexcept {
-  const double v = std::clamp(u + 5.0, 0.0, 10.0);  // valve volts
-  return static_cast<std::int16_t>(std::lround(v * 32767.0 / 10.0));
+void ControllerNode::takeCauses(TimeUs now) noexcept {
+  const std::uint32_t p = pending_;
+  pending_ = 0;
+  if (p == 0) return;
+  if (reacted_at_us_ == canopen::kNever) reacted_at_us_ = now;
+  for (int i = 1; i < kFaultCount; ++i) {
+    const auto f = static_cast<Fault>(i);
+    if ((p & bit(f)) == 0 || (episode_ & bit(f)) != 0) continue;
+    if (f == Fault::BusOff) continue;  // nothing goes out in bus off: its EMCY (0x8140) follows the restart
+    episode_ |= bit(f);
+    const std::uint8_t m[5] = {static_cast<std::uint8_t>(i), detail_[i], 0, 0, 0};
+    node_->emcy().report(emcyCode(f), m);
+    if (isWarning(f)) ++fc_.warnings;
+  }
+  if ((p & kSafetyMask) != 0) {
+    if (fault_ == Fault::None) {
+      for (int i = 1; i < kFaultCount; ++i)
+        if ((p & kSafetyMask & bit(static_cast<Fault>(i))) != 0) {
+          fault_ = static_cast<Fault>(i);
+          break;
+        }
+      ++faults_raised_;
+      ++fc_.episodes;
+      ramp_ = slew_ = false;
+      last_u_ = safe_u_;
+      valve_cmd_.set(toValve(safe_u_));
+      fault_pub_.store(fault_, std::memory_order_relaxed);
+    }
+    clear_cycles_ = 0;
+  }
+  if ((p & kWarnMask) != 0) warn_clear_ = 0;
+}
+
+void ControllerNode::recover(double y, TimeUs now) noexcept {
+  for (int i = 1; i < kFaultCount; ++i) {
+    const auto f = static_cast<Fault>(i);
+    if ((episode_ & kSafetyMask & bit(f)) != 0) node_->emcy().clear(emcyCode(f));
+  }
+  episode_ &= kWarnMask;
+  if (episode_ == 0) reacted_at_us_ = canopen::kNever;
+  fault_ = Fault::None;
+  ++fc_.recoveries;
+  release(kHoldCollision, now);
+  // Estimator and integrator restart from the safe value; the setpoint starts at the position.
+  last_u_ = safe_u_;
+  ctrl_->activate(last_u_, y);
+  startRamp(y);
+}
+
+void ControllerNode::startRamp(double y) noexcept {
+  const double t = run_started_ ? static_cast<double>(cycle_ - preroll_cycles_) * Ts_ : 0.0;
+  const double gap = std::fabs(traj_.at(t) - y);
+  const double seconds = std::clamp(gap / std::max(cfg_.ramp_mm_per_s, 1e-6), 0.05, 5.0);
+  ramp_ = true;
+  slew_ = true;
+  ramp_from_ = y;
+  ramp_k0_ = cycle_;
+  ramp_cycles_ = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(seconds / Ts_)));
+}
+
+double ControllerNode::setpoint(double t, int ahead) const noexcept {
+  const double target = traj_.at(t);
+  if (!ramp_) return target;
+  const double s = static_cast<double>(cycle_ + static_cast<std::uint64_t>(ahead) - ramp_k0_) / static_cast<double>(ramp_cycles_);
+  return s >= 1.0 ? target : ramp_from_ + (target - ramp_from_) * s;
+}
+
+void ControllerNode::startSlave(Slave& s, TimeUs now) noexcept {
+  node_->sendNmt(NmtCommand::Start, s.id);
+  s.start_sent = now;
+  ++fc_.nmt_starts;
+}
+
+void ControllerNode::hold(std::uint8_t reason) noexcept {
+  const bool was = hold_ != 0;
+  hold_ |= reason;
+  if (was) return;
+  node_->sendNmt(NmtCommand::EnterPreOperational, valve_.id);
+  valve_.start_sent = canopen::kNever;
+  ++fc_.valve_holds;
+}
+
+void ControllerNode::release(std::uint8_t reason, TimeUs now) noexcept {
+  if ((hold_ & reason) == 0) return;
+  hold_ = static_cast<std::uint8_t>(hold_ & ~reason);
+  if (hold_ == 0) startSlave(valve_, now);
+}
+
+void ControllerNode::pushValveErrorValue() noexcept {
+  // CiA 401: the valve outputs 0x6444:01 on a communication error; make it the controller's safe value.
+  const std::int32_t v = toValve(safe_u_);
+  auto& sdo = node_->sdoClient();
+  if (sdo.busy()) return;
+  push_valve_ = false;
+  sdo.downloadValue<std::int32_t>(valve_.id, 0x6444, 1, v, [this](std::uint32_t code, const std::uint8_t*, std::size_t) {
+    if (code != canopen::kSdoOk) ++fc_.valve_sdo_errors;
+  });
+}
+
+void ControllerNode::onHeartbeatEvent(std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) noexcept {
+  Slave* s = id == sensor_.id ? &sensor_ : id == valve_.id ? &valve_ : nullptr;
+  if (s == nullptr) return;
+  const bool is_valve = s == &valve_;
+  const Fault lost = is_valve ? Fault::ValveHeartbeat : Fault::SensorHeartbeat;
+  const Fault state = is_valve ? Fault::ValveState : Fault::SensorState;
+  const bool held = is_valve && hold_ != 0;
+  switch (ev) {
+    case HeartbeatEvent::Timeout:
+      raise(lost, id);
+      s->lost = true;
+      s->start_sent = canopen::kNever;
+      break;
+    case HeartbeatEvent::BootUp:
+      // A slave that rebooted lost its state and waits in Pre-operational: start it again (and give
+      // the valve its error value again).
+      if (active_) raise(state, id);
+      s->lost = false;
+      if (is_valve) push_valve_ = true;
+      if (!held) startSlave(*s, now);
+      break;
+    case HeartbeatEvent::Started:
+      if (s->lost) {
+        // Back after a timeout: re-boot it (reset communication), then the boot-up starts it.
+        s->lost = false;
+        node_->sendNmt(NmtCommand::ResetCommunication, id);
+        ++fc_.nmt_reboots;
+      } else if (st == NmtState::Operational) {
+        s->start_sent = canopen::kNever;
+      } else if (st == NmtState::PreOperational && !held) {
+        startSlave(*s, now);
+      }
+      break;
+    case HeartbeatEvent::StateChanged:
+      if (st == NmtState::Operational) {
+        s->start_sent = canopen::kNever;
+      } else if (st == NmtState::PreOperational && !held) {
+        if (active_) raise(state, id);
+        startSlave(*s, now);
+      } else if (st == NmtState::Stopped && active_ && !held) {
+        raise(state, id);
+      }
+      break;
+  }
+}
+
+void ControllerNode::onErrorFrame(const canopen::Frame& f) noexcept {
+  // Linux error-frame classes (linux/can/error.h): controller problem 0x04 (data[1]: 0x01/0x02 rx/tx
+  // overflow, 0x10/0x20 rx/tx error passive), bus off 0x40, restarted after bus off 0x100.
+  const bool crtl = (f.id & 0x04u) != 0;
+  if ((f.id & 0x40u) != 0) {
+    bus_off_ = true;
+    raise(Fault::BusOff);
+  }
+  if ((f.id & 0x100u) != 0 && bus_off_) {
+    bus_off_ = false;
+    // Back on the bus: now the EMCY can go out.
+    const std::uint8_t m[5] = {static_cast<std::uint8_t>(Fault::BusOff), 0, 0, 0, 0};
+    node_->emcy().report(emcyCode(Fault::BusOff), m);
+    episode_ |= bit(Fault::BusOff);
+  }
+  if (crtl && (f.data[1] & 0x30u) != 0) raise(Fault::BusError);
+  if (crtl && (f.data[1] & 0x03u) != 0) raise(Fault::CanOverrun);
+}
+
+bool ControllerNode::slaveDown(Slave& s, TimeUs now) noexcept {
+  const NmtState st = node_->heartbeatConsumer().remoteState(s.id);
+  if (st == NmtState::Stopped) return true;
+  if (st != NmtState::PreOperational) return false;
+  if (s.start_sent != canopen::kNever && now - s.start_sent < kStartGraceUs) return false;
+  startSlave(s, now);  // it did not follow the last start: send another
+  return true;
+}
+
+void ControllerNode::poll(TimeUs now, bool fresh) noexcept {
+  const auto& rp = node_->rpdo(1);
+  if (active_ && !fresh) ++fc_.samples_missing;
+  if (active_ && rp.syncsSinceReception() > missing_limit_) raise(Fault::PositionMissing);
+  if (rp.conflictInLastCycle()) {
+    if (++conflict_run_ >= 3) raise(Fault::SensorConflict, static_cast<std::uint8_t>(rp.cobId() & 0xFF));
+  } else {
+    conflict_run_ = 0;
+  }
+  // Polled every cycle (the heartbeat hook fires once per timeout): a fault must not clear while its
+  // cause persists.
+  const auto& hb = node_->heartbeatConsumer();
+  if (hb.timedOut(sensor_.id)) raise(Fault::SensorHeartbeat, sensor_.id);
+  if (active_) {
+    if (slaveDown(sensor_, now)) raise(Fault::SensorState, sensor_.id);
+    if (hb.timedOut(valve_.id)) raise(Fault::ValveHeartbeat, valve_.id);
+    if (hold_ == 0) {
+      if (slaveDown(valve_, now)) raise(Fault::ValveState, valve_.id);
+      const auto& rv = node_->rpdo(2);
+      const bool starting = valve_.start_sent != canopen::kNever && now - valve_.start_sent < kStartGraceUs;
+      if (!starting && cycle_ > missing_limit_ && rv.syncsSinceReception() > missing_limit_) raise(Fault::ValvePdoMissing);
+    }
+  }
+  // Frames this node could not send (transmit queue full, ENOBUFS beyond the queue): overrun.
+  const auto& c = node_->counters();
+  if (c.tx_dropped != tx_dropped_seen_) {
+    tx_dropped_seen_ = c.tx_dropped;
+    raise(Fault::CanOverrun);
+  }
+  // Frames that missed their deadline, or more than two cycles of frames waiting: this node's frames
+  // are not getting onto the bus.
+  if (node_->txExpired() != tx_expired_seen_) {
+    tx_expired_seen_ = node_->txExpired();
+    raise(Fault::CanOverrun);
+  }
+  if (node_->txBacklog() > 4) raise(Fault::CanOverrun);
+  std::uint64_t len = 0;
+  for (const auto& p : node_->rpdos()) len += p->wrongLength();
+  if (len != pdo_length_seen_) {
+    pdo_length_seen_ = len;
+    raise(Fault::PdoLength);
+  }
+  if (node_->sync().wrongLength() != sync_length_seen_) {
+    sync_length_seen_ = node_->sync().wrongLength();
+    raise(Fault::SyncLength);
+  }
+  if (bus_off_) raise(Fault::BusOff);
 }
 
 void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
@@ -201,59 +679,59 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   }
   last_sync_ = now;
   ++stats_.cycles;
+  release(kHoldSync, now);  // SYNC is back
 
-  // Latch: the position RPDO of this cycle, or a fault if it has been missing too long.
+  // Latch: the position RPDO of this cycle.
   const auto& rp = node_->rpdo(1);
   const bool fresh = rp.syncsSinceReception() == 0;  // a position arrived in the last cycle
+  const double y = position_.get() * 1e-3;
   if (!active_ && fresh) {
-    ctrl_->activate(last_u_, position_.get() * 1e-3);
+    ctrl_->activate(last_u_, y);
     active_ = true;
   }
-  if (active_ && rp.syncsSinceReception() > missing_limit_) raise(Fault::PositionMissing);
-  // Polled every cycle (the heartbeat hook fires once per timeout): a fault must not clear while
-  // its cause persists.
-  const auto& hb = node_->heartbeatConsumer();
-  if (hb.timedOut(cfg_.sensor_id)) raise(Fault::SensorHeartbeat);
-  if (active_ && (hb.timedOut(cfg_.valve_id) || hb.remoteState(cfg_.valve_id) == NmtState::Stopped))
-    raise(Fault::ValveHeartbeat);
-
-  CycleRecord rec;
-  const double y = position_.get() * 1e-3;
+  if (commit_ready_) takeCommitted(y);  // a committed parameter set: at the cycle boundary
   if (active_) {
     ++cycle_;
     run_started_ = cycle_ > preroll_cycles_;
   }
+  poll(now, fresh);
+  takeCauses(now);
+  if (push_valve_) pushValveErrorValue();
+
   const double t = run_started_ ? static_cast<double>(cycle_ - preroll_cycles_) * Ts_ : 0.0;
-  const double yd = traj_.at(t);
-  rec = CycleRecord{static_cast<std::uint32_t>(cycle_), t, yd, y, safe_u_, 0.0, 0.0, y, 0, 0.0f};
-  if (pending_ != Fault::None) {
-    if (fault_ == Fault::None) {
-      fault_ = pending_;
-      ++faults_raised_;
-      node_->emcy().report(emcyCode(fault_));
-    }
-    pending_ = Fault::None;
-    clear_cycles_ = 0;
-  }
+  if (ramp_ && cycle_ >= ramp_k0_ + ramp_cycles_) ramp_ = false;
+  const double yd = setpoint(t, 0);
+  CycleRecord rec{static_cast<std::uint32_t>(cycle_), t, yd, y, safe_u_, 0.0, 0.0, y, 0, 0.0f};
   if (fault_ != Fault::None) {
-    // Safe state: valve to its safe value every cycle until the fault has been gone long enough;
-    // then estimator and integrator restart from the present command and position (no jump).
+    // Safe state: valve to its safe value every cycle until the causes have been gone long enough
+    // (and SYNC, hence the valve, is back); then estimator and integrator restart (no jump).
     last_u_ = safe_u_;
-    if (++clear_cycles_ >= cfg_.recover_cycles && fresh) {
-      node_->emcy().clear(emcyCode(fault_));
-      fault_ = Fault::None;
-      ctrl_->activate(last_u_, y);
-    }
+    ++fc_.safe_cycles;
+    if (++clear_cycles_ >= cfg_.recover_cycles && fresh && (hold_ & kHoldSync) == 0) recover(y, now);
   } else if (active_) {
-    const double yd_ahead = run_started_ ? traj_.at(t + ctrl_->lookahead() * Ts_) : traj_.at(0.0);
+    const int la = ctrl_->lookahead();
+    const double yd_ahead = run_started_ ? setpoint(t + la * Ts_, la) : setpoint(0.0, la);
     const auto o = ctrl_->update(yd, yd_ahead, y);
     if (!std::isfinite(o.u) || o.estimator_reset) {
       raise(Fault::Estimator);
+      takeCauses(now);
       last_u_ = safe_u_;
+    } else if (slew_) {
+      // Bumpless transfer: a restarted estimator may ask for a step (the AMC's model prediction from
+      // rest); the valve gets it as a ramp, until the controller's command is within reach.
+      const double u = std::clamp(o.u, last_u_ - cfg_.ramp_slew_v, last_u_ + cfg_.ramp_slew_v);
+      if (!ramp_ && u == o.u) slew_ = false;
+      last_u_ = u;
     } else {
       last_u_ = o.u;
     }
     rec = CycleRecord{static_cast<std::uint32_t>(cycle_), t, yd, y, o.u, o.u_n, o.u_c, o.y_hat, 0, 0.0f};
+  }
+  if ((episode_ & kWarnMask) != 0 && ++warn_clear_ >= cfg_.recover_cycles) {
+    for (Fault w : {Fault::PdoLength, Fault::SyncLength})
+      if ((episode_ & bit(w)) != 0) node_->emcy().clear(emcyCode(w));
+    episode_ &= ~kWarnMask;
+    if (fault_ == Fault::None) reacted_at_us_ = canopen::kNever;
   }
   // Send: the setpoint goes out in this cycle's TPDO, right after this callback.
   valve_cmd_.set(toValve(last_u_));

@@ -79,44 +79,61 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
     auto od = canopen::ObjectDictionary::fromEds(eds, id);
     const std::string dev = stem(file);
     bd.nodes[id] = dev;
-    if (od.hasObject(0x1005)) {
-      const auto cob = od.entry(0x1005, 0).get<std::uint32_t>();
+    // Communication parameters are read as the node reads them (any integer type, absent = unused), and
+    // a mapping the decoder cannot use is an error naming the file and the mapping entry.
+    auto fail = [&](const std::string& what) { throw std::runtime_error(file + ": " + what); };
+    if (const auto* sync = od.find(0x1005, 0)) {
+      const auto cob = static_cast<std::uint32_t>(sync->asUnsigned());
       if (cob & 0x40000000u) {
         bd.sync_cob = cob & 0x7FFu;
-        if (od.hasObject(0x1006)) bd.sync_period_s = od.entry(0x1006, 0).get<std::uint32_t>() * 1e-6;
+        if (const auto* period = od.find(0x1006, 0)) bd.sync_period_s = static_cast<double>(period->asUnsigned()) * 1e-6;
       }
     }
     // TPDOs the node sends, and RPDOs it receives (whose sender may have no EDS here).
     for (int dir = 0; dir < 2; ++dir) {
       const std::uint16_t comm0 = dir == 0 ? 0x1800 : 0x1400, map0 = dir == 0 ? 0x1A00 : 0x1600;
       for (std::uint16_t n = 0; n < 512; ++n) {
-        if (!od.hasObject(static_cast<std::uint16_t>(comm0 + n)) || !od.hasObject(static_cast<std::uint16_t>(map0 + n))) continue;
-        const auto cob = od.entry(static_cast<std::uint16_t>(comm0 + n), 1).get<std::uint32_t>();
+        const auto map = static_cast<std::uint16_t>(map0 + n);
+        const auto* cob_entry = od.find(static_cast<std::uint16_t>(comm0 + n), 1);
+        const auto* count_entry = od.find(map, 0);
+        if (cob_entry == nullptr || count_entry == nullptr) continue;  // no COB-ID or no mapping: no PDO
+        const auto cob = static_cast<std::uint32_t>(cob_entry->asUnsigned());
         if (cob & 0x80000000u) continue;  // not valid
         PdoLayout l;
         l.cob_id = cob & 0x7FFu;
         l.device = dev;
         l.node_id = id;
-        const auto count = od.entry(static_cast<std::uint16_t>(map0 + n), 0).get<std::uint8_t>();
+        const std::uint64_t count = count_entry->asUnsigned();
+        if (count > 8) fail(canopen::entryName(map, 0) + " maps " + std::to_string(count) + " objects; a PDO has at most 8");
+        unsigned total = 0;
         for (std::uint8_t s = 1; s <= count; ++s) {
-          const auto m = od.entry(static_cast<std::uint16_t>(map0 + n), s).get<std::uint32_t>();
+          const auto* me = od.find(map, s);
+          if (me == nullptr) fail(canopen::entryName(map, s) + " is missing; " + canopen::entryName(map, 0) + " says " +
+                                  std::to_string(count) + " objects are mapped");
+          const auto m = static_cast<std::uint32_t>(me->asUnsigned());
           PdoField f;
           f.index = static_cast<std::uint16_t>(m >> 16);
           f.sub = static_cast<std::uint8_t>((m >> 8) & 0xFF);
-          if ((m & 0xFF) % 8 != 0)
-            throw std::runtime_error(file + ": 0x" + std::to_string(map0 + n) + " maps " + std::to_string(m & 0xFF) +
-                                     " bits; only whole bytes are decoded");
+          const std::string what = canopen::entryName(map, s) + " maps " + canopen::entryName(f.index, f.sub) + " with " +
+                                   std::to_string(m & 0xFF) + " bits";
+          if ((m & 0xFF) == 0 || (m & 0xFF) % 8 != 0) fail(what + "; only whole bytes are decoded");
           f.bytes = static_cast<std::uint8_t>((m & 0xFF) / 8);
           if (od.hasObject(f.index)) {
-            auto& e = od.entry(f.index, f.sub);
-            f.type = e.dataType();
-            f.column = dev + "." + sanitize(e.name());
+            const auto* e = od.find(f.index, f.sub);
+            if (e == nullptr) fail(what + ", but the dictionary has no such entry");
+            if (canopen::dataTypeSize(e->dataType()) != f.bytes) {
+              fail(what + ", but it is " + canopen::dataTypeName(e->dataType()));
+            }
+            f.type = e->dataType();
+            f.column = dev + "." + sanitize(e->name());
           } else {
             f.column = dev + "." + std::to_string(f.index) + "_" + std::to_string(f.sub);  // dummy mapping
           }
           roleOf(f);
           l.fields.push_back(f);
-          l.length = static_cast<std::uint8_t>(l.length + f.bytes);
+          total += f.bytes;
+          if (total > 8) fail(canopen::entryName(map, 0) + " maps more than the 8 bytes of a CAN frame");
+          l.length = static_cast<std::uint8_t>(total);
         }
         // A COB-ID described twice (sender's TPDO and receiver's RPDO): keep the one with roles.
         auto it = bd.pdos.find(l.cob_id);

@@ -6,47 +6,125 @@
 namespace pamc::nodes {
 
 using canopen::Frame;
+using canopen::NmtState;
 using canopen::TimeUs;
 
 EmulatorNodes::EmulatorNodes(const EmulatorConfig& cfg, canopen::Transport& transport)
-    : cfg_(cfg), sensor_link_(*this, transport), plant_(cfg.plant), rng_(cfg.seed) {
+    : cfg_(cfg),
+      bus_(transport),
+      sensor_link_(*this, transport, true),
+      valve_link_(*this, transport, false),
+      plant_(cfg.plant),
+      rng_(cfg.seed) {
   sensor_ = canopen::Node::fromEds(cfg.sensor_eds, sensor_link_);
-  valve_ = canopen::Node::fromEds(cfg.valve_eds, transport);
+  valve_ = canopen::Node::fromEds(cfg.valve_eds, valve_link_);
   position_ = sensor_->od().ref<std::int32_t>(0x6004, 0);
   pressure_ = valve_->od().ref<std::int16_t>(0x6401, 1);
   command_ = valve_->od().ref<std::int16_t>(0x6411, 1);
+  error_mode_ = valve_->od().ref<std::uint8_t>(0x6443, 1);
+  error_value_ = valve_->od().ref<std::int32_t>(0x6444, 1);
   sync_cob_ = sensor_->od().ref<std::uint32_t>(0x1005, 0).get() & 0x7FFu;
   pdo_cob_ = sensor_->od().ref<std::uint32_t>(0x1800, 1).get() & 0x7FFu;
+  if (const auto* hb = valve_->od().find(0x1016, 1)) master_id_ = static_cast<std::uint8_t>((hb->asUnsigned() >> 16) & 0x7F);
+  // The valve monitors the SYNC with the emulator's period (1.5 periods without one: error value).
+  const auto period_us = static_cast<std::uint32_t>(std::lround(cfg_.plant.Ts * 1e6));
+  auto monitor_sync = [this, period_us] {
+    if (auto* e = valve_->od().find(0x1006, 0)) e->set<std::uint32_t>(period_us);
+  };
+  monitor_sync();
+  valve_->onReset([monitor_sync](canopen::NmtCommand, TimeUs) { monitor_sync(); });
+  valve_->onStateChange([this](NmtState, NmtState, TimeUs now) { updateValve(now); });
+  valve_->onSyncTimeout([this](TimeUs now) { updateValve(now); });
+  valve_->onHeartbeat([this](std::uint8_t id, canopen::HeartbeatEvent ev, NmtState, TimeUs now) {
+    if (id == master_id_ && ev == canopen::HeartbeatEvent::Timeout) updateValve(now);
+  });
   // The valve holds its command at 0 V (vented) until the controller sends one.
   plant_.reset(-5.0, 0.0);
   position_.set(static_cast<std::int32_t>(std::lround(plant_.position() * 1000.0)));
 }
 
 void EmulatorNodes::start(TimeUs now) {
+  now_us_ = now;
   sensor_->start(now);
   valve_->start(now);
 }
 
 bool EmulatorNodes::sensorSilent() const {
+  if (inj_.sensor_silent || rebooting_) return true;
   const double t = time();
   return cfg_.sensor_silent_at_s >= 0 && t >= cfg_.sensor_silent_at_s &&
          t < cfg_.sensor_silent_at_s + cfg_.sensor_silent_for_s;
 }
 
+void EmulatorNodes::rebootSensor(TimeUs downtime_us) {
+  rebooting_ = true;
+  reboot_until_ = now_us_ + std::max<TimeUs>(downtime_us, 1);
+  delayed_count_ = 0;
+}
+
 bool EmulatorNodes::FaultyLink::send(const Frame& f) {
-  if (owner_.sensorSilent()) return true;  // swallowed: a silent node sends nothing at all
-  if ((f.id & 0x7FFu) == owner_.pdo_cob_ && owner_.cfg_.drop_pdo_prob > 0) {
-    std::uniform_real_distribution<double> U(0.0, 1.0);
-    if (U(owner_.rng_) < owner_.cfg_.drop_pdo_prob) {
-      ++owner_.dropped_;
+  EmulatorNodes& o = owner_;
+  if (!sensor_) return o.inj_.valve_silent ? true : inner_.send(f);
+  if (o.sensorSilent()) return true;  // swallowed: a silent node sends nothing at all
+  Frame g = f;
+  if ((f.id & 0x7FFu) == o.pdo_cob_) {
+    if (o.inj_.drop_next > 0) {
+      --o.inj_.drop_next;
+      ++o.dropped_;
       return true;
     }
+    const double p = std::max(o.cfg_.drop_pdo_prob, o.inj_.drop_prob);
+    if (p > 0) {
+      std::uniform_real_distribution<double> U(0.0, 1.0);
+      if (U(o.rng_) < p) {
+        ++o.dropped_;
+        return true;
+      }
+    }
+    if (o.inj_.pdo_len >= 0) g.len = static_cast<std::uint8_t>(std::min(o.inj_.pdo_len, 8));
+    const int copies = o.inj_.pdo_duplicate ? 2 : 1;
+    if (o.inj_.pdo_delay_us > 0) {
+      for (int i = 0; i < copies && o.delayed_count_ < o.delayed_.size(); ++i) {
+        o.delayed_[(o.delayed_head_ + o.delayed_count_) % o.delayed_.size()] = {g, o.now_us_ + o.inj_.pdo_delay_us};
+        ++o.delayed_count_;
+      }
+      return true;
+    }
+    bool ok = inner_.send(g);
+    if (copies == 2) inner_.send(g);
+    return ok;
   }
-  return inner_.send(f);
+  if ((f.id & 0x7FFu) == 0x700u + o.sensor_->nodeId() && o.inj_.heartbeat_len >= 0)
+    g.len = static_cast<std::uint8_t>(std::min(o.inj_.heartbeat_len, 8));
+  return inner_.send(g);
+}
+
+void EmulatorNodes::releaseDelayed(TimeUs now) {
+  while (delayed_count_ > 0 && delayed_[delayed_head_].due <= now) {
+    bus_.send(delayed_[delayed_head_].frame);
+    delayed_head_ = (delayed_head_ + 1) % delayed_.size();
+    --delayed_count_;
+  }
+}
+
+void EmulatorNodes::updateValve(TimeUs now) {
+  const bool ok = valve_->nmtState() == NmtState::Operational && !valve_->sync().timedOut() &&
+                  !(master_id_ != 0 && valve_->heartbeatConsumer().timedOut(master_id_));
+  if (!ok) valve_error_ = true;
+  else if (valve_error_ && valve_->rpdo(1).syncsSinceReception() == 0) valve_error_ = false;  // a fresh command
+  const bool error_out = valve_error_ && error_mode_.get() != 0;
+  const double u = (error_out ? static_cast<double>(std::clamp(error_value_.get(), 0, 32767)) : command_.get()) * 10.0 / 32767.0 - 5.0;
+  if (u != u_held_) {
+    u_held_ = u;
+    valve_changed_us_ = now;
+  }
 }
 
 void EmulatorNodes::onFrame(const Frame& f, TimeUs now) {
-  if ((f.id & 0x7FFu) == sync_cob_ && !f.remote() && !f.error() && !f.extended()) {
+  now_us_ = now;
+  releaseDelayed(now);
+  const bool sync = (f.id & 0x7FFu) == sync_cob_ && !f.remote() && !f.error() && !f.extended();
+  if (sync) {
     // Physics over the cycle that just ended, under the command held during it.
     ++syncs_;
     const double F = cfg_.payload_at_s >= 0 && time() >= cfg_.payload_at_s ? cfg_.payload_N : 0.0;
@@ -60,17 +138,26 @@ void EmulatorNodes::onFrame(const Frame& f, TimeUs now) {
   }
   if (!sensorSilent()) sensor_->onFrame(f, now);
   valve_->onFrame(f, now);
-  if ((f.id & 0x7FFu) == sync_cob_ && !f.remote() && !f.error() && !f.extended()) {
-    // The valve latched the command of the last cycle at this SYNC: it holds until the next one.
-    u_held_ = command_.get() * 10.0 / 32767.0 - 5.0;
-  }
+  // The valve latched the command of the last cycle at this SYNC: it holds until the next one.
+  if (sync) updateValve(now);
 }
 
 void EmulatorNodes::advance(TimeUs now) {
-  sensor_->advance(now);
+  now_us_ = now;
+  releaseDelayed(now);
+  if (rebooting_ && now >= reboot_until_) {
+    rebooting_ = false;
+    // Power back: the node starts over (boot-up frame, Pre-operational, EDS defaults).
+    sensor_->applyNmt(canopen::NmtCommand::ResetNode);
+  }
+  if (!rebooting_) sensor_->advance(now);
   valve_->advance(now);
 }
 
-TimeUs EmulatorNodes::nextDeadline() const { return std::min(sensor_->nextDeadline(), valve_->nextDeadline()); }
+TimeUs EmulatorNodes::nextDeadline() const {
+  TimeUs next = std::min(rebooting_ ? reboot_until_ : sensor_->nextDeadline(), valve_->nextDeadline());
+  if (delayed_count_ > 0) next = std::min(next, delayed_[delayed_head_].due);
+  return next;
+}
 
 }  // namespace pamc::nodes

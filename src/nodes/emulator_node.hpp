@@ -5,9 +5,16 @@
 // SYNC) and the pressure into 0x6401:01; then the valve latches the command received during the last
 // cycle, which holds over (k, k+1].
 // Fault injection: sensor silent from a time on (for a while), position PDOs dropped at random or
-// late by whole cycles, a payload step.
+// late by whole cycles, a payload step; at run time (inject(), the fault rig) also: either node
+// silent, position PDOs delayed on the wire, duplicated, dropped in a burst or with a wrong length,
+// sensor heartbeats with a wrong length, a sensor reboot.
+// The valve behaves as a CiA 401 output on a communication error: when it is not Operational, its
+// SYNC stops (SYNC timeout from its 0x1006, set to the emulator's period) or the controller's
+// heartbeat times out (its 0x1016), it outputs its error value 0x6444:01 (0x6443:01 = 1) until it
+// is back in order and has latched a fresh command.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <memory>
 #include <random>
@@ -31,6 +38,18 @@ struct EmulatorConfig {
   std::uint64_t seed = 7;
 };
 
+// Faults switched at run time (by the fault rig or a test); they act from the next frame on.
+struct Injection {
+  bool sensor_silent = false;          // the sensor sends nothing and hears nothing
+  bool valve_silent = false;           // the valve sends nothing (it still receives)
+  canopen::TimeUs pdo_delay_us = 0;    // position PDOs leave this much later than sent
+  bool pdo_duplicate = false;          // every position PDO goes out twice
+  int pdo_len = -1;                    // position PDOs with this DLC (-1: as mapped)
+  int heartbeat_len = -1;              // sensor heartbeats with this DLC (-1: 1)
+  int drop_next = 0;                   // drop this many position PDOs in a row
+  double drop_prob = 0.0;              // drop each position PDO with this probability (seeded)
+};
+
 class EmulatorNodes : public canopen::BusClient {
  public:
   EmulatorNodes(const EmulatorConfig& cfg, canopen::Transport& transport);
@@ -47,21 +66,36 @@ class EmulatorNodes : public canopen::BusClient {
   double time() const { return static_cast<double>(syncs_.load(std::memory_order_relaxed)) * plant_.config().Ts; }
   std::uint64_t pdosDropped() const { return dropped_; }
 
+  Injection& inject() { return inj_; }
+  // The sensor goes off (silent and deaf) for downtime, then comes back through an NMT reset: boot-up
+  // and Pre-operational, as after a power cycle.
+  void rebootSensor(canopen::TimeUs downtime_us);
+  // What the valve outputs (0..10 V), whether it is at its error value, and when the output last changed.
+  double valveVolts() const { return u_held_ + 5.0; }
+  bool valveInError() const { return valve_error_; }
+  canopen::TimeUs valveChangedUs() const { return valve_changed_us_; }
+
  private:
-  // The sensor's frames pass through here, so faults can silence or thin them.
+  // Each node's frames pass through here, so faults can silence, thin, delay or corrupt them.
   class FaultyLink : public canopen::Transport {
    public:
-    FaultyLink(EmulatorNodes& owner, canopen::Transport& inner) : owner_(owner), inner_(inner) {}
+    FaultyLink(EmulatorNodes& owner, canopen::Transport& inner, bool sensor)
+        : owner_(owner), inner_(inner), sensor_(sensor) {}
     bool send(const canopen::Frame& f) override;
 
    private:
     EmulatorNodes& owner_;
     canopen::Transport& inner_;
+    bool sensor_;
   };
   bool sensorSilent() const;
+  // Applies the command or, on a communication error, the error value; notes when the output changes.
+  void updateValve(canopen::TimeUs now);
+  void releaseDelayed(canopen::TimeUs now);
 
   EmulatorConfig cfg_;
-  FaultyLink sensor_link_;
+  canopen::Transport& bus_;
+  FaultyLink sensor_link_, valve_link_;
   std::unique_ptr<canopen::Node> sensor_, valve_;
   plant::Plant plant_;
   canopen::Ref<std::int32_t> position_{nullptr};
@@ -74,6 +108,21 @@ class EmulatorNodes : public canopen::BusClient {
   std::uint64_t dropped_ = 0;
   std::mt19937_64 rng_;
   std::array<std::int32_t, 256> late_{};
+  Injection inj_;
+  canopen::TimeUs now_us_ = 0;
+  bool rebooting_ = false;
+  canopen::TimeUs reboot_until_ = 0;
+  struct Delayed {
+    canopen::Frame frame;
+    canopen::TimeUs due;
+  };
+  std::array<Delayed, 64> delayed_{};  // FIFO (one delay for all)
+  std::size_t delayed_head_ = 0, delayed_count_ = 0;
+  std::uint8_t master_id_ = 0;         // the node whose heartbeat the valve consumes (0x1016:01)
+  canopen::Ref<std::uint8_t> error_mode_{nullptr};
+  canopen::Ref<std::int32_t> error_value_{nullptr};
+  bool valve_error_ = false;
+  canopen::TimeUs valve_changed_us_ = 0;
 };
 
 }  // namespace pamc::nodes

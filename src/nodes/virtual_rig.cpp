@@ -8,8 +8,9 @@
 namespace pamc::nodes {
 
 VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, double duration_s,
-                               const std::string& candump_log, canopen::TimeUs epoch_us) {
+                               const std::string& candump_log, canopen::TimeUs epoch_us, std::uint32_t bitrate) {
   canopen::VirtualBus bus;
+  if (bitrate > 0) bus.setBitrate(bitrate);
   auto& cport = bus.addPort();
   auto& eport = bus.addPort();
   auto ctrlp = std::make_unique<ControllerNode>(c, cport, [&bus] { return bus.now(); });  // rings: heap
@@ -39,6 +40,8 @@ VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConf
   r.frames = bus.framesDelivered();
   r.faults = ctrl.faultsRaised();
   r.final_fault = ctrl.fault();
+  r.counters = ctrl.node().counters();
+  r.bus_busy_us = bus.busyUs();
   return r;
 }
 

@@ -253,6 +253,12 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
       cases.push_back({"sine_0.1Hz", r});
     }
     txt << "Table 2. Tracking error max/RMSE (mm); paper's values in brackets.\n";
+    if (cc.amc_inverse > 0.0)
+      txt << "PID+AMC in the predictive form: x = " << fmt("%.2f", cc.amc_inverse) << ", AMC horizon "
+          << control::amcHorizon(cc) << " samples.\n";
+    else
+      txt << "PID+AMC in the paper's form: kc = " << fmt("%.3f", cc.kc) << " V/mm, AMC horizon " << control::amcHorizon(cc)
+          << " samples.\n";
     txt << "                    Open loop              PID                    PID+ESO                PID+AMC\n";
     nlohmann::json t2 = nlohmann::json::object();
     for (const auto& c : cases) {

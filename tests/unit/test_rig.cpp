@@ -162,3 +162,23 @@ TEST(Rig, SensorSilenceDrivesTheValveSafeAndSendsEmcy) {
     if (r.frame.id == 0x81 && r.frame.len == 8 && r.frame.data[0] == 0x50 && r.frame.data[1] == 0x82) emcy = true;
   EXPECT_TRUE(emcy);
 }
+
+// With 1 Mbit/s bit timing and arbitration the frames of a cycle take ~280 us of the 1000 us period and
+// all arrive before the next SYNC: the same cycle, the same result as on the ideal bus.
+TEST(RigTiming, OneMegabitBusKeepsTheCycle) {
+  const auto traj = sim::Trajectory::triangle(0.1, 5.0, 25.0);
+  auto cc = controllerConfig(control::Kind::PI, traj);
+  cc.preroll_s = 1.0;
+  const auto ideal = nodes::runVirtualRig(cc, emulatorConfig(), 3.0);
+  const auto timed = nodes::runVirtualRig(cc, emulatorConfig(), 3.0, "", 1700000000000000, 1'000'000);
+  EXPECT_EQ(timed.faults, 0u);
+  EXPECT_EQ(timed.counters.rpdo_late, 0u);
+  EXPECT_EQ(timed.counters.tx_dropped, 0u);
+  ASSERT_EQ(timed.records.size(), ideal.records.size());
+  double worst = 0;
+  for (size_t i = 0; i < ideal.records.size(); ++i) worst = std::max(worst, std::fabs(timed.records[i].y - ideal.records[i].y));
+  EXPECT_LT(worst, 1e-9);
+  const double load = static_cast<double>(timed.bus_busy_us) / (timed.stats.cycles * 1000.0);
+  EXPECT_GT(load, 0.2);
+  EXPECT_LT(load, 0.35);
+}

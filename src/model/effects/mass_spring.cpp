@@ -30,7 +30,9 @@ class MassSpring final : public Effect {
     // once here into the exact one-sample linear map it amounts to.
     const double wn = 2.0 * M_PI * std::max(p[0], 1e-6);
     const double zeta = std::max(p[1], 0.0);
-    const int n = std::clamp(static_cast<int>(std::ceil(wn * c.Ts / 0.05)), 1, 2000);
+    // Clamped before the conversion, so a huge fn cannot overflow the int (NaN takes one step).
+    const double steps = std::ceil(wn * c.Ts / 0.05);
+    const int n = steps >= 1.0 ? (steps < 2000.0 ? static_cast<int>(steps) : 2000) : 1;
     const double h = c.Ts / n;
     auto run = [&](double y, double v, double in) {
       for (int i = 0; i < n; ++i) {

@@ -1,0 +1,102 @@
+// Faults on the bus, one at a time, on the in-process rig in virtual time (deterministic, seeded):
+// the controller, sensor and valve nodes of the rig plus whatever the fault needs on the bus (a SYNC
+// producer that stops, a node flooding the bus with high-priority frames, a second node with the
+// same node-ID, injected error frames). Each run tracks a trajectory, injects the fault after 3 s of
+// the trajectory, clears it, and measures what the controller did: cycles until it detected the
+// fault and until the valve output its safe value, the EMCY codes on the bus, whether and how
+// smoothly control resumed, and what was lost. `pamc rig --faults` prints the table
+// (docs/RELIABILITY.md); tests/unit/test_faults.cpp checks each row.
+//
+// Also here: the parameter guard of the controller over SDO, write by write (`pamc rig --sdo-guards`).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "canopen/service.hpp"
+#include "control/controller.hpp"
+#include "nodes/controller_node.hpp"
+
+namespace pamc::nodes {
+
+enum class BusFault {
+  None,                 // the reference run
+  SensorSilentShort,    // sensor sends nothing for 100 ms
+  SensorSilentLong,     // ... for 1 s (its heartbeat times out)
+  SensorReboot,         // sensor off for 50 ms, then boot-up and Pre-operational
+  PdoLateInCycle,       // position PDOs 0.9 periods late (after the synchronous window) for 200 ms
+  PdoLateCycle,         // position PDOs 1.2 periods late (in the next cycle's window) for 2 s
+  PdoDropRandom,        // 5 % of the position PDOs dropped at random for 2 s
+  PdoDropBurst,         // 10 position PDOs in a row dropped
+  PdoDuplicate,         // every position PDO sent twice for 2 s
+  SyncStop,             // the SYNC producer (another node; the controller consumes) stops for 100 ms
+  ValveSilentShort,     // valve sends nothing for 100 ms
+  ValveSilentLong,      // ... for 1 s
+  FloodHalf,            // 1 Mbit/s bus, 50 % load of 8-byte frames with identifier 0x010 for 2 s
+  FloodFull,            // ... 100 % (babbling node) for 200 ms
+  PdoShortOnce,         // one position PDO with 3 instead of 4 bytes
+  PdoLong,              // position PDOs with 8 bytes for 200 ms
+  SyncWrongLength,      // SYNC with 1 data byte (0x1019 = 0: none) for 100 ms; the controller consumes
+  HeartbeatWrongLength, // sensor heartbeats with 2 bytes for 1 s
+  DuplicateController,  // a second node with node-ID 1 (boot-up, heartbeats) for 1 s
+  DuplicateSensor,      // a second node with node-ID 2 (heartbeats, position PDOs) for 1 s
+  ErrorPassive,         // CAN error frame: controller error passive, error active again 100 ms later
+  BusOff,               // CAN error frame: bus off, restarted 100 ms later
+  CanOverflow,          // CAN error frame: controller receive overflow
+};
+
+std::vector<BusFault> allBusFaults();
+const char* busFaultName(BusFault f);  // short name for --only
+std::string busFaultDescription(BusFault f);
+
+struct FaultRigOptions {
+  std::string od_dir = "od";
+  control::Kind kind = control::Kind::PiAmc;
+  double kp = 0.1, ki = 1.5, kc = 0.06;
+  double preroll_s = 1.0;
+  double inject_at_s = 3.0;  // trajectory time of the injection
+  double after_s = 8.0;      // run on this long after the fault cleared
+  std::uint64_t seed = 7;
+};
+
+struct FaultRun {
+  BusFault fault = BusFault::None;
+  double fault_s = 0;           // how long the fault was injected
+  Fault first = Fault::None;    // the controller's first safety fault (None: it stayed in control)
+  double detect_cycles = -1;    // SYNC periods from the injection to the controller's reaction (-1: none)
+  double safe_cycles = -1;      // ... until the valve output its safe value (-1: it did not)
+  std::vector<std::uint16_t> emcy;  // EMCY codes the controller sent after the injection, in order
+  bool emcy_reset = false;      // an EMCY error reset (0x0000) followed
+  bool recovered = false;       // no fault at the end and control running
+  double resume_s = -1;         // from the end of the injection until control resumed (-1: it never stopped)
+  double max_step_v = 0;        // largest |u_k - u_k-1| in the first 3 s of control after the fault
+  double step_before_v = 0;     // ... in the second before the injection (for comparison)
+  double rmse_end = 0;          // tracking RMSE over the last 2 s [mm]
+  double rmse_base = 0;         // the same window of the reference run
+  std::uint64_t samples_lost = 0;   // cycles the controller had no usable position
+  std::uint64_t safe_cycles_total = 0;  // cycles the controller sent the safe value
+  std::uint64_t cycles_without_sync = 0;  // SYNC periods in which no control cycle ran
+  canopen::Counters counters;   // the controller node's counters at the end
+  FaultCounters fc;
+  std::uint64_t bus_dropped = 0;  // frames the in-process bus refused (port queue full)
+};
+
+// One run with the fault (and its reference run without it).
+FaultRun runBusFault(BusFault f, const FaultRigOptions& o = {});
+// Runs the faults given (all if empty) and returns them in order.
+std::vector<FaultRun> runFaultTable(const std::vector<BusFault>& faults, const FaultRigOptions& o = {});
+// Markdown table: fault, reaction, cycles to safe state, EMCY, recovered, data lost.
+std::string faultTableMarkdown(const std::vector<FaultRun>& runs);
+
+// The parameter guard: SDO writes to the running controller and what became of them.
+struct GuardRow {
+  std::string write;       // what was written, and in which state
+  std::uint32_t expected;  // abort code expected (0: accepted)
+  std::uint32_t got;
+  std::string effect;      // what the loop saw
+};
+std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o = {});
+std::string guardTableMarkdown(const std::vector<GuardRow>& rows);
+
+}  // namespace pamc::nodes

@@ -1,0 +1,369 @@
+// Faults on the bus, one per test, on the in-process rig (src/nodes/fault_rig.*): each injects the
+// fault with the rig's fixed seed after 3 s of a 0.2 Hz sine, measures the cycles until the
+// controller reacts and until the valve outputs its safe value, checks the EMCY codes on the bus,
+// clears the fault and checks the recovery (EMCY reset, tracking error back to that of the run
+// without the fault, no output step beyond the bumpless bound). The figures of docs/RELIABILITY.md
+// come from the same runs (`pamc rig --faults`).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "canopen/bus.hpp"
+#include "canopen/eds.hpp"
+#include "canopen/node.hpp"
+#include "nodes/fault_rig.hpp"
+
+using namespace pamc;
+using nodes::BusFault;
+using nodes::Fault;
+
+namespace {
+
+nodes::FaultRigOptions options() {
+  nodes::FaultRigOptions o;
+  o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
+  return o;
+}
+
+bool sent(const nodes::FaultRun& r, std::uint16_t code) {
+  return std::find(r.emcy.begin(), r.emcy.end(), code) != r.emcy.end();
+}
+
+// Normal operation's largest command step is ~0.002 V per cycle. The return after a fault is
+// rate-limited to 0.02 V per cycle while the setpoint ramps back (ControllerNodeConfig::ramp_slew_v);
+// the restarted AMC estimator's transient after that stays below 0.1 V per cycle.
+constexpr double kStepBound = 0.1;
+
+// The common part: a safety fault, the valve safe within max_safe cycles, its EMCY, then recovery.
+void expectSafeAndBack(const nodes::FaultRun& r, Fault first, std::uint16_t code, double max_detect, double max_safe) {
+  SCOPED_TRACE(nodes::busFaultDescription(r.fault));
+  EXPECT_EQ(r.first, first) << nodes::toString(r.first);
+  EXPECT_GE(r.detect_cycles, 0.0);
+  EXPECT_LE(r.detect_cycles, max_detect);
+  EXPECT_GE(r.safe_cycles, 0.0);
+  EXPECT_LE(r.safe_cycles, max_safe);
+  EXPECT_TRUE(sent(r, code)) << "EMCY 0x" << std::hex << code << " not on the bus";
+  EXPECT_TRUE(r.emcy_reset) << "no EMCY error reset after recovery";
+  EXPECT_TRUE(r.recovered);
+  EXPECT_GE(r.resume_s, 0.0);
+  EXPECT_LE(r.resume_s, 0.7);  // 500 clean cycles after the cause is gone (plus a re-boot)
+  EXPECT_LE(r.max_step_v, kStepBound);
+  EXPECT_LE(r.rmse_end, 1.2 * r.rmse_base + 0.02) << "tracking error not back to normal";
+  EXPECT_GT(r.safe_cycles_total, 400u);
+}
+
+// Faults the loop rides through: no safe state, no jump, tracking as without the fault.
+void expectRideThrough(const nodes::FaultRun& r) {
+  SCOPED_TRACE(nodes::busFaultDescription(r.fault));
+  EXPECT_EQ(r.first, Fault::None) << nodes::toString(r.first);
+  EXPECT_EQ(r.safe_cycles_total, 0u);
+  EXPECT_TRUE(r.recovered);
+  EXPECT_LE(r.max_step_v, kStepBound);
+  EXPECT_LE(r.rmse_end, 1.2 * r.rmse_base + 0.02);
+}
+
+}  // namespace
+
+TEST(Faults, SensorSilentShortIsAMissingPositionAndResumesWithoutReboot) {
+  const auto r = nodes::runBusFault(BusFault::SensorSilentShort, options());
+  // The 4th SYNC without a position (0x2021 = 3) raises the fault, the valve applies it one SYNC later.
+  expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
+  EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8250});  // shorter than the 250 ms heartbeat time
+  EXPECT_EQ(r.fc.nmt_reboots, 0u);
+  EXPECT_EQ(r.samples_lost, 100u);
+}
+
+TEST(Faults, SensorSilentLongLosesTheHeartbeatAndIsRebootedWhenBack) {
+  const auto r = nodes::runBusFault(BusFault::SensorSilentLong, options());
+  expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
+  EXPECT_TRUE(sent(r, 0x8130));
+  // Back after the heartbeat timeout: NMT reset communication, boot-up, NMT start.
+  EXPECT_GE(r.fc.nmt_reboots, 1u);
+  EXPECT_GE(r.fc.nmt_starts, 3u);  // sensor and valve at start-up, the sensor again after its boot-up
+}
+
+TEST(Faults, SensorRebootIsStartedAgainByTheMaster) {
+  const auto r = nodes::runBusFault(BusFault::SensorReboot, options());
+  expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
+  EXPECT_TRUE(sent(r, 0x8130));  // the boot-up of a monitored node (remote reset)
+  EXPECT_EQ(r.fc.nmt_reboots, 0u);
+  EXPECT_GE(r.fc.nmt_starts, 3u);
+  EXPECT_LE(r.samples_lost, 55u);
+}
+
+TEST(Faults, PdosAfterTheSynchronousWindowAreDiscarded) {
+  const auto r = nodes::runBusFault(BusFault::PdoLateInCycle, options());
+  expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
+  EXPECT_GE(r.counters.rpdo_late, 190u);
+}
+
+TEST(Faults, PdosOneCycleLateAreNotDetectedAndCostOneCycleOfDelay) {
+  const auto r = nodes::runBusFault(BusFault::PdoLateCycle, options());
+  expectRideThrough(r);
+  EXPECT_TRUE(r.emcy.empty());
+  EXPECT_LE(r.samples_lost, 3u);  // the first cycle (nothing arrives) and the last (two arrive: conflict)
+}
+
+TEST(Faults, RandomPdoLossIsBridged) {
+  const auto r = nodes::runBusFault(BusFault::PdoDropRandom, options());
+  expectRideThrough(r);
+  EXPECT_TRUE(r.emcy.empty());
+  EXPECT_GT(r.samples_lost, 50u);  // 5 % of 2000
+  EXPECT_LT(r.samples_lost, 200u);
+}
+
+TEST(Faults, ABurstOfLostPdosIsAMissingPosition) {
+  const auto r = nodes::runBusFault(BusFault::PdoDropBurst, options());
+  expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
+  EXPECT_EQ(r.samples_lost, 10u);
+}
+
+TEST(Faults, DuplicatedPdosAreIgnored) {
+  const auto r = nodes::runBusFault(BusFault::PdoDuplicate, options());
+  expectRideThrough(r);
+  EXPECT_TRUE(r.emcy.empty());
+  EXPECT_GE(r.counters.rpdo_duplicates, 1990u);
+  EXPECT_EQ(r.samples_lost, 0u);
+}
+
+TEST(Faults, SyncStopIsDetectedWithinOneAndAHalfPeriods) {
+  const auto r = nodes::runBusFault(BusFault::SyncStop, options());
+  // The controller's SYNC timeout and the valve's own both fire 1.5 periods after the last SYNC.
+  expectSafeAndBack(r, Fault::SyncLost, 0x8100, 1.5, 1.5);
+  EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8100});
+  EXPECT_GE(r.fc.valve_holds, 1u);  // the valve is sent to Pre-operational (its error value)
+  EXPECT_GE(r.counters.sync_timeouts, 1u);
+  EXPECT_NEAR(static_cast<double>(r.cycles_without_sync), 100.0, 2.0);
+}
+
+TEST(Faults, ValveSilentShortIsAMissingValvePdo) {
+  const auto r = nodes::runBusFault(BusFault::ValveSilentShort, options());
+  expectSafeAndBack(r, Fault::ValvePdoMissing, 0x8250, 5.0, 6.0);
+  EXPECT_EQ(r.samples_lost, 0u);
+}
+
+TEST(Faults, ValveSilentLongIsRebootedWhenBack) {
+  const auto r = nodes::runBusFault(BusFault::ValveSilentLong, options());
+  expectSafeAndBack(r, Fault::ValvePdoMissing, 0x8250, 5.0, 6.0);
+  EXPECT_TRUE(sent(r, 0x8130));
+  EXPECT_GE(r.fc.nmt_reboots, 1u);
+}
+
+TEST(Faults, HalfLoadOfHigherPriorityFramesIsAbsorbed) {
+  const auto r = nodes::runBusFault(BusFault::FloodHalf, options());
+  expectRideThrough(r);
+  EXPECT_TRUE(r.emcy.empty());
+  EXPECT_EQ(r.samples_lost, 0u);
+  EXPECT_EQ(r.counters.tx_dropped, 0u);
+}
+
+TEST(Faults, ABabblingNodeStopsTheBusAndTheValveGoesSafeOnItsOwn) {
+  const auto r = nodes::runBusFault(BusFault::FloodFull, options());
+  // Nothing the controller sends gets through; the valve's SYNC timeout (1.5 periods) vents it.
+  expectSafeAndBack(r, Fault::CanOverrun, 0x8110, 3.0, 2.0);
+  EXPECT_TRUE(sent(r, 0x8250));
+  // Frames queued during the flood expired instead of going out late in a burst.
+  EXPECT_EQ(r.counters.rpdo_conflicts, 0u);
+}
+
+TEST(Faults, OnePdoWithAWrongLengthIsDiscardedWithAWarning) {
+  const auto r = nodes::runBusFault(BusFault::PdoShortOnce, options());
+  expectRideThrough(r);
+  EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8210});
+  EXPECT_TRUE(r.emcy_reset);
+  EXPECT_EQ(r.counters.wrong_length, 1u);
+  EXPECT_EQ(r.samples_lost, 1u);
+}
+
+TEST(Faults, PdosWithAWrongLengthAreNeverDecoded) {
+  const auto r = nodes::runBusFault(BusFault::PdoLong, options());
+  expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 2.0, 6.0);
+  EXPECT_EQ(r.emcy.front(), 0x8210);  // the warning comes first, at the first bad frame
+  EXPECT_GE(r.counters.wrong_length, 190u);
+}
+
+TEST(Faults, SyncWithAWrongLengthIsIgnoredAndTimesOut) {
+  const auto r = nodes::runBusFault(BusFault::SyncWrongLength, options());
+  expectSafeAndBack(r, Fault::SyncLost, 0x8100, 1.5, 1.5);
+  EXPECT_TRUE(sent(r, 0x8240));
+}
+
+TEST(Faults, HeartbeatsWithAWrongLengthTimeOut) {
+  const auto r = nodes::runBusFault(BusFault::HeartbeatWrongLength, options());
+  expectSafeAndBack(r, Fault::SensorHeartbeat, 0x8130, 251.0, 252.0);
+  EXPECT_GE(r.detect_cycles, 150.0);  // the last good heartbeat plus 250 ms
+  EXPECT_GE(r.fc.nmt_reboots, 1u);
+}
+
+TEST(Faults, ASecondNodeWithTheControllersIdIsACollision) {
+  const auto r = nodes::runBusFault(BusFault::DuplicateController, options());
+  // Its boot-up comes in on 0x701, which only this node may send: immediate.
+  expectSafeAndBack(r, Fault::IdCollision, 0x8150, 0.0, 0.0);
+  EXPECT_GE(r.fc.collisions, 10u);
+  EXPECT_EQ(r.fc.last_collision_cob, 0x701u);
+  EXPECT_GE(r.fc.valve_holds, 1u);
+}
+
+TEST(Faults, ASecondSensorIsAConflictAndACollision) {
+  const auto r = nodes::runBusFault(BusFault::DuplicateSensor, options());
+  expectSafeAndBack(r, Fault::SensorState, 0x8130, 1.0, 2.0);  // its boot-up on 0x702
+  EXPECT_TRUE(sent(r, 0x8150));
+  EXPECT_GE(r.counters.rpdo_conflicts, 990u);
+}
+
+TEST(Faults, ErrorPassiveGoesSafe) {
+  const auto r = nodes::runBusFault(BusFault::ErrorPassive, options());
+  expectSafeAndBack(r, Fault::BusError, 0x8120, 1.0, 2.0);
+}
+
+TEST(Faults, BusOffReportsRecoveredFromBusOffAfterTheRestart) {
+  const auto r = nodes::runBusFault(BusFault::BusOff, options());
+  expectSafeAndBack(r, Fault::BusOff, 0x8140, 1.0, 2.0);
+  EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8140});  // nothing while off the bus
+}
+
+TEST(Faults, ControllerOverflowIsAnOverrun) {
+  const auto r = nodes::runBusFault(BusFault::CanOverflow, options());
+  expectSafeAndBack(r, Fault::CanOverrun, 0x8110, 1.0, 2.0);
+}
+
+TEST(Faults, RunsAreRepeatable) {
+  const auto a = nodes::runBusFault(BusFault::PdoDropRandom, options());
+  const auto b = nodes::runBusFault(BusFault::PdoDropRandom, options());
+  EXPECT_EQ(a.samples_lost, b.samples_lost);
+  EXPECT_EQ(a.rmse_end, b.rmse_end);
+  EXPECT_EQ(nodes::faultTableMarkdown({a}), nodes::faultTableMarkdown({b}));
+}
+
+// ---- The pieces of the CANopen layer the faults rely on ----
+
+namespace {
+using canopen::Frame;
+using canopen::VirtualBus;
+
+Frame frame(std::uint32_t id, std::uint8_t len, std::uint8_t fill = 0) {
+  Frame f;
+  f.id = id;
+  f.len = len;
+  for (int i = 0; i < len; ++i) f.data[i] = static_cast<std::uint8_t>(fill + i);
+  return f;
+}
+
+struct Sink : canopen::BusClient {
+  std::vector<std::pair<canopen::TimeUs, std::uint32_t>> got;
+  void onFrame(const Frame& f, canopen::TimeUs now) override { got.emplace_back(now, f.id); }
+  void advance(canopen::TimeUs) override {}
+  canopen::TimeUs nextDeadline() const override { return canopen::kNever; }
+};
+}  // namespace
+
+TEST(BusModel, LowestIdentifierWinsAndFramesTakeTheirBitTime) {
+  VirtualBus bus;
+  bus.setBitrate(1'000'000, 4);
+  auto& a = bus.addPort();
+  auto& b = bus.addPort();
+  Sink sink;
+  bus.addPort(&sink);
+  a.send(frame(0x300, 8));
+  b.send(frame(0x100, 8));
+  b.send(frame(0x080, 0));
+  bus.advanceBy(1000);
+  ASSERT_EQ(sink.got.size(), 3u);
+  // 0x300 and 0x100 are queued together: 0x100 wins; then 0x080 (b's next) beats 0x300.
+  EXPECT_EQ(sink.got[0].second, 0x100u);
+  EXPECT_EQ(sink.got[1].second, 0x080u);
+  EXPECT_EQ(sink.got[2].second, 0x300u);
+  const auto t8 = bus.frameTimeUs(frame(0x100, 8));
+  EXPECT_EQ(t8, 123);  // 111 bits + stuffing at 1 Mbit/s
+  EXPECT_EQ(sink.got[0].first, t8);
+  EXPECT_EQ(sink.got[2].first, 2 * t8 + bus.frameTimeUs(frame(0x80, 0)));
+  // A full port queue refuses frames; a frame past its deadline is dropped unsent.
+  for (int i = 0; i < 4; ++i) EXPECT_TRUE(a.send(frame(0x400, 8)));
+  EXPECT_FALSE(a.send(frame(0x400, 8)));
+  EXPECT_EQ(a.dropped(), 1u);
+  bus.advanceBy(10'000);
+  b.sendUntil(frame(0x500, 8), bus.now() + 50);
+  b.sendUntil(frame(0x501, 8), bus.now() + 50);  // behind the first: not on the bus by its deadline
+  bus.advanceBy(1000);
+  EXPECT_EQ(b.expired(), 1u);
+  EXPECT_EQ(sink.got.back().second, 0x500u);
+}
+
+namespace {
+const char* kOd = PAMC_SOURCE_DIR "/od/";
+}
+
+TEST(BusModel, SynchronousRpdosOutsideTheWindowDuplicatesAndConflicts) {
+  VirtualBus bus;
+  auto& port = bus.addPort();
+  auto& tool = bus.addPort();
+  auto ctrl = canopen::Node::fromEds(std::string(kOd) + "controller.eds", port);
+  port.setClient(ctrl.get());
+  ctrl->start(0);
+  ctrl->applyNmt(canopen::NmtCommand::Start);
+  auto& rp = ctrl->rpdo(1);
+  auto pos = ctrl->od().ref<std::int32_t>(0x3000, 0);
+  bus.advanceTo(1000);  // SYNC 1
+  tool.send(frame(0x182, 4, 1));
+  tool.send(frame(0x182, 4, 1));  // the same again: ignored
+  bus.advanceTo(2000);            // SYNC 2 latches it
+  EXPECT_EQ(rp.syncsSinceReception(), 0u);
+  EXPECT_EQ(rp.duplicates(), 1u);
+  EXPECT_EQ(pos.get(), 0x04030201);
+  tool.send(frame(0x182, 4, 1));
+  tool.send(frame(0x182, 4, 9));  // other data in the same cycle: the cycle is discarded
+  bus.advanceTo(3000);
+  EXPECT_EQ(rp.conflicts(), 1u);
+  EXPECT_TRUE(rp.conflictInLastCycle());
+  EXPECT_EQ(rp.syncsSinceReception(), 1u);
+  bus.advanceTo(3900);            // 900 us after the SYNC: after the 800 us window
+  tool.send(frame(0x182, 4, 5));
+  bus.advanceTo(4000);
+  EXPECT_EQ(rp.late(), 1u);
+  EXPECT_EQ(rp.syncsSinceReception(), 2u);
+  EXPECT_EQ(pos.get(), 0x04030201);  // never decoded
+}
+
+TEST(BusModel, AFrameOnTheNodesOwnIdentifierIsACollision) {
+  VirtualBus bus;
+  auto& port = bus.addPort();
+  auto& tool = bus.addPort();
+  auto ctrl = canopen::Node::fromEds(std::string(kOd) + "controller.eds", port);
+  port.setClient(ctrl.get());
+  std::vector<std::uint32_t> seen;
+  ctrl->onCollision([&](const Frame& f, canopen::TimeUs) { seen.push_back(f.id); });
+  ctrl->start(0);
+  ctrl->applyNmt(canopen::NmtCommand::Start);
+  tool.send(frame(0x701, 1));  // boot-up of another node 1
+  tool.send(frame(0x081, 8));  // its EMCY
+  tool.send(frame(0x203, 2));  // the valve setpoint TPDO
+  tool.send(frame(0x080, 0));  // a SYNC while this node produces SYNC
+  tool.send(frame(0x702, 1));  // the sensor's heartbeat: fine
+  bus.flush();
+  EXPECT_EQ(seen, (std::vector<std::uint32_t>{0x701, 0x081, 0x203, 0x080}));
+  EXPECT_EQ(ctrl->counters().cob_id_collisions, 4u);
+}
+
+TEST(BusModel, SyncConsumerTimesOutAfterOneAndAHalfPeriods) {
+  VirtualBus bus;
+  auto& port = bus.addPort();
+  auto& tool = bus.addPort();
+  auto sensor = canopen::Node::fromEds(std::string(kOd) + "sensor.eds", port);
+  port.setClient(sensor.get());
+  sensor->od().entry(0x1006, 0).set<std::uint32_t>(1000);
+  std::vector<canopen::TimeUs> timeouts;
+  sensor->onSyncTimeout([&](canopen::TimeUs now) { timeouts.push_back(now); });
+  sensor->start(0);
+  bus.advanceTo(10'000);
+  EXPECT_TRUE(timeouts.empty());  // monitoring starts with the first SYNC
+  tool.send(frame(0x080, 0));
+  bus.advanceTo(11'000);
+  tool.send(frame(0x080, 0));
+  bus.advanceTo(20'000);
+  EXPECT_EQ(timeouts, std::vector<canopen::TimeUs>{12'500});
+  EXPECT_TRUE(sensor->sync().timedOut());
+  tool.send(frame(0x080, 0));
+  bus.flush();
+  EXPECT_FALSE(sensor->sync().timedOut());
+}
