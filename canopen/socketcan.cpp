@@ -118,8 +118,15 @@ bool SocketCanTransport::sendUntil(const Frame& frame, TimeUs deadline) {
     if (r != 0) return r > 0;
   }
   if (queue_count_ == queue_.size()) {
-    ++stats_.tx_dropped;
-    return false;
+    // Stale frames behind a head the kernel keeps refusing must not take the room of fresh ones.
+    purgeExpired(monotonicNowUs());
+    // A frame without a deadline (an EMCY above all) is worth more than a SYNC or synchronous PDO,
+    // which is of no use late anyway: the oldest of those makes room.
+    if (queue_count_ == queue_.size() && deadline == kNever && evictOldestWithDeadline()) ++stats_.tx_expired;
+    if (queue_count_ == queue_.size()) {
+      ++stats_.tx_dropped;
+      return false;
+    }
   }
   queue_[(queue_head_ + queue_count_) % queue_.size()] = frame;
   deadline_[(queue_head_ + queue_count_) % queue_.size()] = deadline;
@@ -128,8 +135,51 @@ bool SocketCanTransport::sendUntil(const Frame& frame, TimeUs deadline) {
   return true;
 }
 
+void SocketCanTransport::removeAt(std::size_t i) {
+  const std::size_t cap = queue_.size();
+  // Shift the frames before it up by one: the queue keeps its order.
+  for (std::size_t k = i; k > 0; --k) {
+    queue_[(queue_head_ + k) % cap] = queue_[(queue_head_ + k - 1) % cap];
+    deadline_[(queue_head_ + k) % cap] = deadline_[(queue_head_ + k - 1) % cap];
+  }
+  queue_head_ = (queue_head_ + 1) % cap;
+  --queue_count_;
+}
+
+void SocketCanTransport::purgeExpired(TimeUs now) {
+  const std::size_t cap = queue_.size();
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < queue_count_; ++i) {
+    const std::size_t from = (queue_head_ + i) % cap;
+    if (deadline_[from] < now) {
+      ++stats_.tx_expired;
+      continue;
+    }
+    const std::size_t to = (queue_head_ + kept) % cap;
+    if (to != from) {
+      queue_[to] = queue_[from];
+      deadline_[to] = deadline_[from];
+    }
+    ++kept;
+  }
+  queue_count_ = kept;
+}
+
+bool SocketCanTransport::evictOldestWithDeadline() {
+  for (std::size_t i = 0; i < queue_count_; ++i) {
+    if (deadline_[(queue_head_ + i) % queue_.size()] != kNever) {
+      removeAt(i);
+      return true;
+    }
+  }
+  return false;
+}
+
 bool SocketCanTransport::flush() {
   const TimeUs now = queue_count_ > 0 ? monotonicNowUs() : 0;
+  // Not only at the head: a frame without a deadline at the head may wait long behind a full
+  // interface queue, and the expired frames behind it would fill the queue meanwhile.
+  if (queue_count_ > 0) purgeExpired(now);
   while (queue_count_ > 0) {
     if (deadline_[queue_head_] < now) {  // too late to be of use
       ++stats_.tx_expired;

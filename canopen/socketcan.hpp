@@ -27,7 +27,9 @@ struct SocketCanStats {
   std::uint64_t tx_frames = 0;
   std::uint64_t tx_queued = 0;   // send() hit ENOBUFS/EAGAIN and queued the frame
   std::uint64_t tx_dropped = 0;  // queue full
-  std::uint64_t tx_expired = 0;  // queued with a deadline (sendUntil) that passed before it could be written
+  // Queued with a deadline (sendUntil) and dropped unsent: the deadline passed before the frame could be
+  // written, or the queue was full and the room went to a frame without a deadline (see sendUntil).
+  std::uint64_t tx_expired = 0;
   std::uint64_t tx_errors = 0;   // other write errors (e.g. ENETDOWN)
   std::uint64_t rx_errors = 0;   // read errors other than EAGAIN
   std::uint64_t error_frames = 0;
@@ -48,6 +50,10 @@ class SocketCanTransport : public Transport {
   SocketCanTransport& operator=(const SocketCanTransport&) = delete;
 
   // Writes now, or queues behind earlier frames; false only if the queue is full or the write failed hard.
+  // A frame without a deadline (EMCY, heartbeat, NMT, SDO) is never dropped while the queue holds a
+  // frame with one: when the queue is full, frames past their deadline are removed first, then the
+  // oldest frame that has a deadline gives up its place (counted in tx_expired). It goes out, in
+  // order, once the kernel takes frames again.
   bool send(const Frame& frame) override { return sendUntil(frame, kNever); }
   // The same; a queued frame still waiting at deadline (monotonic us) is dropped, not written late.
   // (Frames the kernel has accepted cannot be recalled: this covers the queue behind ENOBUFS.)
@@ -69,6 +75,11 @@ class SocketCanTransport : public Transport {
   SocketCanTransport(int fd, const std::string& name, SocketCanOptions options);
   // 1: written, 0: would block (retry later), -1: hard error.
   int writeFrame(const Frame& frame);
+  // Removes queued frames whose deadline is before now, wherever they are (the others keep their order).
+  void purgeExpired(TimeUs now);
+  // Removes the oldest queued frame that has a deadline; false if every queued frame has none.
+  bool evictOldestWithDeadline();
+  void removeAt(std::size_t i);  // i-th frame from the head
 
   std::string interface_;
   int fd_ = -1;

@@ -252,6 +252,24 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
       else cur[col[fl.column]] = vals[i];
     }
   }
+  // A node whose first PDO came a cycle or more after the first position (the valve answering late
+  // after its start) leaves its column empty in the first rows, and a measurement has no empty cells:
+  // the decoded run starts at the first row in which every column that ever has a value has one.
+  // (Values hold from then on, so only leading rows can have gaps.)
+  {
+    std::vector<bool> ever(run.columns.size(), false);
+    for (const auto& r : run.rows)
+      for (size_t c = 0; c < r.size(); ++c) ever[c] = ever[c] || !std::isnan(r[c]);
+    size_t first = 0;
+    while (first < run.rows.size()) {
+      bool complete = true;
+      for (size_t c = 0; c < ever.size(); ++c) complete = complete && (!ever[c] || !std::isnan(run.rows[first][c]));
+      if (complete) break;
+      ++first;
+    }
+    run.rows.erase(run.rows.begin(), run.rows.begin() + static_cast<std::ptrdiff_t>(first));
+    if (!run.rows.empty()) k_first = static_cast<std::int64_t>(run.rows.front()[0]);
+  }
   // Even time base: SYNC index times the SYNC period (from the EDS, or measured from the log when the
   // two disagree); t_log keeps the log's own stamps.
   double period = dict.sync_period_s;

@@ -98,6 +98,82 @@ TEST(SocketCan, QueueOverflowIsReportedAndCounted) {
   EXPECT_EQ(can->stats().tx_dropped, static_cast<std::uint64_t>(refused));
 }
 
+// Fills the peer's socket with frames without a deadline until the transport has to queue one: that
+// frame sits at the head of the queue, refused, as behind a flooded CAN interface. Returns how many
+// frames reached the socket before it.
+int fillUntilQueued(SocketCanTransport& can) {
+  int written = 0;
+  while (can.stats().tx_queued == 0) {
+    Frame f = makeFrame(0x701, 1);
+    EXPECT_TRUE(can.send(f));
+    ++written;
+  }
+  return written - 1;
+}
+
+std::vector<std::string> drainAndFlush(SocketCanTransport& can, int fd) {
+  std::vector<std::string> out;
+  for (int round = 0; round < 1000; ++round) {
+    auto got = readAll(fd);
+    out.insert(out.end(), got.begin(), got.end());
+    if (!can.hasPendingTx() && got.empty()) break;
+    can.flush();
+  }
+  return out;
+}
+
+TEST(SocketCan, FrameWithoutDeadlineTakesTheRoomOfTheOldestFrameWithOne) {
+  // An EMCY sent while the queue is full of SYNCs and synchronous PDOs waiting for the interface is
+  // not dropped: the oldest frame with a deadline (of no use late anyway) makes room.
+  SocketPair pair;
+  SocketCanOptions options;
+  options.tx_queue_capacity = 4;
+  auto can = SocketCanTransport::adopt(pair.fds[0], "pair0", options);
+  const int before = fillUntilQueued(*can);
+  const TimeUs later = monotonicNowUs() + 60'000'000;
+  ASSERT_TRUE(can->sendUntil(makeFrame(0x080, 0), later));
+  ASSERT_TRUE(can->sendUntil(makeFrame(0x203, 2), later));
+  ASSERT_TRUE(can->sendUntil(makeFrame(0x080, 1), later));
+  ASSERT_EQ(can->queued(), 4u);
+  Frame emcy = makeFrame(0x081, 8);
+  putU16(emcy.data, 0x8110);
+  EXPECT_TRUE(can->send(emcy));
+  EXPECT_EQ(can->stats().tx_dropped, 0u);
+  EXPECT_EQ(can->stats().tx_expired, 1u);
+  EXPECT_EQ(can->expiredCount(), 1u);  // the node sees the loss (CAN overrun)
+  // Queue of frames without a deadline only: the next one is refused and counted, as before.
+  EXPECT_TRUE(can->send(makeFrame(0x701, 1)));  // takes the place of 0x203
+  EXPECT_TRUE(can->send(makeFrame(0x701, 1)));  // ... of the second SYNC
+  EXPECT_FALSE(can->send(makeFrame(0x701, 1)));
+  EXPECT_EQ(can->stats().tx_dropped, 1u);
+  auto frames = drainAndFlush(*can, pair.fds[1]);
+  ASSERT_EQ(frames.size(), static_cast<std::size_t>(before + 4));
+  // In the order sent, less the frames that made room.
+  EXPECT_EQ(frames[static_cast<std::size_t>(before)], "701#00");
+  EXPECT_EQ(frames[static_cast<std::size_t>(before) + 1], "081#1081000000000000");
+  EXPECT_EQ(frames[static_cast<std::size_t>(before) + 2], "701#00");
+  EXPECT_EQ(frames[static_cast<std::size_t>(before) + 3], "701#00");
+  EXPECT_FALSE(can->hasPendingTx());
+}
+
+TEST(SocketCan, ExpiredFramesBehindARefusedHeadAreRemovedWhenRoomIsNeeded) {
+  SocketPair pair;
+  SocketCanOptions options;
+  options.tx_queue_capacity = 4;
+  auto can = SocketCanTransport::adopt(pair.fds[0], "pair0", options);
+  const int before = fillUntilQueued(*can);
+  const TimeUs past = monotonicNowUs() - 1;
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(can->sendUntil(makeFrame(0x080, 0), past));
+  // Full; a frame with a deadline finds room too, once the stale ones are gone.
+  EXPECT_TRUE(can->sendUntil(makeFrame(0x203, 2), monotonicNowUs() + 60'000'000));
+  EXPECT_EQ(can->stats().tx_expired, 3u);
+  EXPECT_EQ(can->stats().tx_dropped, 0u);
+  EXPECT_EQ(can->queued(), 2u);
+  auto frames = drainAndFlush(*can, pair.fds[1]);
+  ASSERT_EQ(frames.size(), static_cast<std::size_t>(before + 2));
+  EXPECT_EQ(frames.back(), "203#0000");
+}
+
 TEST(SocketCan, EventLoopRunsANodeInRealTime) {
   SocketPair pair;
   auto can = SocketCanTransport::adopt(pair.fds[0], "pair0");

@@ -94,6 +94,29 @@ TEST(Decoder, LostPositionHoldsTheLastValueAndKeepsTheTimeBase) {
   EXPECT_EQ(run.columns, (std::vector<std::string>{"t", "u", "y", "t_log"}));
 }
 
+// The valve's first pressure PDO comes two cycles after the sensor's first position: the decoded run
+// starts at the first complete row (no empty cells, which a measurement file may not have), at t = 0.
+TEST(Decoder, RunStartsWhereEveryColumnHasAValue) {
+  const auto d = nodes::loadBusDictionary({kOd});
+  std::vector<canopen::CandumpRecord> log;
+  for (int k = 0; k < 8; ++k) {
+    const double t = 1.0 + k * 1e-3;
+    log.push_back(rec(t, 0x80, {}));
+    log.push_back(rec(t + 1e-4, 0x182, i32(1000 * (k + 1))));
+    if (k >= 4) log.push_back(rec(t + 2e-4, 0x183, i16(3277)));
+    log.push_back(rec(t + 3e-4, 0x203, i16(16384)));
+  }
+  log.push_back(rec(1.008, 0x80, {}));
+  const auto run = nodes::decodeCandump(log, d);
+  ASSERT_EQ(run.columns.at(3), "p");
+  ASSERT_FALSE(run.rows.empty());
+  for (const auto& r : run.rows)
+    for (double v : r) EXPECT_FALSE(std::isnan(v));
+  EXPECT_DOUBLE_EQ(run.rows[0][0], 0.0);
+  EXPECT_DOUBLE_EQ(run.rows[0][2], 5.0);  // cycle 4, the first with a pressure
+  EXPECT_NEAR(run.rows[1][0] - run.rows[0][0], 1e-3, 1e-12);
+}
+
 TEST(Monitor, ShowsStatesValuesAndEmergencies) {
   nodes::Monitor m(nodes::loadBusDictionary({kOd}));
   canopen::Frame hb;
