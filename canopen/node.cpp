@@ -175,6 +175,9 @@ void Node::handleStateChange(NmtState from, NmtState to, TimeUs now) {
   if (from == NmtState::Operational) {
     for (auto& p : rpdos_) p->reset();
   }
+  // A Stopped node has no SDO (CiA 301): a transfer in progress ends there, silently (no frame may
+  // go out), and is not resumed by a later NMT start.
+  if (to == NmtState::Stopped) sdo_server_.reset();
   if (state_cb_) state_cb_(from, to, now);
 }
 

@@ -70,6 +70,21 @@ TEST(FuzzRegression, StoppedNodeSendsNoSdoTimeoutAbort) {
   EXPECT_EQ(net.exchange("609#1031323304020000"), Frames{"589#8001200001000405"});
 }
 
+// fuzz_sdo_server (long run): a segmented upload begun before an NMT stop was resumed after the next NMT
+// start - the server answered the client's next upload segment request with data of the old transfer,
+// although the stop had ended SDO communication. Entering Stopped now ends the transfer (silently).
+TEST(FuzzRegression, UploadInterruptedByAStopIsNotResumedAfterTheStart) {
+  Network net;
+  net.addText(makeEds(var(0x2001, "Blob", "0x000F", "rw", "0011223344556677")), 9);
+  net.startAll();
+  EXPECT_EQ(net.exchange("609#4001200000000000"), Frames{"589#4101200008000000"});  // segmented upload
+  EXPECT_EQ(net.exchange("609#6000000000000000"), Frames{"589#0000112233445566"});  // first segment
+  net.send("000#0209");                                                              // NMT stop node 9
+  EXPECT_TRUE(net.exchange("609#7000000000000000").empty());                         // no SDO when Stopped
+  net.send("000#0109");                                                              // NMT start node 9
+  EXPECT_EQ(net.exchange("609#7000000000000000"), Frames{"589#8001200001000405"});  // no transfer to resume
+}
+
 // fuzz_sdo_server: an SDO write could set the EMCY COB-ID (0x1014) to the node's own SDO request
 // identifier (here 0x46464603: bits 11-30 set, identifier 0x603). The node then took every SDO request
 // for a frame of another node on its own EMCY identifier and answered none: it could no longer be

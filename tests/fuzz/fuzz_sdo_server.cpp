@@ -306,7 +306,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           f = makeFrame(0x000, 2);
           f.data[0] = kCommands[(op >> 3) & 0x07];
           f.data[1] = (op & 0x80) != 0 ? 0 : node.nodeId();
-          if (f.data[0] == 0x81 || f.data[0] == 0x82) cm.ul_active = false;  // a reset drops the transfer
+          // A reset, and a stop (no SDO in Stopped), drop the transfer.
+          if (f.data[0] == 0x81 || f.data[0] == 0x82 || f.data[0] == 0x02) cm.ul_active = false;
         } else {
           f.len = (op >> 3) & 0x07;
           for (int i = 0; i < f.len; ++i) f.data[i] = in.u8();
