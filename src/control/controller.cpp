@@ -148,15 +148,20 @@ class PiCore {
     u_min_ = c.u_min;
     u_max_ = c.u_max;
   }
-  void reset(double integral) noexcept { integ_ = std::clamp(integral, u_min_, u_max_); }
-  // Nominal output with this cycle's error integrated (tentatively).
-  double nominal(double e) noexcept {
+  void reset(double integral) noexcept {
+    integ_ = std::isfinite(integral) ? std::clamp(integral, u_min_, u_max_) : 0.5 * (u_min_ + u_max_);
+  }
+  // Nominal output with this cycle's error integrated (tentatively). integrate = false holds the
+  // integral (no usable measurement); a non-finite error counts as none and is not integrated.
+  double nominal(double e, bool integrate = true) noexcept {
+    if (!std::isfinite(e)) e = 0.0, integrate = false;
     e_ = e;
-    pending_ = std::clamp(integ_ + ki_ts_ * e, u_min_, u_max_);
+    pending_ = integrate ? std::clamp(integ_ + ki_ts_ * e, u_min_, u_max_) : integ_;
     return kp_ * e + pending_;
   }
   // Saturates u_n + extra; keeps the integration only if it does not push further into the limit.
   double finish(double u_n, double extra, bool& saturated, double& u_n_out) noexcept {
+    if (!std::isfinite(extra)) extra = 0.0;
     const double raw = u_n + extra;
     const double u = std::clamp(raw, u_min_, u_max_);
     saturated = u != raw;
@@ -192,21 +197,44 @@ class OpenLoop final : public Controller {
   InverseStatic inv_;
 };
 
+// The last usable (finite) measured position: a non-finite one is never used.
+class LastGood {
+ public:
+  void reset(double y0) noexcept { y_ = std::isfinite(y0) ? y0 : NAN; }
+  // True if y is usable (and now the last good one).
+  bool take(double y) noexcept {
+    if (!std::isfinite(y)) return false;
+    y_ = y;
+    return true;
+  }
+  double get() const noexcept { return y_; }  // NaN until a finite position was seen
+
+ private:
+  double y_ = NAN;
+};
+
 class Pi final : public Controller {
  public:
   explicit Pi(const ControllerConfig& c) { pi_.configure(c); }
   Kind kind() const override { return Kind::PI; }
-  void activate(double u0, double) noexcept override { pi_.reset(u0); }
+  void activate(double u0, double y0) noexcept override {
+    pi_.reset(u0);
+    y_.reset(y0);
+  }
   ControlOutput update(double yd, double, double y, double) noexcept override {
     ControlOutput o;
-    const double un = pi_.nominal(yd - y);
+    const bool ok = y_.take(y);
+    o.measurement_rejected = !ok;
+    const double un = pi_.nominal(yd - y_.get(), ok);
     o.u = pi_.finish(un, 0.0, o.saturated, o.u_n);
-    o.y_hat = y;
+    o.y_hat = y_.get();
     return o;
   }
+  double integral() const noexcept override { return pi_.integral(); }
 
  private:
   PiCore pi_;
+  LastGood y_;
 };
 
 // PI + active model compensation, eqs. (14)-(19).
@@ -219,9 +247,10 @@ class PiAmc final : public Controller {
   }
   Kind kind() const override { return Kind::PiAmc; }
   int lookahead() const override { return cfg_.amc_horizon; }
-  void activate(double u0, double) noexcept override {
+  void activate(double u0, double y0) noexcept override {
     un_prev_ = u0;
     pi_.reset(u0);
+    y_.reset(y0);
     am_.reset(u0);
     hist_.fill(u0);
     model::StepContext ctx;
@@ -235,8 +264,13 @@ class PiAmc final : public Controller {
     const auto est = am_.update(hist_.get(cfg_.delay_cycles), y, load);
     o.y_hat = est.y_post;
     o.estimator_reset = est.status == estimation::UkfStatus::Reset;
+    // A position the UKF did not use (not finite, or an outlier) is not used by the PI either: it
+    // works with the last usable position and holds its integral. (Not with the UKF's prediction: with
+    // a model whose output dynamics the filter cannot follow, that can be far off.)
+    o.measurement_rejected = est.rejected || !std::isfinite(y);
+    if (!o.measurement_rejected) y_.take(y);
     // Nominal PI, eq. (16).
-    const double un = pi_.nominal(yd - y);
+    const double un = pi_.nominal(yd - y_.get(), !o.measurement_rejected);
     // Prediction, eq. (17): the nominal command's own increment drives the hysteresis.
     model::StepContext ctx;
     ctx.Ts = cfg_.Ts;
@@ -273,10 +307,13 @@ class PiAmc final : public Controller {
     hist_.push(o.u);
     return o;
   }
+  double integral() const noexcept override { return pi_.integral(); }
+  const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
 
  private:
   ControllerConfig cfg_;
   PiCore pi_;
+  LastGood y_;
   estimation::ActiveModel am_;
   CommandHistory hist_;
   model::Model::State nom_;
@@ -293,7 +330,8 @@ class PidEso final : public Controller {
   void activate(double u0, double y0) noexcept override {
     pi_.reset(u0);
     hist_.fill(u0);
-    x1_ = y0;
+    y_.reset(y0);
+    x1_ = std::isfinite(y0) ? y0 : 0.0;
     x2_ = 0.0;
     x3_ = 0.0;
   }
@@ -306,7 +344,11 @@ class PidEso final : public Controller {
     // Observer, eq. (24), explicit Euler at Ts with the command in effect.
     const double Ts = cfg_.Ts;
     const double u_applied = hist_.get(cfg_.delay_cycles);
-    const double e = x1_ - y;
+    // Without a usable position the observer runs on its model alone (no correction) and the PI
+    // works with the last usable position, its integral held.
+    const bool ok = y_.take(y);
+    o.measurement_rejected = !ok;
+    const double e = ok ? x1_ - y : 0.0;
     const double x1 = x1_ + Ts * (x2_ - cfg_.beta1 * e);
     const double x2 = x2_ + Ts * (cfg_.b0 * u_applied + x3_ - cfg_.beta2 * fal(e, 0.5, cfg_.delta));
     const double x3 = x3_ + Ts * (-cfg_.beta3 * fal(e, 0.25, cfg_.delta));
@@ -315,23 +357,26 @@ class PidEso final : public Controller {
       x2_ = x2;
       x3_ = x3;
     } else {
-      x1_ = y;
+      x1_ = std::isfinite(y_.get()) ? y_.get() : 0.0;
       x2_ = x3_ = 0.0;
       o.estimator_reset = true;
     }
     o.y_hat = x1_;
-    const double un = pi_.nominal(yd - y);
+    const double un = pi_.nominal(yd - y_.get(), ok);
     // Eq. (25): u = u_n - x3_hat (divided by the observer's input gain b0).
     o.u_c = -x3_ / cfg_.b0;
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
     hist_.push(o.u);
     return o;
   }
+  double integral() const noexcept override { return pi_.integral(); }
+  double disturbance() const noexcept override { return x3_; }
 
  private:
   ControllerConfig cfg_;
   PiCore pi_;
   CommandHistory hist_;
+  LastGood y_;
   double x1_ = 0, x2_ = 0, x3_ = 0;
 };
 

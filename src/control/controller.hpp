@@ -65,7 +65,11 @@ struct ControlOutput {
   double u_c = 0.0;  // compensation part (AMC u_c, or -x3_hat for ESO) [V]
   double y_hat = 0.0;  // estimator output (AMC posterior / ESO x1_hat) [mm]
   bool saturated = false;
-  bool estimator_reset = false;
+  bool estimator_reset = false;  // the estimator started over this cycle (the UKF or the ESO)
+  // The measured position was not used this cycle: not finite (every feedback controller), or an
+  // outlier for the AMC's UKF (ActiveModelSettings::gate_nis). The PI then works with the last usable
+  // position and its integral is held; the estimators run on their models.
+  bool measurement_rejected = false;
 };
 
 class Controller {
@@ -78,6 +82,14 @@ class Controller {
   virtual void activate(double u0, double y0) noexcept = 0;
   // One cycle: setpoint now and lookahead() cycles ahead, measured position (and load if measured).
   virtual ControlOutput update(double yd, double yd_next, double y, double load = 0.0) noexcept = 0;
+
+  // Read-only views for tests and diagnostics (not needed by the cycle).
+  // The PI integral [V] (0 for the open loop).
+  virtual double integral() const noexcept { return 0.0; }
+  // The AMC's estimator (nullptr for the other controllers).
+  virtual const estimation::ActiveModel* activeModel() const noexcept { return nullptr; }
+  // The ESO's total-disturbance estimate x3_hat [mm/s^2] (0 for the other controllers).
+  virtual double disturbance() const noexcept { return 0.0; }
 };
 
 // Samples until the model's output has made `fraction` of its response to a small command step from

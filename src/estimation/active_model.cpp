@@ -1,6 +1,14 @@
 #include "estimation/active_model.hpp"
 
+#include <cmath>
+
 namespace pamc::estimation {
+
+namespace {
+// The filter's NIS level: a mean over about kNisWindow used positions; the gate acts once that many
+// have been used since the last reset() and the level is at most 1.
+constexpr int kNisWindow = 1000;
+}  // namespace
 
 void ActiveModel::configure(const model::Model& m, const ActiveModelSettings& s, double Ts) {
   model_ = m;
@@ -19,11 +27,15 @@ void ActiveModel::reset(double u0, double load) noexcept {
   P0 << settings_.P0_h, 0.0, 0.0, settings_.P0_f;
   ukf_.reset(Filter::Vec(st_.h, 0.0), P0);
   du_pending_ = 0.0;
+  outlier_run_ = 0;
+  nis_level_ = 0.0;
+  nis_count_ = 0;
   c.u_eff = st_.u_eff_prev;
   y_post_ = model_.outputPeek(st_, model_.coreOutput(st_.u_eff_prev, st_.h), c);
 }
 
 ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
+  if (!std::isfinite(u)) u = st_.u_eff_prev;  // a nonsense command must not reach the model's states
   model::StepContext c;
   c.Ts = Ts_;
   c.load = load;
@@ -51,8 +63,44 @@ ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
   };
   Eigen::Matrix<double, 1, 1> R;
   R << settings_.R;
-  UkfStatus s2 = ukf_.update(H, Eigen::Matrix<double, 1, 1>(y), R);
+  // The gate acts only while the filter is consistent (see ActiveModelSettings::gate_nis), and it is
+  // widened by the model's own predicted change of the output over this sample: after a command step
+  // the model moves at once and the muscle with its lag, a miss that is the model's, not the sensor's.
+  const bool consistent = nis_count_ >= kNisWindow && nis_level_ <= 1.0;
+  const double gate = settings_.gate_nis > 0.0 && consistent ? settings_.gate_nis : 0.0;
+  const double dy_model = H(ukf_.x())(0) - y_post_;
+  Eigen::Matrix<double, 1, 1> widen;
+  widen << (std::isfinite(dy_model) ? dy_model * dy_model : 0.0);
+  UkfStatus s2 = ukf_.update(H, Eigen::Matrix<double, 1, 1>(y), R, gate, widen);
+  out.nis_gate = std::isfinite(y) ? ukf_.gateStatistic() : 0.0;
+  // One outlier more than gate_max_rejects in a row is the truth after all (the sensor moved, or the
+  // filter is lost): start over from P0 at the prediction and take the position without the gate. The
+  // gate then re-learns the filter's level, as after reset(), so the way back is not gated either.
+  bool restart = false;
+  if (s2 == UkfStatus::OutlierRejected && settings_.gate_max_rejects > 0 && outlier_run_ >= settings_.gate_max_rejects) {
+    Filter::Mat P0;
+    P0 << settings_.P0_h, 0.0, 0.0, settings_.P0_f;
+    ukf_.reset(ukf_.x(), P0);  // x is the prediction: a rejected update leaves it there
+    s2 = worstOf(ukf_.update(H, Eigen::Matrix<double, 1, 1>(y), R), UkfStatus::Reset);
+    restart = true;
+    outlier_run_ = 0;
+    nis_count_ = 0;
+    nis_level_ = 0.0;
+  }
   out.y_prior = ukf_.predictedMeasurement()(0);
+  out.rejected = s2 == UkfStatus::MeasurementRejected || s2 == UkfStatus::OutlierRejected;
+  out.nis = std::isfinite(y) ? ukf_.nis() : 0.0;
+  if (s2 == UkfStatus::OutlierRejected) {
+    ++outlier_run_;
+    ++outliers_total_;
+  } else if ((s2 == UkfStatus::Ok || s2 == UkfStatus::CovarianceRepaired) && !restart) {
+    // A position was used (a non-finite one neither counts nor ends the run).
+    outlier_run_ = 0;
+    if (std::isfinite(out.nis)) {
+      if (nis_count_ < kNisWindow) ++nis_count_;
+      nis_level_ += (out.nis - nis_level_) / static_cast<double>(nis_count_);  // plain mean until the window is full
+    }
+  }
 
   out.h = ukf_.x()(0);
   out.f_h = ukf_.x()(1);
@@ -62,7 +110,7 @@ ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
   st_.h = out.h;
   du_pending_ = ue - st_.u_eff_prev;
   st_.u_eff_prev = ue;
-  out.status = static_cast<unsigned>(s1) > static_cast<unsigned>(s2) ? s1 : s2;
+  out.status = worstOf(s1, s2);
   if (out.status == UkfStatus::Reset) ++resets_;
   return out;
 }

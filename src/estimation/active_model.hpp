@@ -14,6 +14,23 @@ struct ActiveModelSettings {
   double P0_h = 10.0, P0_f = 10.0;  // eq. (26)
   double Q_h = 10.0, Q_f = 10.0;    // eq. (26)
   double R = 0.001;                 // eq. (26) [mm^2]
+  // Innovation gate (not in the paper): a position whose normalised innovation squared
+  // NIS = (y - y_prior)^2 / S exceeds gate_nis is an outlier and is not used (0: no gate). 25 is five
+  // standard deviations of the filter's own predicted spread; with eq. (26)'s Q the one-step spread is
+  // sqrt(Q_h) |k (1 - rho)| (about 7 mm for the emulator's Bouc-Wen core), so a 40 mm spike is rejected
+  // while clean data stays far below the gate (below 1, steps of the setpoint included: docs/RELIABILITY.md,
+  // "Bad data in the estimator and controller"). The gate is
+  // widened by the model's own predicted change of the output over the sample (S + dy^2: after a
+  // command step the model moves at once, the muscle with its lag), and it acts only while the filter
+  // is consistent: once 1000 positions have been used since the last reset() and their mean NIS (over
+  // about the last 1000) is at most 1. A filter that misses by more than it expects (a model with output
+  // dynamics it cannot follow, such as mass_spring: NIS ~1e5) cannot tell an outlier from its own miss
+  // and would otherwise reject everything.
+  double gate_nis = 25.0;
+  // At most this many outliers in a row are rejected; the next one is taken as the truth: P back to P0
+  // and the position used without the gate (status Reset). A spike this long or shorter is bridged on
+  // the model's prediction.
+  int gate_max_rejects = 20;
 };
 
 struct ActiveModelStep {
@@ -21,7 +38,10 @@ struct ActiveModelStep {
   double y_post = 0.0;   // posterior output estimate (the paper's "with active model")
   double h = 0.0;
   double f_h = 0.0;
-  UkfStatus status = UkfStatus::Ok;
+  double nis = 0.0;      // normalised innovation squared of y_k (0 if y_k was not finite)
+  double nis_gate = 0.0; // what the gate compares with gate_nis: the NIS widened by the model's own step
+  bool rejected = false; // y_k was not used: not finite, or beyond the gate (y_post is the prediction)
+  UkfStatus status = UkfStatus::Ok;  // the worse of predict and update (a reset always shows)
 };
 
 class ActiveModel {
@@ -56,6 +76,8 @@ class ActiveModel {
   const model::Model::State& modelState() const { return st_; }
   double Ts() const { return Ts_; }
   unsigned resets() const { return resets_; }
+  unsigned outliers() const { return outliers_total_; }  // positions rejected by the gate since configure()
+  double nisLevel() const { return nis_level_; }  // mean NIS of the last ~1000 used positions
 
  private:
   model::Model model_;
@@ -66,6 +88,10 @@ class ActiveModel {
   double y_post_ = 0.0;      // last posterior output
   double du_pending_ = 0.0;  // u_eff(k-1) - u_eff(k-2): drives h_k = F(h_{k-1})
   unsigned resets_ = 0;
+  int outlier_run_ = 0;      // outliers in a row
+  unsigned outliers_total_ = 0;
+  double nis_level_ = 0.0;   // mean NIS of the last ~1000 used positions (the gate acts while <= 1)
+  int nis_count_ = 0;        // used positions in that mean (up to 1000)
 };
 
 }  // namespace pamc::estimation

@@ -8,6 +8,8 @@
 // Wm0 ~ -1e6, so means and covariances are taken about the central sigma point (exactly equal to the
 // weighted sums, without the cancellation) and the covariance is guarded:
 // symmetrised, checked by Cholesky, repaired by an eigenvalue floor, reset when that fails.)
+// update() can gate the measurement on its normalised innovation squared (NIS = nu' S^-1 nu, chi-square
+// with M degrees of freedom for a consistent filter): beyond the gate it is not used.
 // predict() and update() are noexcept and allocation-free; they return a status, never throw.
 #pragma once
 
@@ -29,6 +31,7 @@ enum class UkfStatus : unsigned {
   CovarianceRepaired = 1,  // P lost definiteness and was floored
   Reset = 2,               // P or x became non-finite: x kept if finite, P back to P0
   MeasurementRejected = 3, // non-finite measurement: the prior is kept
+  OutlierRejected = 4,     // innovation beyond the gate: the prior is kept, P held (see update())
 };
 
 inline const char* toString(UkfStatus s) {
@@ -37,9 +40,24 @@ inline const char* toString(UkfStatus s) {
     case UkfStatus::CovarianceRepaired: return "covariance repaired";
     case UkfStatus::Reset: return "reset";
     case UkfStatus::MeasurementRejected: return "measurement rejected";
+    case UkfStatus::OutlierRejected: return "outlier rejected";
   }
   return "?";
 }
+
+// Which of two statuses of one step to report: a reset outranks a rejected measurement, which
+// outranks a repair (a reset must never be hidden behind the rejection that came with it).
+inline int severity(UkfStatus s) noexcept {
+  switch (s) {
+    case UkfStatus::Ok: return 0;
+    case UkfStatus::CovarianceRepaired: return 1;
+    case UkfStatus::MeasurementRejected: return 2;
+    case UkfStatus::OutlierRejected: return 3;
+    case UkfStatus::Reset: return 4;
+  }
+  return 4;
+}
+inline UkfStatus worstOf(UkfStatus a, UkfStatus b) noexcept { return severity(a) >= severity(b) ? a : b; }
 
 template <int N, int M>
 class Ukf {
@@ -70,13 +88,17 @@ class Ukf {
     x_ = x0;
     P_ = P0;
     P0_ = P0;
+    P_last_ = P0;
+    nis_ = gate_stat_ = 0.0;
   }
 
   // x <- E[f(x)], P <- Cov[f(x)] + Q. f: Vec (const&) -> Vec.
   template <class F>
   UkfStatus predict(F&& f, const Mat& Q) noexcept {
     UkfStatus st = UkfStatus::Ok;
-    if (!sigmaPoints(st)) return UkfStatus::Reset;
+    const bool drawn = sigmaPoints(st);
+    P_last_ = P_;  // as used for the sigma points (repaired if it had to be)
+    if (!drawn) return UkfStatus::Reset;
     for (int i = 0; i < kSigma; ++i) Xp_.col(i) = f(static_cast<const Vec&>(X_.col(i)));
     x_ = weightedMean(Xp_);
     // About the central point: P = sum_i Wi d_i d_i' + (b - a^2) m m', d_i = X_i - X_0, m = x - X_0 -
@@ -94,13 +116,20 @@ class Ukf {
 
   // Measurement update with z = h(x) + v, v ~ N(0, R). h: Vec (const&) -> MVec.
   // Sigma points are drawn afresh from the predicted (x, P).
+  // gate > 0: a measurement whose innovation is beyond the gate, nu' (S + widen)^-1 nu > gate, is an
+  // outlier and is not used (OutlierRejected); widen (default 0) is spread the caller knows the
+  // filter's S leaves out. x stays the prediction and P goes back to what it was before the last
+  // predict(), so that a run of outliers is judged against the same spread as its first sample (with a
+  // large Q the predicted spread would otherwise grow so fast that the second sample of a spike got in).
+  // The caller decides when a run of outliers is the truth after all (reset(), then update() without
+  // the gate). nis() is nu' S^-1 nu either way.
   template <class H>
-  UkfStatus update(H&& h, const MVec& z, const MMat& R) noexcept {
+  UkfStatus update(H&& h, const MVec& z, const MMat& R, double gate = 0.0, const MMat& widen = MMat::Zero()) noexcept {
     UkfStatus st = UkfStatus::Ok;
     if (!sigmaPoints(st)) return UkfStatus::Reset;
     for (int i = 0; i < kSigma; ++i) Z_.col(i) = h(static_cast<const Vec&>(X_.col(i)));
     z_pred_ = weightedMean(Z_);
-    if (!z.allFinite()) return UkfStatus::MeasurementRejected;
+    if (!z.allFinite()) return worst(st, UkfStatus::MeasurementRejected);
     MMat S = MMat::Zero();
     Eigen::Matrix<double, N, M> C = Eigen::Matrix<double, N, M>::Zero();
     for (int i = 1; i < kSigma; ++i) {
@@ -116,8 +145,14 @@ class Ukf {
     S += R;
     Eigen::LLT<MMat> llt(S);
     if (llt.info() != Eigen::Success) return worst(st, hardReset());
-    const Eigen::Matrix<double, N, M> K = llt.solve(C.transpose()).transpose();
     innovation_ = z - z_pred_;
+    nis_ = innovation_.dot(llt.solve(innovation_));
+    gate_stat_ = innovation_.dot(MMat(S + widen).ldlt().solve(innovation_));
+    if (gate > 0.0 && !(gate_stat_ <= gate)) {
+      P_ = P_last_;
+      return worst(st, UkfStatus::OutlierRejected);
+    }
+    const Eigen::Matrix<double, N, M> K = llt.solve(C.transpose()).transpose();
     x_ += K * innovation_;
     P_ -= K * S * K.transpose();
     return worst(st, guard());
@@ -128,16 +163,18 @@ class Ukf {
   const Mat& P() const noexcept { return P_; }
   // Predicted measurement of the last update (before the measurement was used).
   const MVec& predictedMeasurement() const noexcept { return z_pred_; }
+  // Innovation, its NIS and the statistic the gate compares (NIS with widen) of the last update that got
+  // that far (also when the gate rejected it).
   const MVec& innovation() const noexcept { return innovation_; }
+  double nis() const noexcept { return nis_; }
+  double gateStatistic() const noexcept { return gate_stat_; }
   double lambda() const noexcept { return lambda_; }
   double wm0() const noexcept { return wm0_; }
   double wc0() const noexcept { return wc0_; }
   double wi() const noexcept { return wi_; }
 
  private:
-  static UkfStatus worst(UkfStatus a, UkfStatus b) noexcept {
-    return static_cast<unsigned>(a) > static_cast<unsigned>(b) ? a : b;
-  }
+  static UkfStatus worst(UkfStatus a, UkfStatus b) noexcept { return worstOf(a, b); }
 
   // Mean as central point plus weighted offsets: with Wm0 ~ -1e6 the plain weighted sum
   // would cancel catastrophically.
@@ -202,6 +239,8 @@ class Ukf {
   Vec x_ = Vec::Zero();
   Mat P_ = Mat::Identity();
   Mat P0_ = Mat::Identity();
+  Mat P_last_ = Mat::Identity();  // P before the last predict (held on an outlier)
+  double nis_ = 0.0, gate_stat_ = 0.0;
   Sigmas X_ = Sigmas::Zero();
   Sigmas Xp_ = Sigmas::Zero();
   MSigmas Z_ = MSigmas::Zero();
