@@ -29,8 +29,10 @@ bool parseFrame(std::string_view token, Frame& out, std::string* error = nullptr
 bool parseCandumpLine(std::string_view line, CandumpRecord& out, std::string* error = nullptr);
 
 // Reads a whole log; empty lines are skipped. Throws std::runtime_error "name:line: problem".
-std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& name);
-std::vector<CandumpRecord> readCandumpLog(const std::string& path);
+// A last line without its newline is a record cut off by a crash of the writer: it is ignored, and
+// *warning (if given) says so ("name:line: truncated last line ignored ..."); otherwise it stays empty.
+std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& name, std::string* warning = nullptr);
+std::vector<CandumpRecord> readCandumpLog(const std::string& path, std::string* warning = nullptr);
 
 class CandumpWriter {
  public:

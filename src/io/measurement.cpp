@@ -1,13 +1,16 @@
 #include "io/measurement.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <sstream>
-#include <unistd.h>
 
 namespace pamc::io {
 
@@ -165,20 +168,74 @@ Measurement readMeasurementCsv(const std::string& path) {
   return parseMeasurementCsv(ss.str(), path);
 }
 
-void writeFileAtomic(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw std::runtime_error(path + ": cannot write (is the directory there and writable?)");
-    f << content;
-    f.flush();
-    if (!f) {
-      std::remove(tmp.c_str());
-      throw std::runtime_error(path + ": write failed");
+namespace {
+
+// write(2) the whole buffer (short writes, EINTR); false with errno on failure.
+bool writeAll(int fd, const char* p, size_t n) {
+  while (n > 0) {
+    const ssize_t w = ::write(fd, p, n);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return false;
     }
+    p += w;
+    n -= static_cast<size_t>(w);
   }
+  return true;
+}
+
+// Content into fd, then onto the disk (fsync: the rename below must not reach the disk before the data).
+bool writeAndSync(int fd, const std::string& content) {
+  return writeAll(fd, content.data(), content.size()) && ::fsync(fd) == 0;
+}
+
+}  // namespace
+
+void writeFileAtomic(const std::string& path, const std::string& content) {
+  // First choice: an unnamed file in the target's directory (O_TMPFILE), given its name only when it is
+  // complete. A crash or kill -9 during the write leaves nothing behind - no half-written file and no
+  // temporary - because the kernel frees an unnamed file with its last descriptor.
+  const auto slash = path.find_last_of('/');
+  const std::string dir = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  int fd = ::open(dir.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0666);
+  if (fd >= 0) {
+    if (!writeAndSync(fd, content)) {
+      ::close(fd);
+      throw std::runtime_error(path + ": write failed (" + std::strerror(errno) + ")");
+    }
+    char proc[64];
+    std::snprintf(proc, sizeof proc, "/proc/self/fd/%d", fd);
+    // No file there yet: link it in place directly (linkat never replaces one).
+    if (::linkat(AT_FDCWD, proc, AT_FDCWD, path.c_str(), AT_SYMLINK_FOLLOW) == 0) {
+      ::close(fd);
+      return;
+    }
+    // A file to replace: link under a temporary name, then rename over it (atomic). Only between these
+    // two calls does a named temporary exist.
+    const bool linked = errno == EEXIST && ::linkat(AT_FDCWD, proc, AT_FDCWD, tmp.c_str(), AT_SYMLINK_FOLLOW) == 0;
+    ::close(fd);
+    if (linked) {
+      if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        ::unlink(tmp.c_str());
+        throw std::runtime_error(path + ": cannot rename temporary file into place");
+      }
+      return;
+    }
+    // No /proc, or the file system cannot link it: the named temporary below.
+  }
+  // Fallback (file systems without O_TMPFILE): a named temporary, written, synced and renamed.
+  fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd < 0) throw std::runtime_error(path + ": cannot write (is the directory there and writable?)");
+  if (!writeAndSync(fd, content)) {
+    const int e = errno;
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw std::runtime_error(path + ": write failed (" + std::strerror(e) + ")");
+  }
+  ::close(fd);
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
+    ::unlink(tmp.c_str());
     throw std::runtime_error(path + ": cannot rename temporary file into place");
   }
 }

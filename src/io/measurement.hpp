@@ -37,10 +37,15 @@ Measurement readMeasurementCsv(const std::string& path);
 // Parses CSV text (source names it in errors).
 Measurement parseMeasurementCsv(const std::string& text, const std::string& source);
 
-// Writes columns as CSV atomically (temporary file, then rename). Throws std::runtime_error.
+// Writes columns as CSV atomically: the file appears complete or not at all (see writeFileAtomic).
+// Throws std::runtime_error.
 void writeCsvAtomic(const std::string& path, const std::vector<std::string>& header,
                     const std::vector<const std::vector<double>*>& columns, int precision = 9);
-// Writes a text file atomically.
+// Writes a text file atomically: written into an unnamed file in the target's directory (O_TMPFILE),
+// synced, and linked or renamed into place when complete, so a crash or kill -9 leaves either the old
+// file or the new one, never a half-written file and (but for the instant between link and rename when
+// a file is replaced) no temporary. Falls back to a named temporary PATH.tmp.PID where O_TMPFILE is
+// not supported.
 void writeFileAtomic(const std::string& path, const std::string& content);
 
 }  // namespace pamc::io

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -88,6 +89,88 @@ FaultRun runBusFault(BusFault f, const FaultRigOptions& o = {});
 std::vector<FaultRun> runFaultTable(const std::vector<BusFault>& faults, const FaultRigOptions& o = {});
 // Markdown table: fault, reaction, cycles to safe state, EMCY, recovered, data lost.
 std::string faultTableMarkdown(const std::vector<FaultRun>& runs);
+
+// Soak: one long run of the rig in virtual time with faults of the catalogue injected one after the
+// other at random times (seeded), checking that nothing degrades over the hours: memory (heap in use,
+// RSS), the cycle (one control cycle per SYNC period outside faults, no record lost, CPU time per
+// cycle), and tracking after every fault (RMSE over one trajectory period after control is back,
+// against the no-fault baseline of the same run). `pamc rig --soak HOURS`.
+//
+// The rig is set up for every fault at once: the controller consumes the SYNC of a separate producer
+// (so that SYNC faults can be injected), the bus has 1 Mbit/s bit timing with arbitration (for the
+// floods), and a second node-ID 1 and 2 sit idle on the bus until injected.
+struct SoakOptions {
+  std::string od_dir = "od";
+  control::Kind kind = control::Kind::PiAmc;
+  double kp = 0.1, ki = 1.5, kc = 0.06;
+  double hours = 24.0;                // simulated time in total
+  double report_s = 3600.0;           // one report line per this much simulated time
+  std::uint64_t seed = 1;             // fault times and choices, sensor noise
+  std::vector<BusFault> faults;       // the catalogue to draw from (empty: all)
+  double gap_min_s = 5.0, gap_max_s = 30.0;  // clean time between a fault's check and the next injection
+  double warmup_s = 20.0;             // trajectory time before the baseline is taken
+  int baseline_periods = 4;           // trajectory periods (5 s) averaged for the no-fault baseline
+  double settle_s = 6.0;              // after control is back, before the check period starts
+  double tolerance = 0.25;            // check: RMSE <= baseline * (1 + tolerance) + 0.005 mm
+  double resume_limit_s = 30.0;       // control must be back this long after the fault ended
+  double heap_growth_limit = 64 * 1024.0;  // bytes of heap growth allowed after the first report
+  double cpu_drift_limit = 1.5;       // CPU per cycle, last third of the reports over the first third
+};
+
+struct SoakInterval {
+  int index = 0;
+  double end_h = 0;                   // simulated hours at the end of the interval
+  std::uint64_t cycles = 0;           // control cycles run
+  std::uint64_t syncs = 0;            // SYNCs the producer sent
+  std::uint64_t missed_syncs = 0;     // SYNC gaps the controller counted (SYNC faults)
+  std::uint64_t lost_clean = 0;       // periods outside faults without exactly one control cycle
+  std::uint64_t ring_dropped = 0;     // cycle records lost in the ring (the soak drains every period)
+  std::uint64_t faults = 0;           // faults injected in the interval
+  std::uint64_t reacted = 0;          // ... that put the controller in its safe state
+  std::uint64_t checked = 0, back = 0;  // tracking checks done, and passed
+  double worst_ratio = 0;             // largest check RMSE / baseline
+  double clean_rmse_mean = 0, clean_rmse_max = 0;  // RMSE of the trajectory periods without faults [mm]
+  std::uint64_t clean_periods = 0;
+  std::uint64_t clean_bad = 0;        // ... of them above the tolerance (tracking left its level without a fault)
+  std::uint64_t safe_cycles = 0, samples_missing = 0;  // the controller's counters over the interval
+  std::uint64_t emcy = 0;             // EMCY frames (with resets)
+  double heap_mb = 0, rss_mb = 0;     // at the end of the interval
+  double cpu_us_per_cycle = 0;        // process CPU time per SYNC period of the interval
+  double step_us_p99 = 0, step_us_max = 0;  // wall time of one 1 ms step of the whole rig
+  double wall_s = 0;                  // wall time of the interval
+};
+
+struct SoakFaultStat {
+  BusFault fault = BusFault::None;
+  std::uint64_t injected = 0, reacted = 0, checked = 0, back = 0;
+  double worst_ratio = 0, max_resume_s = 0;
+};
+
+struct SoakResult {
+  std::vector<SoakInterval> intervals;
+  std::vector<SoakFaultStat> per_fault;  // in catalogue order, faults drawn at least once
+  std::vector<std::string> failures;     // the first 50, one line each
+  std::uint64_t failure_count = 0;
+  double baseline_rmse = 0;              // mm, over baseline_periods trajectory periods before any fault
+  std::uint64_t faults = 0, reacted = 0, checked = 0, back = 0;
+  double heap_growth_bytes = 0;          // last report minus first report
+  double rss_growth_mb = 0;
+  double cpu_drift = 0;                  // ratio, see cpu_drift_limit
+  bool memory_ok = true, cycle_ok = true, tracking_ok = true, timing_ok = true;
+  bool passed() const { return memory_ok && cycle_ok && tracking_ok && timing_ok; }
+  double wall_s = 0;
+  bool asan = false;                     // heap figures from AddressSanitizer's allocator
+};
+
+// Runs the soak; on_interval (if set) sees each report line as it completes, on_progress every
+// simulated minute (simulated seconds so far).
+SoakResult runSoak(const SoakOptions& o, const std::function<void(const SoakInterval&)>& on_interval = {},
+                   const std::function<void(double)>& on_progress = {});
+std::string soakIntervalHeader();
+std::string soakIntervalLine(const SoakInterval& i);
+// The whole report: per-interval table (unless intervals is false), per-fault table, memory, cycle and
+// tracking summary, failures, verdict.
+std::string soakReport(const SoakOptions& o, const SoakResult& r, bool intervals = true);
 
 // The parameter guard: SDO writes to the running controller and what became of them.
 struct GuardRow {
