@@ -86,8 +86,8 @@ check "rig: median loss at most 2 cycles (CSV: $median_csv, log: $median_log ms)
 # ---- 2. pamc fit --out m.json ----------------------------------------------------------------------------
 d="$W/fit"; mkdir -p "$d"
 "$PAMC" emulate --duration 20 --out "$d/data.csv" > /dev/null
-fit() { "$PAMC" fit "$d/data.csv" --out "$d/m.json" --threads 1 --population 20 --generations 30 --quiet > /dev/null 2>&1; }
-start=$(date +%s%N); fit; check "fit runs to the end" test $? -eq 0; end=$(date +%s%N)
+fit_args=(fit "$d/data.csv" --out "$d/m.json" --threads 1 --population 20 --generations 30 --quiet)
+start=$(date +%s%N); "$PAMC" "${fit_args[@]}" > /dev/null 2>&1; check "fit runs to the end" test $? -eq 0; end=$(date +%s%N)
 cp "$d/m.json" "$d/complete.json"
 T=$(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.3f", (b - a) / 1e9 }')
 valid_model() { "$PAMC" rig --od "$SRC/od" --model "$1" --controller amc --duration 0.01 --preroll 0.01 > /dev/null 2>&1; }
@@ -95,7 +95,8 @@ absent=0; old=0; new=0
 for k in $(seq 1 $((2 * KILLS))); do
   # Even kills replace an old m.json (dated 2000), odd ones write a new one.
   if [ $((k % 2)) -eq 0 ]; then cp "$d/complete.json" "$d/m.json"; touch -d '2000-01-01' "$d/m.json"; else rm -f "$d/m.json"; fi
-  fit & pid=$!
+  "$PAMC" "${fit_args[@]}" > /dev/null 2>&1 &  # pamc itself in the background, so that the kill hits it
+  pid=$!
   sleep_between "$(awk -v t="$T" 'BEGIN { print 0.5 * t }')" "$(awk -v t="$T" 'BEGIN { print 1.2 * t }')"
   kill -9 "$pid" 2> /dev/null
   wait "$pid" 2> /dev/null
