@@ -13,17 +13,24 @@
 using namespace pamc;
 
 namespace {
+// An open-loop emulator run as the measurement the identification reads (1 kHz).
+template <class Run>
+io::Measurement measurementOf(const Run& r) {
+  io::Measurement d;
+  d.source = "emulator";
+  d.t = r.t;
+  d.u = r.u;
+  d.y = r.y;
+  d.Ts = 1e-3;
+  return d;
+}
+
 // A reference model identified on the emulator once for all tests of this file.
 const model::Model& identified() {
   static const model::Model m = [] {
     plant::Plant p;
     const auto r = sim::runOpenLoopInput(p, sim::Trajectory::sine(0.1, 2.9, 0.2), 20.0);
-    io::Measurement d;
-    d.source = "emulator";
-    d.t = r.t;
-    d.u = r.u;
-    d.y = r.y;
-    d.Ts = 1e-3;
+    const io::Measurement d = measurementOf(r);
     ident::FitSettings s;
     s.ga.max_generations = 60;
     return ident::fit(model::Model{}, d, s).model;
@@ -146,12 +153,7 @@ plant::PlantConfig laggingPlant() {
 model::Model fitOnLaggingPlant(const std::vector<std::string>& effects) {
   plant::Plant p(laggingPlant());
   const auto r = sim::runOpenLoopInput(p, sim::Trajectory::parse("random:1:-3:3"), 30.0);
-  io::Measurement d;
-  d.source = "emulator";
-  d.t = r.t;
-  d.u = r.u;
-  d.y = r.y;
-  d.Ts = 1e-3;
+  const io::Measurement d = measurementOf(r);
   model::Model structure;
   for (const auto& e : effects) structure.addEffect(e);
   ident::FitSettings s;
