@@ -15,26 +15,72 @@ void ActiveModel::configure(const model::Model& m, const ActiveModelSettings& s,
   settings_ = s;
   Ts_ = Ts;
   ukf_.configure(s.ukf);
+  core_.configure(s.ukf);
   reset(0.0);
 }
 
+template <class F>
+typename F::Mat ActiveModel::P0() const noexcept {
+  typename F::Mat P = F::Mat::Identity();  // unused filter states: inert at 1
+  P(0, 0) = settings_.P0_h;
+  P(1, 1) = settings_.P0_f;
+  for (int i = 0; i < nf_ && kCore + i < F::Mat::RowsAtCompileTime; ++i) P(kCore + i, kCore + i) = settings_.P0_out;
+  return P;
+}
+
+template <class F>
+typename F::Mat ActiveModel::Q() const noexcept {
+  typename F::Mat Q = F::Mat::Zero();
+  Q(0, 0) = nf_ > 0 ? settings_.Q_h_lag : settings_.Q_h;
+  Q(1, 1) = nf_ > 0 ? settings_.Q_f_lag : settings_.Q_f;
+  for (int i = 0; i < nf_ && kCore + i < F::Mat::RowsAtCompileTime; ++i) Q(kCore + i, kCore + i) = settings_.Q_out;
+  return Q;
+}
+
+ActiveModel::Filter::Vec ActiveModel::state() const noexcept {
+  if (nf_ > 0) return ukf_.x();
+  Filter::Vec x = Filter::Vec::Zero();
+  x.head<kCore>() = core_.x();
+  return x;
+}
+
+ActiveModel::Filter::Mat ActiveModel::covariance() const noexcept {
+  if (nf_ > 0) return ukf_.P();
+  Filter::Mat P = Filter::Mat::Identity();
+  P.topLeftCorner<kCore, kCore>() = core_.P();
+  return P;
+}
+
 void ActiveModel::reset(double u0, double load) noexcept {
+  nf_ = model_.numFilterStates();
   model::StepContext c;
   c.Ts = Ts_;
   c.load = load;
   model_.init(st_, u0, c);
-  Filter::Mat P0;
-  P0 << settings_.P0_h, 0.0, 0.0, settings_.P0_f;
-  ukf_.reset(Filter::Vec(st_.h, 0.0), P0);
+  Filter::Vec x0 = Filter::Vec::Zero();
+  x0(0) = st_.h;
+  for (int i = 0; i < nf_; ++i) x0(kCore + i) = st_.s[static_cast<size_t>(model_.filterStateIndex(i))];
+  if (nf_ > 0) ukf_.reset(x0, P0<Filter>());
+  else core_.reset(x0.head<kCore>(), P0<CoreFilter>());
   du_pending_ = 0.0;
   outlier_run_ = 0;
   nis_level_ = 0.0;
   nis_count_ = 0;
+  // At rest the output effects stay where they are: the first transition starts from here.
+  st_prev_ = st_;
+  ue_prev_ = st_.u_eff_prev;
+  load_prev_ = load;
   c.u_eff = st_.u_eff_prev;
   y_post_ = model_.outputPeek(st_, model_.coreOutput(st_.u_eff_prev, st_.h), c);
 }
 
 ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
+  return nf_ > 0 ? step(ukf_, u, y, load) : step(core_, u, y, load);
+}
+
+template <class F>
+ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexcept {
+  using Vec = typename F::Vec;
   if (!std::isfinite(u)) u = st_.u_eff_prev;  // a nonsense command must not reach the model's states
   model::StepContext c;
   c.Ts = Ts_;
@@ -43,23 +89,38 @@ ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
   const double Ts = Ts_;
   const double du = du_pending_;
 
-  // Eq. (9): F(X) = [h + (BW(u_delta, h) + f_h) Ts, f_h].
-  Filter::Mat Q;
-  Q << settings_.Q_h, 0.0, 0.0, settings_.Q_f;
+  // Eq. (9): F(X) = [h + (BW(u_delta, h) + f_h) Ts, f_h], and the filter states s of the output
+  // effects advanced by the last sample's output stage, driven by that sample's core output.
+  const auto& mdl = model_;
+  model::StepContext cp;
+  cp.Ts = Ts;
+  cp.load = load_prev_;
+  cp.u_eff = ue_prev_;
+  const int nf = nf_;
   ActiveModelStep out;
-  UkfStatus s1 = ukf_.predict(
-      [&](const Filter::Vec& x) {
-        return Filter::Vec(model::boucWenNext(p, x(0), du, x(1), Ts), x(1));
+  UkfStatus s1 = ukf.predict(
+      [&](const Vec& x) {
+        Vec n = x;
+        n(0) = model::boucWenNext(p, x(0), du, x(1), Ts);
+        if constexpr (Vec::RowsAtCompileTime > kCore) {
+          double next[model::kMaxFilterStates];
+          mdl.outputWith(st_prev_, x.data() + kCore, next, mdl.coreOutput(ue_prev_, x(0)), cp);
+          for (int i = 0; i < nf; ++i) n(kCore + i) = next[i];
+        }
+        return n;
       },
-      Q);
+      Q<F>());
 
   const double ue = model_.inputStage(st_, u, c);
   c.u_eff = ue;
-  // Eq. (9): H(X) = k rho u + b + k (1 - rho) h, then the output effects (not advanced).
-  const auto& mdl = model_;
+  // Eq. (9): H(X) = k rho u + b + k (1 - rho) h, then the output effects (not advanced), their
+  // filter states taken from X.
   const auto& st = st_;
-  auto H = [&](const Filter::Vec& x) {
-    return Eigen::Matrix<double, 1, 1>(mdl.outputPeek(st, mdl.coreOutput(ue, x(0)), c));
+  auto H = [&](const Vec& x) {
+    if constexpr (Vec::RowsAtCompileTime > kCore)
+      return Eigen::Matrix<double, 1, 1>(mdl.outputWith(st, x.data() + kCore, nullptr, mdl.coreOutput(ue, x(0)), c));
+    else
+      return Eigen::Matrix<double, 1, 1>(mdl.outputPeek(st, mdl.coreOutput(ue, x(0)), c));
   };
   Eigen::Matrix<double, 1, 1> R;
   R << settings_.R;
@@ -68,28 +129,26 @@ ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
   // the model moves at once and the muscle with its lag, a miss that is the model's, not the sensor's.
   const bool consistent = nis_count_ >= kNisWindow && nis_level_ <= 1.0;
   const double gate = settings_.gate_nis > 0.0 && consistent ? settings_.gate_nis : 0.0;
-  const double dy_model = H(ukf_.x())(0) - y_post_;
+  const double dy_model = H(ukf.x())(0) - y_post_;
   Eigen::Matrix<double, 1, 1> widen;
   widen << (std::isfinite(dy_model) ? dy_model * dy_model : 0.0);
-  UkfStatus s2 = ukf_.update(H, Eigen::Matrix<double, 1, 1>(y), R, gate, widen);
-  out.nis_gate = std::isfinite(y) ? ukf_.gateStatistic() : 0.0;
+  UkfStatus s2 = ukf.update(H, Eigen::Matrix<double, 1, 1>(y), R, gate, widen);
+  out.nis_gate = std::isfinite(y) ? ukf.gateStatistic() : 0.0;
   // One outlier more than gate_max_rejects in a row is the truth after all (the sensor moved, or the
   // filter is lost): start over from P0 at the prediction and take the position without the gate. The
   // gate then re-learns the filter's level, as after reset(), so the way back is not gated either.
   bool restart = false;
   if (s2 == UkfStatus::OutlierRejected && settings_.gate_max_rejects > 0 && outlier_run_ >= settings_.gate_max_rejects) {
-    Filter::Mat P0;
-    P0 << settings_.P0_h, 0.0, 0.0, settings_.P0_f;
-    ukf_.reset(ukf_.x(), P0);  // x is the prediction: a rejected update leaves it there
-    s2 = worstOf(ukf_.update(H, Eigen::Matrix<double, 1, 1>(y), R), UkfStatus::Reset);
+    ukf.reset(ukf.x(), P0<F>());  // x is the prediction: a rejected update leaves it there
+    s2 = worstOf(ukf.update(H, Eigen::Matrix<double, 1, 1>(y), R), UkfStatus::Reset);
     restart = true;
     outlier_run_ = 0;
     nis_count_ = 0;
     nis_level_ = 0.0;
   }
-  out.y_prior = ukf_.predictedMeasurement()(0);
+  out.y_prior = ukf.predictedMeasurement()(0);
   out.rejected = s2 == UkfStatus::MeasurementRejected || s2 == UkfStatus::OutlierRejected;
-  out.nis = std::isfinite(y) ? ukf_.nis() : 0.0;
+  out.nis = std::isfinite(y) ? ukf.nis() : 0.0;
   if (s2 == UkfStatus::OutlierRejected) {
     ++outlier_run_;
     ++outliers_total_;
@@ -102,15 +161,32 @@ ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
     }
   }
 
-  out.h = ukf_.x()(0);
-  out.f_h = ukf_.x()(1);
-  // Advance the output effects with the posterior core output.
+  out.h = ukf.x()(0);
+  out.f_h = ukf.x()(1);
+  // The posterior filter states into the model's state, kept as the start of the next transition;
+  // then the output effects advance with the posterior core output.
+  if constexpr (Vec::RowsAtCompileTime > kCore)
+    for (int i = 0; i < nf_; ++i) st_.s[static_cast<size_t>(model_.filterStateIndex(i))] = ukf.x()(kCore + i);
+  st_prev_ = st_;
+  ue_prev_ = ue;
+  load_prev_ = load;
   out.y_post = model_.outputStage(st_, model_.coreOutput(ue, out.h), c);
   y_post_ = out.y_post;
   st_.h = out.h;
   du_pending_ = ue - st_.u_eff_prev;
   st_.u_eff_prev = ue;
   out.status = worstOf(s1, s2);
+  // Divergence guard: a used position the posterior misses by more than `diverge` - the filter is
+  // lost whatever its P says. Start over from the model at rest for this command, and say so.
+  const bool used = s2 == UkfStatus::Ok || s2 == UkfStatus::CovarianceRepaired || restart;
+  if (settings_.diverge > 0.0 && used && std::isfinite(y) && !(std::fabs(y - out.y_post) <= settings_.diverge)) {
+    reset(u, load);
+    ++divergences_;
+    out.h = h();
+    out.f_h = fh();
+    out.y_post = y_post_;
+    out.status = UkfStatus::Reset;
+  }
   if (out.status == UkfStatus::Reset) ++resets_;
   return out;
 }
@@ -124,8 +200,8 @@ double ActiveModel::predictNext(double u_eff_prev, double u_eff_next, double loa
   // Without compensation (u = u_n) this is eq. (17) exactly; with it, the estimate (fitted with the
   // applied u = u_n + u_c) is not compared against u_n through the direct feedthrough k rho, which
   // would feed u_c back onto itself with gain kc k rho and ring when that exceeds 1.
-  const double h0 = ukf_.x()(0);
-  const double h1 = model::boucWenNext(model_.core(), h0, u_eff_next - u_eff_prev, ukf_.x()(1), Ts_);
+  const double h0 = h();
+  const double h1 = model::boucWenNext(model_.core(), h0, u_eff_next - u_eff_prev, fh(), Ts_);
   model::StepContext c1 = c;
   c1.u_eff = u_eff_next;
   c.u_eff = u_eff_prev;
@@ -140,8 +216,8 @@ double ActiveModel::predictAhead(const double* in_flight, int n_in_flight, doubl
   c.Ts = Ts_;
   c.load = load;
   model::Model::State s = st_;
-  double h = ukf_.x()(0);
-  const double f = ukf_.x()(1);
+  double h = this->h();
+  const double f = fh();
   double du = du_pending_;
   double y = y_post_;
   for (int i = 0; i < horizon; ++i) {

@@ -1,7 +1,10 @@
 // Active modelling (paper Section 3): a UKF over the joint state X = [h, f_h] of eqs. (6)-(9),
 // where h is the hysteresis state of the model and f_h the modelling error, a random walk.
-// The transition and measurement are the shared Model's; effect states of the model are
-// propagated alongside with the filter's mean.
+// The transition and measurement are the shared Model's. A model with lagging output dynamics
+// (mass_spring, creep: Model::numFilterStates) has those states in X as well, X = [h, f_h, s]: the
+// measurement of one sample hardly depends on that sample's h (through mass_spring by (wn Ts)^2), so
+// the filter must know how h reaches y over the following samples, or P_h grows without bound and the
+// gain on h with it. The other effect states are propagated alongside with the filter's mean.
 #pragma once
 
 #include "estimation/ukf.hpp"
@@ -14,6 +17,18 @@ struct ActiveModelSettings {
   double P0_h = 10.0, P0_f = 10.0;  // eq. (26)
   double Q_h = 10.0, Q_f = 10.0;    // eq. (26)
   double R = 0.001;                 // eq. (26) [mm^2]
+  // A model with lagging output dynamics (Model::numFilterStates() > 0; not in the paper). Eq. (26)'s
+  // Q = 10 per sample on h and f_h is harmless while each position pins h (the paper's model: y moves
+  // with h in the same sample, and R << Q); when h reaches y only over the following samples, Q is what
+  // the filter believes h may jump by, and 10 (3 V per millisecond) makes its estimate as noisy
+  // (0.5 mm here) and its command as jumpy. Such a model uses these instead of Q_h and Q_f, and carries
+  // the output effects' states with this initial spread and random walk (their own units: mm, mm/s).
+  double Q_h_lag = 0.1, Q_f_lag = 0.1;
+  double P0_out = 1.0, Q_out = 1e-6;
+  // Divergence guard (not in the paper): a used position that the posterior output misses by more
+  // than this [output units] means the filter is lost, whatever its P says; it restarts from the model
+  // at rest for the command (status Reset, so the controller goes to its safe state). 0: no guard.
+  double diverge = 10.0;
   // Innovation gate (not in the paper): a position whose normalised innovation squared
   // NIS = (y - y_prior)^2 / S exceeds gate_nis is an outlier and is not used (0: no gate). 25 is five
   // standard deviations of the filter's own predicted spread; with eq. (26)'s Q the one-step spread is
@@ -46,7 +61,11 @@ struct ActiveModelStep {
 
 class ActiveModel {
  public:
-  using Filter = Ukf<2, 1>;
+  static constexpr int kCore = 2;  // h, f_h
+  // The paper's filter for a model without lagging output dynamics; the joint one otherwise (states
+  // it does not use are inert). Both fixed-size: nothing is allocated in update().
+  using CoreFilter = Ukf<kCore, 1>;
+  using Filter = Ukf<kCore + model::kMaxFilterStates, 1>;
 
   // May allocate (copies the model).
   void configure(const model::Model& m, const ActiveModelSettings& s, double Ts);
@@ -72,10 +91,16 @@ class ActiveModel {
   // first (in_flight[0] the oldest), then u_hold for the rest of the horizon.
   double predictAhead(const double* in_flight, int n_in_flight, double u_hold, int horizon, double load) const noexcept;
 
-  const Filter& filter() const { return ukf_; }
+  // The filter in use: its state [h, f_h, filter states...] and covariance (the core filter's
+  // embedded in the joint size, with 1 on the diagonal it does not have).
+  int filterSize() const noexcept { return kCore + nf_; }
+  Filter::Vec state() const noexcept;
+  Filter::Mat covariance() const noexcept;
+  double gateStatistic() const noexcept { return nf_ > 0 ? ukf_.gateStatistic() : core_.gateStatistic(); }
   const model::Model::State& modelState() const { return st_; }
   double Ts() const { return Ts_; }
-  unsigned resets() const { return resets_; }
+  unsigned resets() const { return resets_; }  // of every kind (P, gate, divergence)
+  unsigned divergences() const { return divergences_; }  // restarts by the divergence guard
   unsigned outliers() const { return outliers_total_; }  // positions rejected by the gate since configure()
   double nisLevel() const { return nis_level_; }  // mean NIS of the last ~1000 used positions
 
@@ -85,6 +110,20 @@ class ActiveModel {
   Filter ukf_;
   model::Model::State st_;
   double Ts_ = 1e-3;
+  template <class F>
+  typename F::Mat P0() const noexcept;
+  template <class F>
+  typename F::Mat Q() const noexcept;
+  template <class F>
+  ActiveModelStep step(F& f, double u, double y, double load) noexcept;
+  double h() const noexcept { return nf_ > 0 ? ukf_.x()(0) : core_.x()(0); }
+  double fh() const noexcept { return nf_ > 0 ? ukf_.x()(1) : core_.x()(1); }
+  CoreFilter core_;
+  model::Model::State st_prev_;  // effect states of the last sample (filter states: posterior mean)
+  double ue_prev_ = 0.0;     // effective command of the last sample
+  double load_prev_ = 0.0;
+  int nf_ = 0;               // filter states in use (model_.numFilterStates())
+  unsigned divergences_ = 0;
   double y_post_ = 0.0;      // last posterior output
   double du_pending_ = 0.0;  // u_eff(k-1) - u_eff(k-2): drives h_k = F(h_{k-1})
   unsigned resets_ = 0;

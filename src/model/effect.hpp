@@ -53,6 +53,11 @@ class Effect {
   virtual int rank() const = 0;
   virtual const std::vector<ParamSpec>& params() const = 0;
   virtual int numStates() const = 0;
+  // How many of the leading states the estimator carries in its own joint state (with their
+  // uncertainty) instead of propagating them with its mean: the states through which the input of an
+  // output effect reaches the displacement with a lag (inertia, creep), so that the measurement at one
+  // sample hardly depends on the hysteresis state of that sample. 0 for effects with a direct path.
+  virtual int numFilterStates() const { return 0; }
   // Put the states at rest for a constant stage input `in0`.
   virtual void init(const double* p, double* s, double in0, const StepContext& c) const noexcept = 0;
   // One sample: takes the stage input at sample k, returns the stage output at sample k and

@@ -13,6 +13,8 @@ Model::Model(const Model& o) : core_(o.core_), eff_params_(o.eff_params_) {
   n_input_ = o.n_input_;
   out_state_begin_ = o.out_state_begin_;
   out_state_end_ = o.out_state_end_;
+  n_filter_ = o.n_filter_;
+  filter_index_ = o.filter_index_;
 }
 
 Model& Model::operator=(const Model& o) {
@@ -63,12 +65,20 @@ void Model::relayout() {
   int off = 0;
   n_input_ = 0;
   out_state_begin_ = -1;
+  n_filter_ = 0;
   for (auto& s : effects_) {
     if (s.impl->stage() == Stage::Input) ++n_input_;
     if (s.impl->stage() == Stage::Output && out_state_begin_ < 0) out_state_begin_ = off;
     s.state_offset = off;
     const int n = s.impl->numStates();
     if (n > kMaxEffectStates) throw std::logic_error(std::string("effect ") + s.impl->name() + " has too many states");
+    const int nf = s.impl->numFilterStates();
+    if (nf < 0 || nf > n) throw std::logic_error(std::string("effect ") + s.impl->name() + " has a bad filter-state count");
+    if (s.impl->stage() == Stage::Output) {
+      if (n_filter_ + nf > kMaxFilterStates)
+        throw std::logic_error("more than " + std::to_string(kMaxFilterStates) + " filter states in one model");
+      for (int j = 0; j < nf; ++j) filter_index_[static_cast<size_t>(n_filter_++)] = off + j;
+    }
     off += n;
   }
   if (off > kMaxModelStates) throw std::invalid_argument("too many effect states in one model");
@@ -194,6 +204,22 @@ double Model::outputPeek(const State& st, double y, const StepContext& c) const 
     const auto& s = effects_[i];
     y = s.impl->step(eff_params_.data() + s.param_offset, tmp + (s.state_offset - out_state_begin_), y, c);
   }
+  return y;
+}
+
+double Model::outputWith(const State& st, const double* xf, double* xf_next, double y,
+                         const StepContext& c) const noexcept {
+  if (!hasOutputEffects()) return y;
+  double tmp[kMaxModelStates];
+  const int n = out_state_end_ - out_state_begin_;
+  std::memcpy(tmp, st.s.data() + out_state_begin_, sizeof(double) * static_cast<size_t>(n));
+  for (int i = 0; i < n_filter_; ++i) tmp[filter_index_[static_cast<size_t>(i)] - out_state_begin_] = xf[i];
+  for (size_t i = static_cast<size_t>(n_input_); i < effects_.size(); ++i) {
+    const auto& s = effects_[i];
+    y = s.impl->step(eff_params_.data() + s.param_offset, tmp + (s.state_offset - out_state_begin_), y, c);
+  }
+  if (xf_next)
+    for (int i = 0; i < n_filter_; ++i) xf_next[i] = tmp[filter_index_[static_cast<size_t>(i)] - out_state_begin_];
   return y;
 }
 

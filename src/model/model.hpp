@@ -17,6 +17,9 @@
 namespace pamc::model {
 
 constexpr int kMaxModelStates = 600;
+// Output-effect states an estimator can carry in its own state (Effect::numFilterStates; mass_spring's
+// two and creep's one fit).
+constexpr int kMaxFilterStates = 3;
 
 class Model {
  public:
@@ -68,6 +71,14 @@ class Model {
   double outputStage(State& st, double y_core, const StepContext& c) const noexcept;
   // Same without touching st (for sigma points and predictions).
   double outputPeek(const State& st, double y_core, const StepContext& c) const noexcept;
+  // The output effects' states an estimator carries itself (Effect::numFilterStates of the output
+  // effects, in chain order, at most kMaxFilterStates): how many, and where each is in State::s.
+  int numFilterStates() const { return n_filter_; }
+  int filterStateIndex(int i) const { return filter_index_[static_cast<size_t>(i)]; }
+  // outputPeek with the filter states taken from xf (numFilterStates() values) instead of st; the
+  // filter states after the sample are written to xf_next when it is not null. st is not touched.
+  double outputWith(const State& st, const double* xf, double* xf_next, double y_core,
+                    const StepContext& c) const noexcept;
   // One whole sample: returns y_k for command u_k and advances st to k+1. f_h is the
   // modelling-error input of eq. (4) (0 for the reference model).
   double step(State& st, double u, const StepContext& c, double f_h = 0.0) const noexcept;
@@ -94,6 +105,8 @@ class Model {
   int n_input_ = 0;
   int out_state_begin_ = 0;  // first state index of the output effects
   int out_state_end_ = 0;
+  int n_filter_ = 0;
+  std::array<int, kMaxFilterStates> filter_index_{};
 };
 
 }  // namespace pamc::model

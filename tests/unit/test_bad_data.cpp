@@ -227,11 +227,12 @@ Trace simulate(const Spec& s, Checks* checks = nullptr, long run = 0) {
       c.max_abs_x3 = std::max(c.max_abs_x3, std::fabs(ctrl->disturbance()));
     }
     if (!am) continue;
-    const Eigen::Matrix2d P = am->filter().P();
-    const double asym = std::fabs(P(0, 1) - P(1, 0));
+    using PMat = estimation::ActiveModel::Filter::Mat;
+    const PMat P = am->covariance();
+    const double asym = (P - P.transpose()).cwiseAbs().maxCoeff();
     c.max_asym = std::max(c.max_asym, asym);
-    const Eigen::LLT<Eigen::Matrix2d> llt(P);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(P, Eigen::EigenvaluesOnly);
+    const Eigen::LLT<PMat> llt(P);
+    const Eigen::SelfAdjointEigenSolver<PMat> es(P, Eigen::EigenvaluesOnly);
     const double eig = es.eigenvalues().minCoeff();
     c.min_eig = std::min(c.min_eig, eig);
     if (!P.allFinite() || asym != 0.0 || llt.info() != Eigen::Success || !(eig > 0.0))
@@ -489,7 +490,7 @@ TEST(BadDataProperty, CleanDataNeverReachesTheGate) {
       for (long k = 0; k < 20000; ++k) {
         const double t = k * kTs;
         const auto o = ctrl->update(traj.at(t), traj.at(t + kTs), p.measure());
-        if (k > 1000) max_nis = std::max(max_nis, ctrl->activeModel()->filter().gateStatistic());
+        if (k > 1000) max_nis = std::max(max_nis, ctrl->activeModel()->gateStatistic());
         pipe = {o.u, pipe[0], pipe[1]};
         p.step(pipe[2]);
       }
@@ -521,9 +522,10 @@ struct FilterBench {
     return am.update(u, edit ? edit(y) : y);
   }
   bool spd() const {
-    const auto& P = am.filter().P();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(P, Eigen::EigenvaluesOnly);
-    return P.allFinite() && P(0, 1) == P(1, 0) && Eigen::LLT<Eigen::Matrix2d>(P).info() == Eigen::Success &&
+    using PMat = estimation::ActiveModel::Filter::Mat;
+    const PMat& P = am.covariance();
+    const Eigen::SelfAdjointEigenSolver<PMat> es(P, Eigen::EigenvaluesOnly);
+    return P.allFinite() && P == P.transpose() && Eigen::LLT<PMat>(P).info() == Eigen::Success &&
            es.eigenvalues().minCoeff() > 0.0;
   }
 };
@@ -537,13 +539,13 @@ TEST(BadDataUkf, SpikesAreRejectedByTheGateAndTheCovarianceIsHeld) {
   for (double spike : {kSpikeMm, -kSpikeMm}) {
     for (int len : {1, 10, 20}) {
       for (int i = 0; i < len; ++i) {
-        const Eigen::Matrix2d P_before = b.am.filter().P();
+        const estimation::ActiveModel::Filter::Mat P_before = b.am.covariance();
         const auto st = b.step([&](double y) { return y + spike; });
         EXPECT_EQ(st.status, estimation::UkfStatus::OutlierRejected) << spike << " mm, sample " << i << " of " << len;
         EXPECT_TRUE(st.rejected);
         EXPECT_GT(st.nis_gate, estimation::ActiveModelSettings{}.gate_nis);
         EXPECT_LT(std::fabs(st.y_post - b.y_true), 0.1);  // the model's prediction, not the spike
-        EXPECT_EQ(b.am.filter().P(), P_before);           // held: the run is judged against the same spread
+        EXPECT_EQ(b.am.covariance(), P_before);           // held: the run is judged against the same spread
         EXPECT_TRUE(b.spd());
       }
       const auto st = b.step();
@@ -581,7 +583,7 @@ TEST(BadDataUkf, AJumpThatStaysIsTakenAfterTheLimitWithAReset) {
 TEST(BadDataUkf, NonFinitePositionsAreRejectedAndTheSpreadGrows) {
   FilterBench b;
   for (int i = 0; i < 2000; ++i) b.step();
-  double p_prev = b.am.filter().P()(0, 0);
+  double p_prev = b.am.covariance()(0, 0);
   for (int i = 0; i < 500; ++i) {
     const double bad = i % 3 == 0 ? std::numeric_limits<double>::quiet_NaN() : (i % 3 == 1 ? kInf : -kInf);
     const auto st = b.step([&](double) { return bad; });
@@ -589,8 +591,8 @@ TEST(BadDataUkf, NonFinitePositionsAreRejectedAndTheSpreadGrows) {
     EXPECT_TRUE(st.rejected);
     EXPECT_TRUE(std::isfinite(st.y_post));
     EXPECT_TRUE(b.spd());
-    EXPECT_GT(b.am.filter().P()(0, 0), p_prev);  // no measurement: the filter knows less every sample
-    p_prev = b.am.filter().P()(0, 0);
+    EXPECT_GT(b.am.covariance()(0, 0), p_prev);  // no measurement: the filter knows less every sample
+    p_prev = b.am.covariance()(0, 0);
   }
   const auto st = b.step();
   EXPECT_EQ(st.status, estimation::UkfStatus::Ok);

@@ -27,6 +27,7 @@ class Creep final : public Effect {
   // time constant tau, so after a change the muscle keeps drifting the same way; at rest it is a
   // gain change the core absorbs. States: z, cached filter gain.
   int numStates() const override { return 2; }
+  int numFilterStates() const override { return 1; }  // z
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     s[0] = p[0] * in0;
     s[1] = 1.0 - std::exp(-c.Ts / std::max(p[1], 1e-6));

@@ -25,6 +25,7 @@ class MassSpring final : public Effect {
   }
   // y, dy/dt, then the cached one-sample map [y v]' = A [y v] + B in (A row-major, B).
   int numStates() const override { return 8; }
+  int numFilterStates() const override { return 2; }  // y, v: the core reaches y through them
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     // Semi-implicit Euler with sub-steps short against the period (stable and accurate), composed
     // once here into the exact one-sample linear map it amounts to.
