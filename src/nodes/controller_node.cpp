@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
+#include <limits>
 #include <stdexcept>
 
 #include "model/bouc_wen.hpp"
@@ -34,6 +36,8 @@ const char* toString(Fault f) {
     case Fault::SensorConflict: return "two sources of the position PDO";
     case Fault::PdoLength: return "PDO with wrong length discarded";
     case Fault::SyncLength: return "SYNC with wrong length discarded";
+    case Fault::SensorStuck: return "sensor stuck (position unchanged while the command moved)";
+    case Fault::PositionRange: return "position outside the sensor's measuring range";
   }
   return "?";
 }
@@ -57,6 +61,8 @@ std::uint16_t emcyCode(Fault f) {
     case Fault::SensorConflict: return canopen::kEmcyCanIdCollision;
     case Fault::PdoLength: return canopen::kEmcyPdoLength;            // PDO not processed due to length error
     case Fault::SyncLength: return canopen::kEmcySyncLength;          // unexpected SYNC data length
+    case Fault::SensorStuck: return canopen::kEmcySensor;             // additional modules: sensor
+    case Fault::PositionRange: return canopen::kEmcySensorRange;
   }
   return 0xFF00;
 }
@@ -79,7 +85,10 @@ constexpr double model::BoucWenParams::*kModel[] = {&model::BoucWenParams::k,   
                                                     &model::BoucWenParams::beta,  &model::BoucWenParams::gamma};
 constexpr double estimation::ActiveModelSettings::*kUkf[] = {
     &estimation::ActiveModelSettings::P0_h, &estimation::ActiveModelSettings::P0_f,
-    &estimation::ActiveModelSettings::Q_h, &estimation::ActiveModelSettings::Q_f, &estimation::ActiveModelSettings::R};
+    &estimation::ActiveModelSettings::Q_h, &estimation::ActiveModelSettings::Q_f, &estimation::ActiveModelSettings::R,
+    &estimation::ActiveModelSettings::Q_h_lag, &estimation::ActiveModelSettings::Q_f_lag,
+    &estimation::ActiveModelSettings::Q_out, &estimation::ActiveModelSettings::diverge};
+constexpr std::uint8_t kUkfSubs = static_cast<std::uint8_t>(std::size(kUkf));
 
 // Trajectory choice 0x2011 and its parameters 0x2012: frequency, low, high, offset, amplitude,
 // amplitude at end, duration.
@@ -279,7 +288,7 @@ void ControllerNode::installGuards() {
     std::memcpy(&v, d, 8);
     return std::isfinite(v) ? kSdoOk : kAbortValueRange;
   };
-  for (std::uint16_t idx : {0x2000, 0x2001, 0x2002, 0x2012, 0x2020}) od.addValidator(idx, finite);
+  for (std::uint16_t idx : {0x2000, 0x2001, 0x2002, 0x2012, 0x2020, 0x2022}) od.addValidator(idx, finite);
   // The application's ranges, narrower than the EDS limits (which are those of the data type).
   for (std::uint8_t sub = 1; sub <= 8; ++sub) {
     od.validate<double>(0x2000, sub, [sub](double v) { return applicationRange(0x2000, sub, v); });
@@ -287,7 +296,7 @@ void ControllerNode::installGuards() {
   od.validate<double>(0x2002, 5, [](double v) { return applicationRange(0x2002, 5, v); });
   // A parameter written while the loop runs is staged: the dictionary shows it, the loop does not use it.
   auto staged = [this](Entry&) { staged_flag_.set(1); };
-  for (std::uint16_t idx : {0x2000, 0x2001, 0x2002, 0x2020, 0x2021}) od.addObserver(idx, staged);
+  for (std::uint16_t idx : {0x2000, 0x2001, 0x2002, 0x2020, 0x2021, 0x2022}) od.addObserver(idx, staged);
   // 0x2003:01: 1 commits the staged set (checked here, taken at the next SYNC), 0 discards it.
   od.addValidator(0x2003, 1, [this](const Entry&, const std::uint8_t* d, std::size_t len) -> std::uint32_t {
     if (len != 1) return kSdoOk;
@@ -305,9 +314,12 @@ ControllerNode::Params ControllerNode::readParams() {
   for (std::uint8_t i = 0; i < 8; ++i) p.ctrl.*kGains[i] = od.ref<double>(0x2000, static_cast<std::uint8_t>(i + 1)).get();
   for (std::uint8_t i = 0; i < 6; ++i)
     p.ctrl.model.core().*kModel[i] = od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).get();
-  for (std::uint8_t i = 0; i < 5; ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).get();
+  for (std::uint8_t i = 0; i < kUkfSubs; ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).get();
   p.safe_u = od.ref<double>(0x2020, 0).get() - 5.0;
   p.missing_limit = od.ref<std::uint8_t>(0x2021, 0).get();
+  p.range_steps = od.ref<double>(0x2022, 1).get();
+  p.stuck_s = od.ref<double>(0x2022, 2).get();
+  p.stuck_span_v = od.ref<double>(0x2022, 3).get();
   return p;
 }
 
@@ -316,9 +328,12 @@ void ControllerNode::writeParams(const Params& p) {
   for (std::uint8_t i = 0; i < 8; ++i) od.ref<double>(0x2000, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.*kGains[i]);
   for (std::uint8_t i = 0; i < 6; ++i)
     od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.model.core().*kModel[i]);
-  for (std::uint8_t i = 0; i < 5; ++i) od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.ukf.*kUkf[i]);
+  for (std::uint8_t i = 0; i < kUkfSubs; ++i) od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.ukf.*kUkf[i]);
   od.ref<double>(0x2020, 0).set(p.safe_u + 5.0);
   od.ref<std::uint8_t>(0x2021, 0).set(static_cast<std::uint8_t>(p.missing_limit));
+  od.ref<double>(0x2022, 1).set(p.range_steps);
+  od.ref<double>(0x2022, 2).set(p.stuck_s);
+  od.ref<double>(0x2022, 3).set(p.stuck_span_v);
 }
 
 std::uint32_t ControllerNode::checkParams(const Params& p, std::string* why) {
@@ -342,9 +357,11 @@ std::uint32_t ControllerNode::checkParams(const Params& p, std::string* why) {
     if (auto c = check(0x2000, static_cast<std::uint8_t>(i + 1), p.ctrl.*kGains[i])) return c;
   for (std::uint8_t i = 0; i < 6; ++i)
     if (auto c = check(0x2001, static_cast<std::uint8_t>(i + 1), p.ctrl.model.core().*kModel[i])) return c;
-  for (std::uint8_t i = 0; i < 5; ++i)
+  for (std::uint8_t i = 0; i < kUkfSubs; ++i)
     if (auto c = check(0x2002, static_cast<std::uint8_t>(i + 1), p.ctrl.ukf.*kUkf[i])) return c;
   if (auto c = check(0x2020, 0, p.safe_u + 5.0)) return c;
+  for (std::uint8_t sub = 1; sub <= 3; ++sub)
+    if (auto c = check(0x2022, sub, sub == 1 ? p.range_steps : sub == 2 ? p.stuck_s : p.stuck_span_v)) return c;
   // Each value may be fine alone and the set still unusable: CiA 301 "general parameter incompatibility".
   if (!boucWenStable(p.ctrl.model.core(), why)) return canopen::kAbortParameterIncompatible;
   return kSdoOk;
@@ -668,6 +685,10 @@ void ControllerNode::poll(TimeUs now, bool fresh) noexcept {
     raise(Fault::SyncLength);
   }
   if (bus_off_) raise(Fault::BusOff);
+  if (active_ && range_run_ > missing_limit_) raise(Fault::PositionRange);
+  if (active_ && running_.stuck_span_v > 0.0 && static_cast<double>(same_run_) * Ts_ >= running_.stuck_s &&
+      run_u_max_ - run_u_min_ >= running_.stuck_span_v)
+    raise(Fault::SensorStuck);
 }
 
 void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
@@ -684,8 +705,32 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   // Latch: the position RPDO of this cycle.
   const auto& rp = node_->rpdo(1);
   const bool fresh = rp.syncsSinceReception() == 0;  // a position arrived in the last cycle
-  const double y = position_.get() * 1e-3;
-  if (!active_ && fresh) {
+  const std::int32_t raw = position_.get();
+  const double y = raw * 1e-3;
+  // Plausibility (0x2022): a position outside the measuring range is no position - the controller gets
+  // NaN for it (it holds the last usable one and reports it as not used) and a run of them is a fault;
+  // a position that does not change while the command moves is a stuck sensor.
+  // (With 1 % of the range to spare at either end: the noise of a muscle resting at an end.)
+  const double margin = 0.01 * running_.range_steps;
+  const bool in_range = static_cast<double>(raw) >= -margin && static_cast<double>(raw) <= running_.range_steps + margin;
+  const double y_ctrl = in_range ? y : std::numeric_limits<double>::quiet_NaN();
+  if (fresh && !in_range) {
+    ++range_run_;
+    ++range_rejected_;
+  } else if (fresh) {
+    range_run_ = 0;
+    if (!have_raw_ || raw != raw_last_) {
+      have_raw_ = true;
+      raw_last_ = raw;
+      same_run_ = 0;
+      run_u_min_ = run_u_max_ = last_u_;
+    } else {
+      ++same_run_;
+    }
+  }
+  run_u_min_ = std::min(run_u_min_, last_u_);  // the command in effect over the run
+  run_u_max_ = std::max(run_u_max_, last_u_);
+  if (!active_ && fresh && in_range) {
     ctrl_->activate(last_u_, y);
     active_ = true;
   }
@@ -707,11 +752,11 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
     // (and SYNC, hence the valve, is back); then estimator and integrator restart (no jump).
     last_u_ = safe_u_;
     ++fc_.safe_cycles;
-    if (++clear_cycles_ >= cfg_.recover_cycles && fresh && (hold_ & kHoldSync) == 0) recover(y, now);
+    if (++clear_cycles_ >= cfg_.recover_cycles && fresh && in_range && (hold_ & kHoldSync) == 0) recover(y, now);
   } else if (active_) {
     const int la = ctrl_->lookahead();
     const double yd_ahead = run_started_ ? setpoint(t + la * Ts_, la) : setpoint(0.0, la);
-    const auto o = ctrl_->update(yd, yd_ahead, y);
+    const auto o = ctrl_->update(yd, yd_ahead, y_ctrl);
     if (!std::isfinite(o.u) || o.estimator_reset) {
       raise(Fault::Estimator);
       takeCauses(now);

@@ -49,8 +49,11 @@ enum class Fault : std::uint8_t {
   // Warnings: EMCY and counted, the loop runs on (the frame itself is discarded).
   PdoLength = 14,        // an RPDO with a wrong length (never decoded)
   SyncLength = 15,       // a SYNC with a wrong length (consumer)
+  // Safety faults of the position's plausibility (0x2022).
+  SensorStuck = 16,      // the position has not changed while the command moved by 0x2022:03 V
+  PositionRange = 17,    // more than 0x2021 positions in a row outside the measuring range 0x2022:01
 };
-inline constexpr int kFaultCount = 16;
+inline constexpr int kFaultCount = 18;
 const char* toString(Fault f);
 // CiA 301 emergency error code of a fault.
 std::uint16_t emcyCode(Fault f);
@@ -124,6 +127,9 @@ class ControllerNode {
     control::ControllerConfig ctrl;
     double safe_u = -5.0;
     unsigned missing_limit = 3;
+    double range_steps = 100000;        // 0x2022:01
+    double stuck_s = 0.25;              // 0x2022:02
+    double stuck_span_v = 1.0;          // 0x2022:03 (0: off)
   };
   struct Slave {
     std::uint8_t id = 0;
@@ -190,6 +196,14 @@ class ControllerNode {
   bool push_valve_ = false;
   std::uint64_t tx_dropped_seen_ = 0, tx_expired_seen_ = 0, pdo_length_seen_ = 0, sync_length_seen_ = 0;
   int conflict_run_ = 0;
+  // Plausibility of the position: positions outside the range in a row; the run of identical
+  // positions and the command's span since it began.
+  unsigned range_run_ = 0;
+  bool have_raw_ = false;
+  std::int32_t raw_last_ = 0;
+  unsigned same_run_ = 0;
+  double run_u_min_ = 0.0, run_u_max_ = 0.0;
+  std::uint64_t range_rejected_ = 0;
   canopen::TimeUs reacted_at_us_ = canopen::kNever;
   // Bumpless return: the setpoint goes from ramp_from_ to the trajectory over ramp_cycles_.
   bool ramp_ = false;

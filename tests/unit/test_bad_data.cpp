@@ -815,24 +815,76 @@ TEST(BadDataNode, AJumpThatStaysResetsTheUkfAndRaisesTheEstimatorFault) {
   std::printf("; recoveries %llu\n", static_cast<unsigned long long>(r.recoveries));
 }
 
-// A position far outside the sensor's measuring range (0-100 mm, 0x6002): INT32_MAX counts, 2147 m,
-// for 5 PDOs. The node does not check the range; PI + AMC's gate rejects the samples (no fault, no
-// step), the PI saturates the valve while they last.
+// A position far outside the sensor's measuring range (0-100 mm, its 0x6002; the controller's 0x2022:01):
+// INT32_MAX counts, 2147 m. The node does not hand it to the controller (NaN: the last usable position is
+// held, the integral too, no step); up to 0x2021 = 3 in a row are ridden through, a fourth is a fault:
+// EMCY 0x7310, safe state, back when the positions are.
 TEST(BadDataNode, APositionOutsideTheMeasuringRange) {
   const long at = pdoAt(3.0);
-  auto far = [at](long n, std::int32_t& v) {
-    if (n >= at && n < at + 5) v = std::numeric_limits<std::int32_t>::max();
+  auto far = [at](int n_bad) {
+    return [at, n_bad](long n, std::int32_t& v) {
+      if (n >= at && n < at + n_bad) v = std::numeric_limits<std::int32_t>::max();
+    };
   };
-  const NodeRun amc = runNode(control::Kind::PiAmc, false, far);
-  const NodeRun base = runNode(control::Kind::PiAmc, false, nullptr);
-  EXPECT_EQ(amc.faults, 0u);
-  EXPECT_LE(amc.maxStep(2.9, 3.5), 2.0 * base.maxStep(2.9, 3.5) + 0.01);
-  const NodeRun pi = runNode(control::Kind::PI, false, far);
-  EXPECT_EQ(pi.faults, 0u);
-  double u_min = kInf;
-  for (const auto& c : pi.recs)
-    if (c.t >= 3.0 && c.t < 3.01) u_min = std::min(u_min, c.u);
-  EXPECT_DOUBLE_EQ(u_min, -5.0);
-  std::printf("node, 5 PDOs at INT32_MAX: PI + AMC largest step %.4f V, no fault; PI at %.1f V while they last\n",
-              amc.maxStep(2.9, 3.5), u_min);
+  const NodeRun base = runNode(control::Kind::PI, false, nullptr);
+  for (auto kind : {control::Kind::PI, control::Kind::PiAmc}) {
+    SCOPED_TRACE(control::toString(kind));
+    const NodeRun three = runNode(kind, false, far(3));
+    EXPECT_EQ(three.faults, 0u);
+    EXPECT_TRUE(three.emcy.empty());
+    EXPECT_LE(three.maxStep(2.9, 3.5), 2.0 * base.maxStep(2.9, 3.5) + 0.01);  // PI: was 4 V a cycle, to -5 V
+    const NodeRun five = runNode(kind, false, far(5));
+    EXPECT_GE(five.faults, 1u);
+    EXPECT_TRUE(five.sent(canopen::kEmcySensorRange)) << "no EMCY 0x7310";
+    EXPECT_TRUE(five.sent(0x0000)) << "no EMCY reset after recovery";
+    EXPECT_EQ(five.final_fault, nodes::Fault::None);
+    double t_fault = -1;
+    for (const auto& c : five.recs)
+      if (c.fault == static_cast<std::uint8_t>(nodes::Fault::PositionRange)) {
+        t_fault = c.t;
+        break;
+      }
+    EXPECT_GE(t_fault, 3.0);
+    EXPECT_LE(t_fault, 3.0 + 6 * kTs);  // the fourth out-of-range position (plus the PDO's cycle)
+    std::printf("node (%s), positions at INT32_MAX: 3 in a row ridden through (largest step %.4f V); 5 in a row: "
+                "fault %.0f cycles after the first, EMCY 0x7310, recovered %llu\n",
+                control::toString(kind), three.maxStep(2.9, 3.5), (t_fault - 3.0) / kTs,
+                static_cast<unsigned long long>(five.recoveries));
+  }
+}
+
+// A stuck sensor: the position PDO repeats the value it had 3 s into the run, for 2 s. The PI's error
+// grows, its command moves, the muscle moves - the position does not: after 0x2022:02 = 0.25 s with the
+// command 0x2022:03 = 1 V or more away from where it was, the node raises its stuck-sensor fault (EMCY
+// 0x7300), the valve goes safe; when the sensor moves again the run recovers. Without the fault-free
+// twin ever raising it.
+TEST(BadDataNode, AStuckSensorIsDetectedWhenTheCommandMovesAndThePositionDoesNot) {
+  const long at = pdoAt(3.0);
+  for (auto kind : {control::Kind::PI, control::Kind::PiAmc}) {
+    SCOPED_TRACE(control::toString(kind));
+    std::int32_t frozen = 0;
+    const NodeRun r = runNode(kind, false, [at, &frozen](long n, std::int32_t& v) {
+      if (n == at) frozen = v;
+      if (n >= at && n < at + 2000) v = frozen;
+    }, 8.0);
+    EXPECT_TRUE(r.sent(canopen::kEmcySensor)) << "no EMCY 0x7300";
+    EXPECT_TRUE(r.sent(0x0000)) << "no EMCY reset after recovery";
+    EXPECT_GE(r.recoveries, 1u);
+    EXPECT_EQ(r.final_fault, nodes::Fault::None);
+    double t_fault = -1, u_at = 0, u_span = 0;
+    for (const auto& c : r.recs) {
+      if (c.fault == static_cast<std::uint8_t>(nodes::Fault::SensorStuck) && t_fault < 0) t_fault = c.t;
+      if (c.t >= 3.0 && t_fault < 0) {
+        if (u_at == 0) u_at = c.u;
+        u_span = std::max(u_span, std::fabs(c.u - u_at));
+      }
+    }
+    EXPECT_GE(t_fault, 3.25);
+    EXPECT_LE(t_fault, 5.0);
+    std::printf("node (%s), sensor stuck for 2 s: fault %.3f s after it stuck (command moved %.2f V before), "
+                "EMCY 0x7300, recovered %llu\n",
+                control::toString(kind), t_fault - 3.0, u_span, static_cast<unsigned long long>(r.recoveries));
+    const NodeRun twin = runNode(kind, false, nullptr, 8.0);
+    EXPECT_EQ(twin.faults, 0u);
+  }
 }
