@@ -1,4 +1,5 @@
-// fuzz_candump: candump -l log text through readCandumpLog (strict: the first bad line is an error),
+// fuzz_candump: candump -l log text through readCandumpLog (strict: the first bad line is an error,
+// except a last line without its newline, which a writer cut off: ignored with a warning),
 // and the lines it can parse through the decoder (decodeCandump with the rig's od/*.eds dictionary),
 // as `pamc decode` runs them.
 // Documented error: std::runtime_error "name:line: problem". Properties: every parsed record prints
