@@ -1010,7 +1010,10 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
   row("ki 0x2000:02 = NaN", kAbortValueRange, sdo.writeDouble(0x2000, 2, nan), unchanged());
   row("ESO b0 0x2000:08 = 0", kAbortValueTooLow, sdo.writeDouble(0x2000, 8, 0.0), unchanged());
   row("UKF R0 0x2002:05 = 0", kAbortValueTooLow, sdo.writeDouble(0x2002, 5, 0.0), unchanged());
+  row("UKF divergence bound 0x2002:09 = -1", kAbortValueTooLow, sdo.writeDouble(0x2002, 9, -1.0), unchanged());
   row("model k 0x2001:01 = inf", kAbortValueRange, sdo.writeDouble(0x2001, 1, inf), unchanged());
+  row("stuck-sensor span 0x2022:03 = 20 V (above 10)", kAbortValueTooHigh, sdo.writeDouble(0x2022, 3, 20.0), unchanged());
+  row("measuring range 0x2022:01 = 0", kAbortValueTooLow, sdo.writeDouble(0x2022, 1, 0.0), unchanged());
   row("safe valve voltage 0x2020 = 12 V", kAbortValueTooHigh, sdo.writeDouble(0x2020, 0, 12.0), unchanged());
   row("controller 0x2010 = 1 (PI) while Operational", kAbortDeviceState, sdo.writeU8(0x2010, 0, 1),
       snap() == before ? "refused; the controller is not switched under the running loop" : "LOOP CHANGED");
