@@ -165,9 +165,10 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   out.f_h = ukf.x()(1);
   // The posterior filter states into the model's state, kept as the start of the next transition;
   // then the output effects advance with the posterior core output.
-  if constexpr (Vec::RowsAtCompileTime > kCore)
+  if constexpr (Vec::RowsAtCompileTime > kCore) {
     for (int i = 0; i < nf_; ++i) st_.s[static_cast<size_t>(model_.filterStateIndex(i))] = ukf.x()(kCore + i);
-  st_prev_ = st_;
+    st_prev_ = st_;  // only the joint filter's transition reads it
+  }
   ue_prev_ = ue;
   load_prev_ = load;
   out.y_post = model_.outputStage(st_, model_.coreOutput(ue, out.h), c);

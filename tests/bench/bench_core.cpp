@@ -30,6 +30,22 @@ static void BM_UkfStep(benchmark::State& state) {
 }
 BENCHMARK(BM_UkfStep);
 
+// The same on the emulator's whole model: pressure lag, load, saturation, friction and the 6 Hz
+// mass-spring, whose position and velocity are in the filter's state (X = [h, f_h, y_ms, v_ms]).
+static void BM_UkfStepWholeModel(benchmark::State& state) {
+  estimation::ActiveModel am;
+  am.configure(plant::PlantConfig::defaults().truth, {}, 1e-3);
+  am.reset(0.0);
+  int k = 0;
+  for (auto _ : state) {
+    const double t = (k++) * 1e-3;
+    const double u = 0.8 * std::sin(0.6 * t) + 0.2;
+    auto r = am.update(u, 18.0 + 11 * u);
+    benchmark::DoNotOptimize(r);
+  }
+}
+BENCHMARK(BM_UkfStepWholeModel);
+
 // The whole PI + AMC cycle: estimator update, PI, prediction (17), compensation, saturation.
 static void BM_AmcCycle(benchmark::State& state) {
   control::ControllerConfig cfg;
