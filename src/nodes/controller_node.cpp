@@ -734,7 +734,7 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
     ctrl_->activate(last_u_, y);
     active_ = true;
   }
-  if (commit_ready_) takeCommitted(y);  // a committed parameter set: at the cycle boundary
+  if (commit_ready_) takeCommitted(y_ctrl);  // a committed parameter set: at the cycle boundary
   if (active_) {
     ++cycle_;
     run_started_ = cycle_ > preroll_cycles_;
