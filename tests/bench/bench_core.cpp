@@ -13,36 +13,31 @@ using namespace pamc;
 
 namespace {
 model::Model paperLikeModel() { return model::Model({9.0, 1.6, 17.0, 1.0, 0.4, 0.5}); }
-}  // namespace
 
-// One UKF predict + update of the joint state [h, f_h] (the estimator's whole step).
-static void BM_UkfStep(benchmark::State& state) {
+// The estimator's whole step (one UKF predict + update) on model m, driven by a slow sine of amplitude
+// amp [V] with the position y0 + gain u.
+void ukfStep(benchmark::State& state, const model::Model& m, double amp, double y0, double gain) {
   estimation::ActiveModel am;
-  am.configure(paperLikeModel(), {}, 1e-3);
+  am.configure(m, {}, 1e-3);
   am.reset(0.0);
   int k = 0;
   for (auto _ : state) {
     const double t = (k++) * 1e-3;
-    const double u = 2.9 * std::sin(0.6 * t) + 0.2;
-    auto r = am.update(u, 17.0 + 10 * u);
+    const double u = amp * std::sin(0.6 * t) + 0.2;
+    auto r = am.update(u, y0 + gain * u);
     benchmark::DoNotOptimize(r);
   }
 }
+}  // namespace
+
+// The paper's joint state [h, f_h].
+static void BM_UkfStep(benchmark::State& state) { ukfStep(state, paperLikeModel(), 2.9, 17.0, 10.0); }
 BENCHMARK(BM_UkfStep);
 
-// The same on the emulator's whole model: pressure lag, load, saturation, friction and the 6 Hz
-// mass-spring, whose position and velocity are in the filter's state (X = [h, f_h, y_ms, v_ms]).
+// The emulator's whole model: pressure lag, load, saturation, friction and the 6 Hz mass-spring, whose
+// position and velocity are in the filter's state (X = [h, f_h, y_ms, v_ms]).
 static void BM_UkfStepWholeModel(benchmark::State& state) {
-  estimation::ActiveModel am;
-  am.configure(plant::PlantConfig::defaults().truth, {}, 1e-3);
-  am.reset(0.0);
-  int k = 0;
-  for (auto _ : state) {
-    const double t = (k++) * 1e-3;
-    const double u = 0.8 * std::sin(0.6 * t) + 0.2;
-    auto r = am.update(u, 18.0 + 11 * u);
-    benchmark::DoNotOptimize(r);
-  }
+  ukfStep(state, plant::PlantConfig::defaults().truth, 0.8, 18.0, 11.0);
 }
 BENCHMARK(BM_UkfStepWholeModel);
 
