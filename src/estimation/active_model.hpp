@@ -38,9 +38,8 @@ struct ActiveModelSettings {
   // widened by the model's own predicted change of the output over the sample (S + dy^2: after a
   // command step the model moves at once, the muscle with its lag), and it acts only while the filter
   // is consistent: once 1000 positions have been used since the last reset() and their mean NIS (over
-  // about the last 1000) is at most 1. A filter that misses by more than it expects (a model with output
-  // dynamics it cannot follow, such as mass_spring: NIS ~1e5) cannot tell an outlier from its own miss
-  // and would otherwise reject everything.
+  // about the last 1000) is at most 1. A filter that misses by more than it expects (a model short of
+  // the plant's dynamics) cannot tell an outlier from its own miss and would otherwise reject everything.
   double gate_nis = 25.0;
   // At most this many outliers in a row are rejected; the next one is taken as the truth: P back to P0
   // and the position used without the gate (status Reset). A spike this long or shorter is bridged on

@@ -317,9 +317,7 @@ ControllerNode::Params ControllerNode::readParams() {
   for (std::uint8_t i = 0; i < kUkfSubs; ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).get();
   p.safe_u = od.ref<double>(0x2020, 0).get() - 5.0;
   p.missing_limit = od.ref<std::uint8_t>(0x2021, 0).get();
-  p.range_steps = od.ref<double>(0x2022, 1).get();
-  p.stuck_s = od.ref<double>(0x2022, 2).get();
-  p.stuck_span_v = od.ref<double>(0x2022, 3).get();
+  for (std::uint8_t i = 0; i < 3; ++i) p.*kPlausibility[i] = od.ref<double>(0x2022, static_cast<std::uint8_t>(i + 1)).get();
   return p;
 }
 
@@ -331,9 +329,7 @@ void ControllerNode::writeParams(const Params& p) {
   for (std::uint8_t i = 0; i < kUkfSubs; ++i) od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.ukf.*kUkf[i]);
   od.ref<double>(0x2020, 0).set(p.safe_u + 5.0);
   od.ref<std::uint8_t>(0x2021, 0).set(static_cast<std::uint8_t>(p.missing_limit));
-  od.ref<double>(0x2022, 1).set(p.range_steps);
-  od.ref<double>(0x2022, 2).set(p.stuck_s);
-  od.ref<double>(0x2022, 3).set(p.stuck_span_v);
+  for (std::uint8_t i = 0; i < 3; ++i) od.ref<double>(0x2022, static_cast<std::uint8_t>(i + 1)).set(p.*kPlausibility[i]);
 }
 
 std::uint32_t ControllerNode::checkParams(const Params& p, std::string* why) {
@@ -360,8 +356,8 @@ std::uint32_t ControllerNode::checkParams(const Params& p, std::string* why) {
   for (std::uint8_t i = 0; i < kUkfSubs; ++i)
     if (auto c = check(0x2002, static_cast<std::uint8_t>(i + 1), p.ctrl.ukf.*kUkf[i])) return c;
   if (auto c = check(0x2020, 0, p.safe_u + 5.0)) return c;
-  for (std::uint8_t sub = 1; sub <= 3; ++sub)
-    if (auto c = check(0x2022, sub, sub == 1 ? p.range_steps : sub == 2 ? p.stuck_s : p.stuck_span_v)) return c;
+  for (std::uint8_t i = 0; i < 3; ++i)
+    if (auto c = check(0x2022, static_cast<std::uint8_t>(i + 1), p.*kPlausibility[i])) return c;
   // Each value may be fine alone and the set still unusable: CiA 301 "general parameter incompatibility".
   if (!boucWenStable(p.ctrl.model.core(), why)) return canopen::kAbortParameterIncompatible;
   return kSdoOk;
@@ -638,9 +634,9 @@ bool ControllerNode::slaveDown(Slave& s, TimeUs now) noexcept {
   return true;
 }
 
-void ControllerNode::poll(TimeUs now, bool fresh) noexcept {
+void ControllerNode::poll(TimeUs now, bool usable) noexcept {
   const auto& rp = node_->rpdo(1);
-  if (active_ && !fresh) ++fc_.samples_missing;
+  if (active_ && !usable) ++fc_.samples_missing;
   if (active_ && rp.syncsSinceReception() > missing_limit_) raise(Fault::PositionMissing);
   if (rp.conflictInLastCycle()) {
     if (++conflict_run_ >= 3) raise(Fault::SensorConflict, static_cast<std::uint8_t>(rp.cobId() & 0xFF));
@@ -716,7 +712,6 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   const double y_ctrl = in_range ? y : std::numeric_limits<double>::quiet_NaN();
   if (fresh && !in_range) {
     ++range_run_;
-    ++range_rejected_;
   } else if (fresh) {
     range_run_ = 0;
     if (!have_raw_ || raw != raw_last_) {
@@ -739,7 +734,7 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
     ++cycle_;
     run_started_ = cycle_ > preroll_cycles_;
   }
-  poll(now, fresh);
+  poll(now, fresh && in_range);
   takeCauses(now);
   if (push_valve_) pushValveErrorValue();
 

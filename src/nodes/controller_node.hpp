@@ -131,6 +131,8 @@ class ControllerNode {
     double stuck_s = 0.25;              // 0x2022:02
     double stuck_span_v = 1.0;          // 0x2022:03 (0: off)
   };
+  // 0x2022 by sub-index 1..3.
+  static constexpr double Params::*kPlausibility[] = {&Params::range_steps, &Params::stuck_s, &Params::stuck_span_v};
   struct Slave {
     std::uint8_t id = 0;
     bool lost = false;                          // heartbeat timed out: re-boot it when it is back
@@ -150,7 +152,7 @@ class ControllerNode {
   void takeCommitted(double y) noexcept;
 
   void onSync(std::uint8_t counter, canopen::TimeUs now) noexcept;
-  void poll(canopen::TimeUs now, bool fresh) noexcept;
+  void poll(canopen::TimeUs now, bool usable) noexcept;  // usable: a plausible position arrived
   void raise(Fault f, std::uint8_t detail = 0) noexcept;
   void takeCauses(canopen::TimeUs now) noexcept;
   void recover(double y, canopen::TimeUs now) noexcept;
@@ -203,7 +205,6 @@ class ControllerNode {
   std::int32_t raw_last_ = 0;
   unsigned same_run_ = 0;
   double run_u_min_ = 0.0, run_u_max_ = 0.0;
-  std::uint64_t range_rejected_ = 0;
   canopen::TimeUs reacted_at_us_ = canopen::kNever;
   // Bumpless return: the setpoint goes from ramp_from_ to the trajectory over ramp_cycles_.
   bool ramp_ = false;
