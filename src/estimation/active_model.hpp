@@ -20,8 +20,9 @@ struct ActiveModelSettings {
   // A model with lagging output dynamics (Model::numFilterStates() > 0; not in the paper). Eq. (26)'s
   // Q = 10 per sample on h and f_h is harmless while each position pins h (the paper's model: y moves
   // with h in the same sample, and R << Q); when h reaches y only over the following samples, Q is what
-  // the filter believes h may jump by, and 10 (3 V per millisecond) makes its estimate as noisy
-  // (0.5 mm here) and its command as jumpy. Such a model uses these instead of Q_h and Q_f, and carries
+  // the filter believes h may jump by, and 10 (3 V per millisecond) makes its estimate noisy (up to
+  // 7.7 mm off on the emulator's model: OutputDynamics.ThePapersProcessNoiseIsNoisierButStaysBounded)
+  // and its command jumpy. Such a model uses these instead of Q_h and Q_f, and carries
   // the output effects' states with this initial spread and random walk (their own units: mm, mm/s).
   double Q_h_lag = 0.1, Q_f_lag = 0.1;
   double P0_out = 1.0, Q_out = 1e-6;
