@@ -67,7 +67,7 @@ void ActiveModel::reset(double u0, double load) noexcept {
   nis_level_ = 0.0;
   nis_count_ = 0;
   // At rest the output effects stay where they are: the first transition starts from here.
-  st_prev_ = st_;
+  model_.copyOutputStates(st_, st_prev_);
   ue_prev_ = st_.u_eff_prev;
   load_prev_ = load;
   c.u_eff = st_.u_eff_prev;
@@ -167,7 +167,7 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   // then the output effects advance with the posterior core output.
   if constexpr (Vec::RowsAtCompileTime > kCore) {
     for (int i = 0; i < nf_; ++i) st_.s[static_cast<size_t>(model_.filterStateIndex(i))] = ukf.x()(kCore + i);
-    st_prev_ = st_;  // only the joint filter's transition reads it
+    model_.copyOutputStates(st_, st_prev_);  // only the joint filter's transition reads it
   }
   ue_prev_ = ue;
   load_prev_ = load;

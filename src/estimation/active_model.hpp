@@ -119,7 +119,7 @@ class ActiveModel {
   double h() const noexcept { return nf_ > 0 ? ukf_.x()(0) : core_.x()(0); }
   double fh() const noexcept { return nf_ > 0 ? ukf_.x()(1) : core_.x()(1); }
   CoreFilter core_;
-  model::Model::State st_prev_;  // effect states of the last sample (filter states: posterior mean)
+  model::Model::State st_prev_;  // output-effect states of the last sample (filter states: posterior mean)
   double ue_prev_ = 0.0;     // effective command of the last sample
   double load_prev_ = 0.0;
   int nf_ = 0;               // filter states in use (model_.numFilterStates())

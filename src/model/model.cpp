@@ -223,6 +223,11 @@ double Model::outputWith(const State& st, const double* xf, double* xf_next, dou
   return y;
 }
 
+void Model::copyOutputStates(const State& from, State& to) const noexcept {
+  std::memcpy(to.s.data() + out_state_begin_, from.s.data() + out_state_begin_,
+              sizeof(double) * static_cast<size_t>(out_state_end_ - out_state_begin_));
+}
+
 double Model::step(State& st, double u, const StepContext& c0, double f_h) const noexcept {
   StepContext c = c0;
   const double ue = inputStage(st, u, c);

@@ -79,6 +79,8 @@ class Model {
   // filter states after the sample are written to xf_next when it is not null. st is not touched.
   double outputWith(const State& st, const double* xf, double* xf_next, double y_core,
                     const StepContext& c) const noexcept;
+  // Copies the output effects' states (all that outputWith reads of a State) from one State to another.
+  void copyOutputStates(const State& from, State& to) const noexcept;
   // One whole sample: returns y_k for command u_k and advances st to k+1. f_h is the
   // modelling-error input of eq. (4) (0 for the reference model).
   double step(State& st, double u, const StepContext& c, double f_h = 0.0) const noexcept;
