@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "app/bus_commands.hpp"
+#include "app/cmd_calibrate.hpp"
 #include "diagnose/compare.hpp"
 #include "diagnose/diagnose.hpp"
 #include "ident/identify.hpp"
@@ -91,10 +92,16 @@ int main(int argc, char** argv) {
   ex->add_option("--seed", ex_seed, "GA seed")->capture_default_str();
   ex->add_flag("--no-figures", ex_nofig, "skip the PNG figures");
   pamc::control::ControllerConfig ex_cc;
+  std::string ex_amc_form = "printed";
   ex->add_option("--kp", ex_cc.kp, "PI proportional gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
   ex->add_option("--ki", ex_cc.ki, "PI integral gain [V/(mm s)]")->capture_default_str()->check(CLI::NonNegativeNumber);
   ex->add_option("--kc", ex_cc.kc, "AMC compensation gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
   ex->add_option("--amc-horizon", ex_cc.amc_horizon, "AMC prediction horizon [samples]; 1 = eq. (17), 0 = automatic (bus delay + the model's response time)")->capture_default_str()->check(CLI::Range(0, 2000));
+  ex->add_option("--eso-delta", ex_cc.delta, "ESO fal() linear zone delta [mm]")->capture_default_str()->check(CLI::PositiveNumber);
+  ex->add_option("--eso-beta1", ex_cc.beta1, "ESO gain beta1")->capture_default_str();
+  ex->add_option("--eso-beta2", ex_cc.beta2, "ESO gain beta2")->capture_default_str();
+  ex->add_option("--eso-beta3", ex_cc.beta3, "ESO gain beta3")->capture_default_str();
+  ex->add_option("--amc-form", ex_amc_form, "eq. (17): 'printed' predicts Y_{k+1} from the nominal command itself (the paper); 'increment' adds the model's one-step increment to the posterior output")->capture_default_str()->check(CLI::IsMember({"printed", "increment"}));
   ex->add_option("--amc-inverse", ex_cc.amc_inverse, "predictive AMC: fraction of the predicted error at the horizon corrected through the model's response (0: the paper's kc e_hat)")->capture_default_str()->check(CLI::Range(0.0, 1.0));
   ex->add_option("--eso-b0", ex_cc.b0, "ESO input gain b0 [mm/(s^2 V)]")->capture_default_str()->check(CLI::PositiveNumber);
   ex->add_option("--delay", ex_cc.delay_cycles, "cycles from command to the measurement that shows it, beyond one sample (2 on the CAN bus)")->capture_default_str()->check(CLI::Range(0, 7));
@@ -159,6 +166,7 @@ int main(int argc, char** argv) {
   dg->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
 
   pamc::app::BusCommands bus(app);
+  pamc::app::CalibrateCommand calibrate(app);
 
   try {
     app.parse(argc, argv);
@@ -168,6 +176,7 @@ int main(int argc, char** argv) {
 
   try {
     if (const int rc = bus.run(); rc >= 0) return rc;
+    if (calibrate.selected()) return calibrate.run();
     if (*ex) {
       pamc::sim::ExperimentSettings s;
       if (!ex_plant.empty()) s.plant = pamc::plant::PlantConfig::fromFile(ex_plant);
@@ -180,6 +189,7 @@ int main(int argc, char** argv) {
           throw std::invalid_argument("--only: unknown experiment '" + o + "' (known: table1, table2, discontinuous, payload)");
       s.fit.ga.seed = ex_seed;
       s.ctrl = ex_cc;
+      s.ctrl.amc_as_printed = ex_amc_form == "printed";
       s.log = progressLine;
       const auto t0 = std::chrono::steady_clock::now();
       const auto rep = pamc::sim::runExperiments(s);

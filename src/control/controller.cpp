@@ -290,7 +290,8 @@ class PiAmc final : public Controller {
       }
     } else if (cfg_.amc_horizon <= 1) {
       const double un_eff = cfg_.model.inputStage(nom_, un, ctx);
-      y_next = am_.predictNext(un_eff_prev_, un_eff, load);
+      y_next = cfg_.amc_as_printed ? am_.predictNextAsPrinted(un_eff_prev_, un_eff, load)
+                                   : am_.predictNext(un_eff_prev_, un_eff, load);
       un_eff_prev_ = un_eff;
     } else {
       // Roll out from the last command sent plus the nominal controller's change.

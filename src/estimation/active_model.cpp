@@ -211,6 +211,15 @@ double ActiveModel::predictNext(double u_eff_prev, double u_eff_next, double loa
   return y_post_ + (y1 - y0);
 }
 
+double ActiveModel::predictNextAsPrinted(double u_eff_prev, double u_eff_next, double load) const noexcept {
+  model::StepContext c;
+  c.Ts = Ts_;
+  c.load = load;
+  c.u_eff = u_eff_next;
+  const double h1 = model::boucWenNext(model_.core(), h(), u_eff_next - u_eff_prev, fh(), Ts_);
+  return model_.outputPeek(st_, model_.coreOutput(u_eff_next, h1), c);
+}
+
 double ActiveModel::predictAhead(const double* in_flight, int n_in_flight, double u_hold, int horizon,
                                  double load) const noexcept {
   model::StepContext c;

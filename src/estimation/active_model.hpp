@@ -81,6 +81,10 @@ class ActiveModel {
   // Eq. (17): output one sample ahead if the command u_next follows u_prev, from the
   // current posterior, in effective-input units (after the model's input effects).
   double predictNext(double u_eff_prev, double u_eff_next, double load) const noexcept;
+  // Eq. (17) as printed: the model's output for the nominal command itself, Y_{k+1} = H(h_{k+1}, u_n(k)),
+  // not an increment on the posterior. The estimate was fitted with the applied u = u_n + u_c, so the
+  // compensation then feeds back on itself through the direct feedthrough with gain kc k rho.
+  double predictNextAsPrinted(double u_eff_prev, double u_eff_next, double load) const noexcept;
 
   // Output `horizon` samples ahead if the command u_hold is applied from the next sample on: the
   // model rolled out from the posterior [h, f_h] and its effect states (lags, delays, inertia).

@@ -16,7 +16,7 @@ const char* const kDefaultJson = R"({
   "Ts": 0.001,
   "core": {"k": 9.0, "rho": 1.25, "b": 18.0, "alpha": 1.0, "beta": 0.35, "gamma": 0.25},
   "effects": {
-    "pressure_lag":        {"enabled": true, "tau": 0.04, "slew": 60.0},
+    "pressure_lag":        {"enabled": true, "tau": 0.2, "slew": 60.0},
     "load":                {"enabled": true, "compliance": 0.06},
     "saturation":          {"enabled": true, "knee": 18.0, "width": 18.0},
     "friction_hysteresis": {"enabled": true, "zmax": 1.5, "delta": 3.0},

@@ -14,6 +14,7 @@
 #include "io/model_file.hpp"
 #include "sim/figures.hpp"
 #include "sim/lockstep.hpp"
+#include "sim/paper_criteria.hpp"
 
 #include "io/text.hpp"
 
@@ -39,15 +40,44 @@ const char* label(control::Kind k) {
   return "?";
 }
 
-struct Paper2 {
-  double v[4][2];
-};
-// Table 2 of the paper (max/RMSE in mm): open loop, PID, PID+ESO, PID+AMC.
-const std::map<std::string, Paper2> kPaperTable2 = {
-    {"triangle_0.05Hz", {{{10.978, 6.395}, {1.097, 0.3461}, {1.100, 0.3243}, {0.924, 0.3209}}}},
-    {"sine_0.05Hz", {{{10.357, 6.873}, {3.769, 0.2450}, {2.322, 0.2005}, {1.323, 0.1934}}}},
-    {"sine_0.1Hz", {{{10.046, 6.592}, {3.272, 0.4670}, {2.010, 0.3911}, {1.922, 0.3803}}}},
-};
+// Each step of the reference (jumps of at least 1 mm) as its own block: time since the step and the
+// response in % of the jump (0 = where it started, 100 = the target), blocks separated by a blank line
+// so that a plot overlays them.
+void writeStepOverlay(const Record& r, const std::string& path) {
+  std::string out = "t_step,response_pct\n";
+  for (size_t i = 1; i < r.t.size(); ++i) {
+    const double jump = r.yd[i] - r.yd[i - 1];
+    if (std::fabs(jump) < 1.0) continue;
+    size_t j = i + 1;
+    while (j < r.t.size() && std::fabs(r.yd[j] - r.yd[j - 1]) < 1.0) ++j;
+    const double y0 = r.yd[i - 1];
+    for (size_t k = i; k < j; ++k)
+      out += fmt("%.4f", r.t[k] - r.t[i]) + "," + fmt("%.3f", 100.0 * (r.y[k] - y0) / jump) + "\n";
+    out += "\n";
+  }
+  io::writeFileAtomic(path, out);
+}
+
+std::string gainsText(const control::ControllerConfig& c) {
+  return "kp " + fmt("%g", c.kp) + " V/mm, ki " + fmt("%g", c.ki) + " V/(mm s), kc " + fmt("%g", c.kc) + " V/mm" +
+         (c.amc_as_printed ? " (eq. 17 as printed)" : " (eq. 17 as increment)") + ", ESO b0 " + fmt("%g", c.b0) +
+         " delta " + fmt("%g", c.delta) + ", delay " + std::to_string(c.delay_cycles) + " cycles";
+}
+
+// The emulator's effects that are on, with their parameters, in one line.
+std::string plantText(const plant::PlantConfig& p) {
+  const nlohmann::json j = p.toJson();
+  std::string t;
+  for (const auto& [name, e] : j.at("effects").items()) {
+    if (!e.value("enabled", false)) continue;
+    t += (t.empty() ? "" : ", ") + name;
+    std::string ps;
+    for (const auto& [k, v] : e.items())
+      if (k != "enabled" && v.is_number()) ps += (ps.empty() ? " " : " ") + k + " " + fmt("%g", v.get<double>());
+    t += ps;
+  }
+  return t + ", sensor noise " + fmt("%g", p.noise_std_mm) + " mm";
+}
 
 }  // namespace
 
@@ -168,7 +198,7 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
           log("warning: " + fig_error);
       }
     }
-    const double paper_ref[3] = {2.012, 3.687, 2.284};
+    const auto& paper_ref = PaperNumbers::table1_reference;
     const double paper_act[3] = {1.482e-4, 1.379e-4, 1.397e-4};
     txt << "  Reference model             ";
     for (int i = 0; i < 3; ++i) txt << fmt("%8.3f", acc[i].reference_rmse) << " [" << fmt("%6.3f", paper_ref[i]) << "]";
@@ -203,8 +233,10 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     r.writeCsv(dir + tag + "_" + control::toString(kind) + ".csv");
     return r;
   };
-  auto figure = [&](const std::string& tag, const std::string& title, const std::vector<control::Kind>& kinds,
-                    double zoom_lo = 0, double zoom_hi = 0) {
+  const std::string setup = gainsText(cc) + "\nplant: " + plantText(s.plant);
+  auto figure = [&](const std::string& tag, const std::string& title_, const std::vector<control::Kind>& kinds,
+                    double zoom_lo = 0, double zoom_hi = 0, bool steps = false) {
+    const std::string title = title_ + "\n" + setup;
     if (!figs) return;
     std::vector<Series> time, loop, volts;
     bool first = true;
@@ -224,6 +256,18 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     std::vector<Panel> panels = {{"(a) time plot", "t [s]", "y [mm]", time},
                                  {"(b) hysteresis compensation: y against yd", "yd [mm]", "y [mm]", loop},
                                  {"(c) control voltages", "t [s]", "u [V]", volts}};
+    if (steps) {
+      // y against yd is degenerate for steps: every step's response overlaid instead.
+      std::vector<Series> ov;
+      for (auto k : kinds) {
+        const std::string csv = dir + tag + "_steps_" + control::toString(k) + ".csv";
+        ov.push_back({csv, "t_step", "response_pct", label(k)});
+      }
+      panels[1] = Panel{"(b) every step overlaid: response in % of the jump", "time since the step [s]",
+                        "response [%]", ov};
+      panels[1].x_lo = 0;
+      panels[1].x_hi = 2.0;
+    }
     if (zoom_hi > zoom_lo) {
       // A held setpoint has no loop to show: zoom on the transient instead (the paper's insets).
       panels[1] = Panel{"(b) the transient, zoomed", "t [s]", "y [mm]", time};
@@ -264,13 +308,15 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     for (const auto& c : cases) {
       log("table2: " + c.tag + " (" + c.run.reference.describe() + ")");
       { char b_[32]; std::snprintf(b_, sizeof b_, "%-18s", c.tag.c_str()); txt << b_; }
-      const auto& paper = kPaperTable2.at(c.tag);
+      size_t prow = 0;
+      while (prow < 3 && c.tag != PaperNumbers::table2_rows[prow]) ++prow;
+      const auto& paper = PaperNumbers::table2[prow];
       nlohmann::json row = nlohmann::json::object();
       for (size_t i = 0; i < kAllKinds.size(); ++i) {
         const Record r = runOne(kAllKinds[i], c.run, c.tag);
         const auto st = tracking(r);
-        txt << "  " << fmt("%6.3f", st.max_abs) << "/" << fmt("%-6.4f", st.rmse) << "[" << fmt("%.2f", paper.v[i][0])
-            << "/" << fmt("%.2f", paper.v[i][1]) << "]";
+        txt << "  " << fmt("%6.3f", st.max_abs) << "/" << fmt("%-6.4f", st.rmse) << "[" << fmt("%.2f", paper[i][0])
+            << "/" << fmt("%.2f", paper[i][1]) << "]";
         row[control::toString(kAllKinds[i])] = {{"max", st.max_abs}, {"rmse", st.rmse}};
       }
       txt << "\n";
@@ -296,7 +342,10 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
       run.reference = traj;
       run.duration_s = 30.0;
       std::vector<Record> recs;
-      for (auto k : kinds) recs.push_back(runOne(k, run, tag));
+      for (auto k : kinds) {
+        recs.push_back(runOne(k, run, tag));
+        writeStepOverlay(recs.back(), dir + tag + "_steps_" + control::toString(k) + ".csv");
+      }
       for (int dirn : {+1, -1}) {
         if (tag == "sawtooth" && dirn > 0) continue;  // the sawtooth only jumps down
         txt << (tag + std::string(10 - std::min<size_t>(10, tag.size()), ' ')) << (dirn > 0 ? " forward " : " backward");
@@ -306,7 +355,8 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
               << fmt("%4.2f", st.settling_s) << " s";
           dj[tag][dirn > 0 ? "forward" : "backward"][control::toString(kinds[i])] = {
               {"overshoot_pct", st.overshoot_pct}, {"settling_s", st.settling_s}, {"steps", st.steps},
-              {"unsettled_steps", st.unsettled}};
+              {"unsettled_steps", st.unsettled}, {"max_error_crossings", st.max_error_crossings},
+              {"max_u_reversals", st.max_u_reversals}};
         }
         txt << "\n";
       }
@@ -314,7 +364,7 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
         const auto st = tracking(recs[i]);
         dj[tag]["tracking"][control::toString(kinds[i])] = {{"max", st.max_abs}, {"rmse", st.rmse}};
       }
-      figure(tag, "Tracking of a " + traj.describe(), kinds);
+      figure(tag, "Tracking of a " + traj.describe(), kinds, 0, 0, true);
     }
     txt << "\n";
     rep.json["discontinuous"] = dj;
@@ -348,6 +398,12 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     rep.json["payload"] = pj;
   }
 
+  const auto crit = paperCriteria(rep.json);
+  txt << "What the paper shows, checked on this run (docs/CALIBRATION.md):\n" << formatCriteria(crit);
+  nlohmann::json cj = nlohmann::json::array();
+  for (const auto& c : crit)
+    cj.push_back({{"name", c.name}, {"claim", c.claim}, {"ok", c.ok}, {"checked", c.checked}, {"detail", c.detail}});
+  rep.json["paper_criteria"] = cj;
   rep.text = txt.str();
   io::writeFileAtomic(dir + "summary.txt", rep.text);
   io::writeFileAtomic(dir + "summary.json", rep.json.dump(2) + "\n");

@@ -32,7 +32,8 @@ int columnIndex(const std::string& csv, const std::string& col) {
 
 std::string quote(const std::string& s) {
   std::string o = "'";
-  for (char c : s) o += c == '\'' ? std::string("''") : std::string(1, c);
+  // A line break becomes a concatenated "\n" (single-quoted strings take no escapes).
+  for (char c : s) o += c == '\'' ? std::string("''") : c == '\n' ? std::string("'.\"\\n\".'") : std::string(1, c);
   return o + "'";
 }
 // Writes the script beside the figure, runs gnuplot on it into tmp_png and moves that into place,

@@ -116,11 +116,36 @@ StepStats stepResponse(const Record& r, int dir, double min_jump, double band_fr
     double peak = 0;
     size_t last_out = i;
     const double band = band_frac * std::fabs(jump);
+    int side = -1, crossings = 0;  // the error starts short of the target
+    const double cross_band = 0.01 * std::fabs(jump);
+    int u_dir = 0, reversals = 0;
+    double u_ext = 0.0;
+    constexpr double kReversal_V = 0.05;
+    const double kLowPass = 1.0 - std::exp(-2.0 * M_PI * 20.0 * Ts);
+    double u_f = r.u[i - 1];
     for (size_t k = i; k < j; ++k) {
       const double e = (r.y[k] - r.yd[k]) * (dir > 0 ? 1 : -1);  // > 0: past the target
       peak = std::max(peak, e);
       if (std::fabs(r.y[k] - r.yd[k]) > band) last_out = k;
+      if (!ramp && ((e > cross_band && side < 0) || (e < -cross_band && side > 0))) {
+        side = -side;
+        ++crossings;
+      }
+      // Direction reversals of the command, with a hysteresis of kReversal_V (u_dir 0: not yet moved),
+      // seen through a 20 Hz first-order low-pass: ringing is an oscillation a valve and a muscle can
+      // follow, not a decaying wobble at the sample rate that the regulator cannot.
+      u_f += (r.u[k] - u_f) * kLowPass;
+      const double u = u_f;
+      if (u_dir == 0) {
+        if (std::fabs(u - r.u[i - 1]) > kReversal_V) u_dir = u > r.u[i - 1] ? 1 : -1, u_ext = u;
+      } else if ((u - u_ext) * u_dir > 0) {
+        u_ext = u;
+      } else if ((u_ext - u) * u_dir > kReversal_V) {
+        u_dir = -u_dir, u_ext = u, ++reversals;
+      }
     }
+    s.max_error_crossings = std::max(s.max_error_crossings, crossings);
+    s.max_u_reversals = std::max(s.max_u_reversals, reversals);
     if (j - i < 10) continue;
     (void)ramp;
     if (last_out + 1 >= j) ++s.unsettled;

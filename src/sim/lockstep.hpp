@@ -51,6 +51,12 @@ struct StepStats {
   double settling_s = 0;      // mean time to stay within the band
   int steps = 0;
   int unsettled = 0;          // steps still outside the band when the next one came
+  // Ringing, the worst step: how often the error changes side of the target (counted when it leaves a
+  // band of 1 % of the jump on the other side; an overshoot that comes back is 2), and how often the
+  // valve command, seen through a 20 Hz low-pass, reverses its direction by more than 0.05 V (a clean
+  // step: kick, then settle = 1-2).
+  int max_error_crossings = 0;
+  int max_u_reversals = 0;
 };
 // Steps of the reference by at least min_jump; direction +1 rising, -1 falling; band as a
 // fraction of the jump (0.02 = 2 %).

@@ -95,9 +95,11 @@ TEST(RigTiming, CommandShowsInThePositionThreeCyclesLater) {
   auto cc = controllerConfig(control::Kind::OpenLoop, traj);
   cc.preroll_s = 3.0;
   auto ec = emulatorConfig();
-  // No inertia or friction, so the first sample after the command moves visibly.
+  // No inertia or friction and a fast pressure, so the first sample after the command moves visibly.
   ec.plant = plant::PlantConfig::fromJson(
-      nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},"friction_hysteresis":{"enabled":false}}})"), "test");
+      nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},"friction_hysteresis":{"enabled":false},)"
+                            R"("pressure_lag":{"tau":0.04}}})"),
+      "test");
   ec.plant.sensor_noise = false;
   cc.ctrl.model = ec.plant.truth;
   const auto rig = nodes::runVirtualRig(cc, ec, 2.0);

@@ -1,0 +1,84 @@
+// The default run shows what the paper shows (docs/CALIBRATION.md): the experiments on the built-in
+// emulator with the built-in gains, judged by the same criteria table as `pamc experiments` and
+// `pamc calibrate`. Not exact numbers: the claims (ordering, overshoot, settling, ringing, payload).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include "sim/experiments.hpp"
+#include "sim/lockstep.hpp"
+#include "sim/paper_criteria.hpp"
+
+using namespace pamc;
+
+namespace {
+
+const nlohmann::json& defaultRun() {
+  static const nlohmann::json j = [] {
+    sim::ExperimentSettings s;
+    s.out_dir = (std::filesystem::temp_directory_path() / "pamc_test_paper").string();
+    s.figures = false;
+    return sim::runExperiments(s).json;
+  }();
+  return j;
+}
+
+}  // namespace
+
+// Every claim the default run is calibrated to, except the ones docs/CALIBRATION.md lists as not
+// reproduced (the ESO's place between PI and AMC).
+TEST(PaperResults, DefaultRunReproducesTheClaims) {
+  const std::set<std::string> known_misses = {"order_amc_eso_pi"};
+  const auto crit = sim::paperCriteria(defaultRun());
+  ASSERT_GE(crit.size(), 10u);
+  for (const auto& c : crit) {
+    EXPECT_TRUE(c.checked) << c.name;
+    if (known_misses.count(c.name)) continue;
+    EXPECT_TRUE(c.ok) << c.name << ": " << c.claim << " - " << c.detail;
+  }
+}
+
+// The AMC and PI closed loops: every Table 2 RMSE of PI and AMC within 1.3x of the paper's.
+TEST(PaperResults, PiAndAmcWithinTable2) {
+  const auto& j = defaultRun();
+  for (int r = 0; r < 3; ++r)
+    for (int c : {1, 3}) {
+      const char* col = c == 1 ? "pi" : "amc";
+      const double v = j["table2"][sim::PaperNumbers::table2_rows[r]][col]["rmse"].get<double>();
+      const double ratio = v / sim::PaperNumbers::table2[r][c][1];
+      EXPECT_LE(ratio, 1.3) << sim::PaperNumbers::table2_rows[r] << " " << col;
+      EXPECT_GE(ratio, 1 / 1.3) << sim::PaperNumbers::table2_rows[r] << " " << col;
+    }
+}
+
+// The ringing measure itself: a clean first-order step has no crossings and one command move; a
+// step that rings at 3 Hz is caught.
+TEST(StepResponse, RingingMeasure) {
+  auto make = [](bool ring) {
+    sim::Record r;
+    for (int k = 0; k < 4000; ++k) {
+      const double t = k * 1e-3;
+      const bool after = t >= 1.0;
+      const double ts = t - 1.0;
+      double y = 10.0;
+      if (after) {
+        y = 10.0 + 15.0 * (1.0 - std::exp(-ts / 0.1));
+        if (ring) y += 3.0 * std::exp(-ts / 1.0) * std::sin(2 * M_PI * 3.0 * ts);
+      }
+      r.t.push_back(t);
+      r.yd.push_back(after ? 25.0 : 10.0);
+      r.y.push_back(y);
+      r.u.push_back(0.1 * (r.yd.back() - y) + (after ? 1.0 : 0.0));
+    }
+    return r;
+  };
+  const auto clean = sim::stepResponse(make(false), +1, 1.0, 0.02);
+  EXPECT_EQ(clean.steps, 1);
+  EXPECT_EQ(clean.max_error_crossings, 0);
+  EXPECT_LE(clean.max_u_reversals, 1);
+  const auto ringing = sim::stepResponse(make(true), +1, 1.0, 0.02);
+  EXPECT_GT(ringing.max_error_crossings, 2);
+  EXPECT_GT(ringing.max_u_reversals, 3);
+}
