@@ -182,19 +182,36 @@ class PiCore {
 
 class OpenLoop final : public Controller {
  public:
-  explicit OpenLoop(const ControllerConfig& c) : cfg_(c) { inv_.build(c.model, c.u_min, c.u_max, c.Ts); }
+  explicit OpenLoop(const ControllerConfig& c) : cfg_(c) {
+    inv_.build(c.model, c.u_min, c.u_max, c.Ts);
+    if (c.open_loop_linear) {
+      // Least-squares line y = a + g u through the static characteristic on a uniform grid of u.
+      constexpr int kN = 101;
+      double su = 0, sy = 0, suu = 0, suy = 0;
+      for (int i = 0; i < kN; ++i) {
+        const double u = c.u_min + (c.u_max - c.u_min) * i / (kN - 1), y = inv_.forward(u);
+        su += u, sy += y, suu += u * u, suy += u * y;
+      }
+      gain_ = (kN * suy - su * sy) / (kN * suu - su * su);
+      offset_ = (sy - gain_ * su) / kN;
+      if (!(std::fabs(gain_) > 1e-9) || !std::isfinite(offset_))
+        throw std::invalid_argument("open loop: the model's static characteristic has no slope");
+    }
+  }
   Kind kind() const override { return Kind::OpenLoop; }
   void activate(double, double) noexcept override {}
   ControlOutput update(double yd, double, double, double) noexcept override {
     ControlOutput o;
-    o.u = o.u_n = std::clamp(inv_(yd), cfg_.u_min, cfg_.u_max);
-    o.y_hat = inv_.forward(o.u);
+    const double u = cfg_.open_loop_linear ? (yd - offset_) / gain_ : inv_(yd);
+    o.u = o.u_n = std::clamp(u, cfg_.u_min, cfg_.u_max);
+    o.y_hat = cfg_.open_loop_linear ? offset_ + gain_ * o.u : inv_.forward(o.u);
     return o;
   }
 
  private:
   ControllerConfig cfg_;
   InverseStatic inv_;
+  double gain_ = 1.0, offset_ = 0.0;  // the linear inverse's line [mm/V], [mm]
 };
 
 // The last usable (finite) measured position: a non-finite one is never used.

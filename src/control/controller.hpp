@@ -35,7 +35,7 @@ struct ControllerConfig {
   double u_min = -5.0, u_max = 5.0;  // valve command range [V]
   double kp = 0.1;                   // [V/mm]
   // [V/(mm s)]: fitted to the paper's results (docs/CALIBRATION.md); the printed value is 0.15.
-  double ki = 1.2;
+  double ki = 1.3;
   double kc = 0.06;                  // [V/mm]
   // AMC prediction horizon in samples: 1 is eq. (17); longer horizons roll the model out so that
   // its lags and delays shape the compensation (see docs/CONTROL.md). 0: automatic - 1 with
@@ -61,6 +61,10 @@ struct ControllerConfig {
   // next SYNC, and the controller latches the position (sent after the SYNC at which it was
   // sampled) at the SYNC after that.
   int delay_cycles = 2;
+  // Open loop: false inverts the identified model's static characteristic (the centre line of its
+  // loop); true inverts the straight line fitted to that characteristic - a feedforward that knows the
+  // muscle's range but neither its curvature nor its hysteresis.
+  bool open_loop_linear = false;
   model::Model model;  // identified reference model (open loop, AMC)
   estimation::ActiveModelSettings ukf;
 };
