@@ -135,6 +135,15 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src)
       m.warning = src + ":" + std::to_string(l + 1) + ": truncated last line ignored";
       break;
     }
+    for (size_t c = 0; c < row.size(); ++c) {
+      if (static_cast<int>(c) == it) {
+        if (std::fabs(row[c]) > kMaxTime)
+          fail(src, l + 1, header[c], "time " + cells[c] + " s is out of range (|t| must be at most " + s_of(kMaxTime) + " s)");
+      } else if (std::fabs(row[c]) > kMaxDataValue) {
+        fail(src, l + 1, header[c], "value " + cells[c] + " is too large to identify a model from (|" + header[c] +
+                                        "| must be at most " + s_of(kMaxDataValue) + ")");
+      }
+    }
     // Time must increase with an even step.
     auto& tc = cols[static_cast<size_t>(it)];
     const double tv = row[static_cast<size_t>(it)];
@@ -157,6 +166,8 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src)
     if (static_cast<int>(c) != it && static_cast<int>(c) != iu && static_cast<int>(c) != iy)
       m.extra[header[c]] = std::move(cols[c]);
   m.Ts = (m.t.back() - m.t.front()) / static_cast<double>(m.t.size() - 1);
+  if (!(m.Ts >= kMinSamplingStep))
+    fail(src, header_line, "t", "sampling step " + s_of(m.Ts) + " s is below " + s_of(kMinSamplingStep) + " s");
   return m;
 }
 

@@ -32,6 +32,17 @@ struct Measurement {
   Measurement slice(size_t begin, size_t end) const;
 };
 
+// Limits of the data a measurement may hold; the one place for them, enforced by parseMeasurementCsv.
+// Data columns (u, y, load, ... - everything but t) within +-kMaxDataValue: far beyond any command or
+// sensor in any sensible unit, and small enough that what fit, diagnose and compare derive from the
+// data (ranges, parameter bounds scaled by them, differences, squared errors) stays finite - with
+// values near 1e308 the ranges overflowed and the identification crashed. Time within +-kMaxTime
+// seconds (a finite span and step) and a sampling step of at least kMinSamplingStep seconds (finite
+// rates |du| / Ts).
+constexpr double kMaxDataValue = 1e9;
+constexpr double kMaxTime = 1e12;
+constexpr double kMinSamplingStep = 1e-9;
+
 // Reads and validates a measurement CSV; throws InputError.
 Measurement readMeasurementCsv(const std::string& path);
 // Parses CSV text (source names it in errors).

@@ -30,6 +30,19 @@ printf 't,u,y\n0,1,2\n0.001,1,2\n0.003,1,2\n' > "$work/uneven.csv"
 check "uneven step exits non-zero" test $? -ne 0
 check "uneven step named" grep -q "uneven.csv:4: column 't': uneven sampling step" "$work/err2.txt"
 
+# Finite but huge values: the ranges the identification scales by would overflow. Refused on reading.
+printf 't,u,y\n0,1e308,2\n0.001,-1e308,2\n0.002,1,2\n0.003,-1,2\n' > "$work/huge.csv"
+"$PAMC" fit "$work/huge.csv" --out "$work/huge.json" 2> "$work/err_huge.txt" > /dev/null
+check "huge values: fit exits non-zero" test $? -ne 0
+check "huge values: one line on stderr" test "$(wc -l < "$work/err_huge.txt")" -eq 1
+check "huge values: error names file, line, column and limit" \
+  grep -q "huge.csv:2: column 'u': value 1e308 is too large to identify a model from (|u| must be at most 1e+09)" "$work/err_huge.txt"
+check "huge values: no model file" test ! -e "$work/huge.json"
+"$PAMC" diagnose "$work/huge.csv" --json "$work/huge_dg.json" 2> "$work/err_huge2.txt" > /dev/null
+check "huge values: diagnose exits non-zero" test $? -ne 0
+check "huge values: diagnose error is one line" test "$(wc -l < "$work/err_huge2.txt")" -eq 1
+check "huge values: no diagnose output" test ! -e "$work/huge_dg.json"
+
 "$PAMC" fit "$work/nope.csv" 2> "$work/err3.txt" > /dev/null
 check "missing file exits non-zero" test $? -ne 0
 check "missing file named" grep -q "nope.csv: cannot open file" "$work/err3.txt"

@@ -46,6 +46,27 @@ TEST(Csv, ErrorsNameFileLineAndColumn) {
   EXPECT_EQ(errorOf("t,u,y,t\n"), "data.csv:1: column 't': duplicate column");
 }
 
+// Finite but huge values: the ranges fit, diagnose and compare scale by would overflow (a fit on +-1e308
+// crashed in the GA). Refused when read, with the file, line, column and the limit.
+TEST(Csv, RefusesValuesTooLargeToIdentifyFrom) {
+  EXPECT_EQ(errorOf("t,u,y\n0,1e308,2\n0.1,-1e308,2\n0.2,1,2\n"),
+            "data.csv:2: column 'u': value 1e308 is too large to identify a model from (|u| must be at most 1e+09)");
+  EXPECT_EQ(errorOf("t,u,y\n0,1,2\n0.1,1,-2.5e10\n0.2,1,2\n"),
+            "data.csv:3: column 'y': value -2.5e10 is too large to identify a model from (|y| must be at most 1e+09)");
+  EXPECT_EQ(errorOf("t,u,y,load\n0,1,2,0\n0.1,1,2,0\n0.2,1,2,1.7976931348623157e308\n"),
+            "data.csv:4: column 'load': value 1.7976931348623157e308 is too large to identify a model from (|load| must "
+            "be at most 1e+09)");
+  // Time: a finite span and step.
+  EXPECT_EQ(errorOf("t,u,y\n-1e308,1,2\n0,1,2\n1e308,1,2\n"),
+            "data.csv:2: column 't': time -1e308 s is out of range (|t| must be at most 1e+12 s)");
+  EXPECT_EQ(errorOf("t,u,y\n0,1,2\n1e-300,1,2\n2e-300,1,2\n"),
+            "data.csv:1: column 't': sampling step 1e-300 s is below 1e-09 s");
+  // The limits themselves are accepted: unix time stamps, values of +-1e9 in the file's units.
+  const auto m = io::parseMeasurementCsv("t,u,y\n1700000000,1e9,-1e9\n1700000001,-1e9,1e9\n1700000002,0,0\n", "x.csv");
+  EXPECT_EQ(m.size(), 3u);
+  EXPECT_DOUBLE_EQ(m.u[0], io::kMaxDataValue);
+}
+
 TEST(Csv, TruncatedLastLineIsToleratedWithWarning) {
   const auto m = io::parseMeasurementCsv("t,u,y\n0,1,2\n0.1,1,2\n0.2,1,2\n0.3,1", "d.csv");
   EXPECT_EQ(m.size(), 3u);
