@@ -192,6 +192,24 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
     // the GA finds basins, LM their bottoms.
     std::vector<std::vector<double>> starts = {r.x};
     for (size_t k = 0; k < r.runners_up.size() && static_cast<int>(k) < s.lm_starts; ++k) starts.push_back(r.runners_up[k]);
+    {
+      std::mt19937_64 rng(gs.seed ^ 0x5851f42d4c957f2dull);
+      std::uniform_real_distribution<double> U(0.0, 1.0);
+      const int n = s.lm_spread_starts;
+      std::vector<std::vector<double>> strata(r.x.size());
+      for (auto& v : strata) {
+        for (int k = 0; k < n; ++k) v.push_back((k + U(rng)) / n);
+        std::shuffle(v.begin(), v.end(), rng);
+      }
+      for (int k = 0; k < n; ++k) {
+        std::vector<double> x(r.x.size());
+        for (size_t i = 0; i < x.size(); ++i) x[i] = b.lo[i] + strata[i][static_cast<size_t>(k)] * (b.hi[i] - b.lo[i]);
+        // Fixed parameters (lo == hi) stay where the GA has them.
+        for (size_t i = 0; i < x.size(); ++i)
+          if (!(b.hi[i] > b.lo[i])) x[i] = r.x[i];
+        starts.push_back(x);
+      }
+    }
     if (!gs.start.empty()) {
       // Warm start: also the start model with the new effects' parameters spread over their ranges,
       // so an effect whose cost is flat where the GA left it still gets a chance.
@@ -210,16 +228,24 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
     }
     OptResult best_l;
     best_l.cost = std::numeric_limits<double>::max();
+    std::vector<OptResult> short_runs;
     for (const auto& x0 : starts) {
       OptResult l = levenbergMarquardt(resid, d.size(), x0, b.lo, b.hi, starts.size() > 1 ? 8 : s.lm_iterations, threads);
       out.evaluations += l.evaluations;
-      if (l.cost < best_l.cost) best_l = l;
+      short_runs.push_back(l);
     }
+    std::sort(short_runs.begin(), short_runs.end(), [](const OptResult& a, const OptResult& c) { return a.cost < c.cost; });
     if (starts.size() > 1) {
-      OptResult l = levenbergMarquardt(resid, d.size(), best_l.x, b.lo, b.hi, s.lm_iterations, threads);
-      out.evaluations += l.evaluations;
-      if (l.cost <= best_l.cost) best_l = l;
+      // The three best basins to the end: after eight iterations the eventual winner is not always ahead
+      // (a hysteretic effect's width and the core's beta/gamma trade places before they settle).
+      for (size_t k = 0; k < std::min<size_t>(3, short_runs.size()); ++k) {
+        OptResult l = levenbergMarquardt(resid, d.size(), short_runs[k].x, b.lo, b.hi, s.lm_iterations, threads);
+        out.evaluations += l.evaluations;
+        if (l.cost < short_runs[k].cost) short_runs[k] = l;
+      }
     }
+    for (const auto& l : short_runs)
+      if (l.cost < best_l.cost) best_l = l;
     if (best_l.cost <= r.cost) r = best_l;
     if (progress) progress("refine", best_l.iterations, std::sqrt(r.cost));
   }

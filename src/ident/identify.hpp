@@ -19,6 +19,9 @@ struct FitSettings {
   int refine_evals = 300;      // Nelder-Mead polish after Levenberg-Marquardt (non-smooth effects)
   int lm_iterations = 40;      // Levenberg-Marquardt iterations after the GA (0: none)
   int lm_starts = 3;           // LM also from this many distinct runners-up of the GA (short runs)
+  // ... and from this many points spread over the search box (Latin hypercube, seeded): a
+  // multimodal fit (a hysteretic effect that can mirror the core's loop) is not left to the GA alone.
+  int lm_spread_starts = 16;
 };
 
 struct FitResult {
