@@ -1,8 +1,9 @@
 // Position controllers of the paper: open loop (inverse static characteristic), PI (eq. 16),
 // PI + active model compensation (eqs. 14-19) and PID + extended state observer (eqs. 22-25).
 //
-// Lifecycle: configure() may allocate and throw; activate() resets state; update() runs once per
-// cycle, is noexcept, allocation-free and returns the valve command with its parts.
+// Lifecycle: construction (makeController) may allocate and throw on a bad configuration; activate()
+// resets state; update() runs once per cycle, is noexcept, allocation-free and returns the valve
+// command with its parts.
 //
 // Units and the interpretation of the paper's gains (written down once, here):
 //  - position in mm, command u in V relative to the valve's mid-range (valve voltage = 5 V + u,

@@ -73,13 +73,11 @@ class Ukf {
   explicit Ukf(const UkfSettings& s = UkfSettings{}) { configure(s); }
 
   void configure(const UkfSettings& s) {
-    settings_ = s;
     const double n = N;
     const double kappa = s.kappa < -0.5 ? 3.0 - n : s.kappa;
     lambda_ = s.alpha * s.alpha * (n + kappa) - n;
     gamma_ = std::sqrt(n + lambda_);
     wm0_ = lambda_ / (n + lambda_);
-    wc0_ = wm0_ + 1.0 - s.alpha * s.alpha + s.beta;
     wi_ = 1.0 / (2.0 * (n + lambda_));
     central_ = s.beta - s.alpha * s.alpha;  // Wc0 - Wm0 - 1 + ... reduces to this (see predict())
   }
@@ -170,7 +168,8 @@ class Ukf {
   double gateStatistic() const noexcept { return gate_stat_; }
   double lambda() const noexcept { return lambda_; }
   double wm0() const noexcept { return wm0_; }
-  double wc0() const noexcept { return wc0_; }
+  // Wc0 = Wm0 + 1 - a^2 + b; the steps use its difference to Wm0 (central_), so it is derived here.
+  double wc0() const noexcept { return wm0_ + 1.0 + central_; }
   double wi() const noexcept { return wi_; }
 
  private:
@@ -233,8 +232,7 @@ class Ukf {
     return UkfStatus::Reset;
   }
 
-  UkfSettings settings_;
-  double lambda_ = 0, gamma_ = 0, wm0_ = 0, wc0_ = 0, wi_ = 0;
+  double lambda_ = 0, gamma_ = 0, wm0_ = 0, wi_ = 0;
   double central_ = 0;  // b - a^2: weight of the mean offset in the covariance about X_0
   Vec x_ = Vec::Zero();
   Mat P_ = Mat::Identity();

@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace pamc::model {
 
@@ -85,5 +86,11 @@ inline double boucWenNext(const BoucWenParams& p, double h, double du, double f_
   if (std::fabs(h) > 1e9) h = std::copysign(1e9, h);
   return h;
 }
+
+// Whether a parameter set is bounded (see bouc_wen.cpp): the sign condition of the continuous model,
+// then the discrete form driven through sweeps and full-range steps of the command range
+// [u_min, u_max]. On false, why says which test failed. Slow (a few thousand steps): call it when a
+// parameter set is checked, never in a cycle.
+bool boucWenStable(const BoucWenParams& p, double u_min, double u_max, std::string* why = nullptr);
 
 }  // namespace pamc::model

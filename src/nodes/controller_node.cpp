@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "model/bouc_wen.hpp"
+#include "nodes/process_data.hpp"
 
 namespace pamc::nodes {
 
@@ -18,60 +19,9 @@ using canopen::NmtCommand;
 using canopen::NmtState;
 using canopen::TimeUs;
 
-const char* toString(Fault f) {
-  switch (f) {
-    case Fault::None: return "none";
-    case Fault::SensorHeartbeat: return "sensor heartbeat lost";
-    case Fault::PositionMissing: return "position PDO missing";
-    case Fault::Estimator: return "estimator failure (non-finite or reset)";
-    case Fault::BusError: return "CAN error passive";
-    case Fault::ValveHeartbeat: return "valve heartbeat lost";
-    case Fault::SyncLost: return "SYNC lost";
-    case Fault::SensorState: return "sensor rebooted or not operational";
-    case Fault::ValveState: return "valve rebooted, stopped or not operational";
-    case Fault::ValvePdoMissing: return "valve PDO missing";
-    case Fault::CanOverrun: return "CAN overrun (frames lost)";
-    case Fault::BusOff: return "CAN bus off";
-    case Fault::IdCollision: return "another node uses this node-ID";
-    case Fault::SensorConflict: return "two sources of the position PDO";
-    case Fault::PdoLength: return "PDO with wrong length discarded";
-    case Fault::SyncLength: return "SYNC with wrong length discarded";
-    case Fault::SensorStuck: return "sensor stuck (position unchanged while the command moved)";
-    case Fault::PositionRange: return "position outside the sensor's measuring range";
-  }
-  return "?";
-}
-
-// CiA 301 emergency error codes.
-std::uint16_t emcyCode(Fault f) {
-  switch (f) {
-    case Fault::None: return 0x0000;
-    case Fault::SensorHeartbeat: return canopen::kEmcyHeartbeat;      // life guard / heartbeat error
-    case Fault::PositionMissing: return canopen::kEmcyRpdoTimeout;    // RPDO timeout
-    case Fault::Estimator: return canopen::kEmcySoftware;             // internal software
-    case Fault::BusError: return canopen::kEmcyErrorPassive;          // CAN in error passive mode
-    case Fault::ValveHeartbeat: return canopen::kEmcyHeartbeat;
-    case Fault::SyncLost: return canopen::kEmcyCommunication;         // no SYNC code in CiA 301: generic
-    case Fault::SensorState: return canopen::kEmcyHeartbeat;          // heartbeat event (remote reset / state)
-    case Fault::ValveState: return canopen::kEmcyHeartbeat;
-    case Fault::ValvePdoMissing: return canopen::kEmcyRpdoTimeout;
-    case Fault::CanOverrun: return canopen::kEmcyCanOverrun;          // CAN overrun (objects lost)
-    case Fault::BusOff: return canopen::kEmcyBusOffRecovered;         // sent once the controller restarted
-    case Fault::IdCollision: return canopen::kEmcyCanIdCollision;     // CAN-ID collision
-    case Fault::SensorConflict: return canopen::kEmcyCanIdCollision;
-    case Fault::PdoLength: return canopen::kEmcyPdoLength;            // PDO not processed due to length error
-    case Fault::SyncLength: return canopen::kEmcySyncLength;          // unexpected SYNC data length
-    case Fault::SensorStuck: return canopen::kEmcySensor;             // additional modules: sensor
-    case Fault::PositionRange: return canopen::kEmcySensorRange;
-  }
-  return 0xFF00;
-}
-
-bool isWarning(Fault f) { return f == Fault::PdoLength || f == Fault::SyncLength; }
-
 namespace {
-constexpr std::uint32_t bit(Fault f) { return 1u << static_cast<unsigned>(f); }
-constexpr std::uint32_t kWarnMask = bit(Fault::PdoLength) | bit(Fault::SyncLength);
+constexpr std::uint32_t bit(Fault f) { return faultBit(f); }
+constexpr std::uint32_t kWarnMask = warningMask();
 constexpr std::uint32_t kSafetyMask = ((1u << kFaultCount) - 2u) & ~kWarnMask;
 constexpr TimeUs kStartGraceUs = 300'000;  // a started slave must report Operational within 3 heartbeats
 
@@ -133,51 +83,13 @@ bool trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t) {
 // Ranges the controller accepts beyond the EDS limits: kp and kc up to 10 V/mm (the valve's whole
 // range for 1 mm of error), ki up to 100 V/(mm s); the divisors ESO delta, ESO b0 and UKF R above 0.
 std::uint32_t applicationRange(std::uint16_t idx, std::uint8_t sub, double v) {
-  if (idx == 0x2000 && (sub == 1 || sub == 3) && v > 10.0) return canopen::kAbortValueTooHigh;
-  if (idx == 0x2000 && sub == 2 && v > 100.0) return canopen::kAbortValueTooHigh;
   if (((idx == 0x2000 && (sub == 7 || sub == 8)) || (idx == 0x2002 && sub == 5)) && !(v > 0.0))
     return canopen::kAbortValueTooLow;
   return canopen::kSdoOk;
 }
 
-std::int16_t toValve(double u) noexcept {
-  const double v = std::clamp(u + 5.0, 0.0, 10.0);  // valve volts
-  return static_cast<std::int16_t>(std::lround(v * 32767.0 / 10.0));
-}
+std::int16_t toValve(double u) noexcept { return pd::commandToCounts(u); }
 
-// Bouc-Wen stability of the model core (eq. 6 with m = 1). With h' = h / alpha the h-equation has
-// alpha' = 1, beta' = beta sign(alpha), gamma' = gamma; it is bounded for every input when
-// beta' + gamma' > 0 (Ikhouane and Rodellar, classes I-III from h = 0) and unbounded otherwise. The
-// discrete form is then driven through sweeps and steps over the whole command range as a check.
-bool boucWenStable(const model::BoucWenParams& p, std::string* why) {
-  if (p.alpha != 0.0 && !(std::copysign(1.0, p.alpha) * p.beta + p.gamma > 0.0)) {
-    if (why) *why = "Bouc-Wen parameters unstable: beta * sign(alpha) + gamma must be > 0";
-    return false;
-  }
-  double h = 0.0, u_prev = 0.0, h_max = 0.0;
-  const int periods[] = {20, 200, 2000};
-  for (int per : periods) {
-    for (int k = 0; k < 2 * per; ++k) {
-      const double ph = static_cast<double>(k % per) / per;
-      const double u = -5.0 + 10.0 * (ph < 0.5 ? 2.0 * ph : 2.0 - 2.0 * ph);
-      h = model::boucWenNext(p, h, u - u_prev, 0.0, 1e-3);
-      u_prev = u;
-      h_max = std::max(h_max, std::fabs(h));
-    }
-  }
-  for (int k = 0; k < 200; ++k) {  // full-range steps
-    const double u = (k % 2) ? 5.0 : -5.0;
-    h = model::boucWenNext(p, h, u - u_prev, 0.0, 1e-3);
-    u_prev = u;
-    h_max = std::max(h_max, std::fabs(h));
-  }
-  const double y = model::boucWenOutput(p, u_prev, h);
-  if (!std::isfinite(h) || !std::isfinite(y) || h_max > 1e6) {
-    if (why) *why = "Bouc-Wen model diverges on a full-range sweep";
-    return false;
-  }
-  return true;
-}
 }  // namespace
 
 ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport,
@@ -315,7 +227,7 @@ ControllerNode::Params ControllerNode::readParams() {
   for (std::uint8_t i = 0; i < 6; ++i)
     p.ctrl.model.core().*kModel[i] = od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).get();
   for (std::uint8_t i = 0; i < kUkfSubs; ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).get();
-  p.safe_u = od.ref<double>(0x2020, 0).get() - 5.0;
+  p.safe_u = pd::commandFromVolts(od.ref<double>(0x2020, 0).get());
   p.missing_limit = od.ref<std::uint8_t>(0x2021, 0).get();
   for (std::uint8_t i = 0; i < 3; ++i) p.*kPlausibility[i] = od.ref<double>(0x2022, static_cast<std::uint8_t>(i + 1)).get();
   return p;
@@ -327,7 +239,7 @@ void ControllerNode::writeParams(const Params& p) {
   for (std::uint8_t i = 0; i < 6; ++i)
     od.ref<double>(0x2001, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.model.core().*kModel[i]);
   for (std::uint8_t i = 0; i < kUkfSubs; ++i) od.ref<double>(0x2002, static_cast<std::uint8_t>(i + 1)).set(p.ctrl.ukf.*kUkf[i]);
-  od.ref<double>(0x2020, 0).set(p.safe_u + 5.0);
+  od.ref<double>(0x2020, 0).set(pd::valveVolts(p.safe_u));
   od.ref<std::uint8_t>(0x2021, 0).set(static_cast<std::uint8_t>(p.missing_limit));
   for (std::uint8_t i = 0; i < 3; ++i) od.ref<double>(0x2022, static_cast<std::uint8_t>(i + 1)).set(p.*kPlausibility[i]);
 }
@@ -355,11 +267,11 @@ std::uint32_t ControllerNode::checkParams(const Params& p, std::string* why) {
     if (auto c = check(0x2001, static_cast<std::uint8_t>(i + 1), p.ctrl.model.core().*kModel[i])) return c;
   for (std::uint8_t i = 0; i < kUkfSubs; ++i)
     if (auto c = check(0x2002, static_cast<std::uint8_t>(i + 1), p.ctrl.ukf.*kUkf[i])) return c;
-  if (auto c = check(0x2020, 0, p.safe_u + 5.0)) return c;
+  if (auto c = check(0x2020, 0, pd::valveVolts(p.safe_u))) return c;
   for (std::uint8_t i = 0; i < 3; ++i)
     if (auto c = check(0x2022, static_cast<std::uint8_t>(i + 1), p.*kPlausibility[i])) return c;
   // Each value may be fine alone and the set still unusable: CiA 301 "general parameter incompatibility".
-  if (!boucWenStable(p.ctrl.model.core(), why)) return canopen::kAbortParameterIncompatible;
+  if (!model::boucWenStable(p.ctrl.model.core(), pd::kCommandMin, pd::kCommandMax, why)) return canopen::kAbortParameterIncompatible;
   return kSdoOk;
 }
 
@@ -383,7 +295,7 @@ void ControllerNode::configureFromOd() {
   traj_ = traj;
   ctrl_ = std::move(fresh_ctrl);
   running_ = std::move(p);
-  safe_u_ = std::clamp(running_.safe_u, -5.0, 5.0);
+  safe_u_ = std::clamp(running_.safe_u, pd::kCommandMin, pd::kCommandMax);
   missing_limit_ = running_.missing_limit;
   cfg_.ctrl.Ts = Ts;
   next_ctrl_.reset();
@@ -439,7 +351,7 @@ void ControllerNode::takeCommitted(double y) noexcept {
   std::swap(running_, next_);
   commit_ready_ = false;
   const bool safe_changed = running_.safe_u != next_.safe_u;
-  safe_u_ = std::clamp(running_.safe_u, -5.0, 5.0);
+  safe_u_ = std::clamp(running_.safe_u, pd::kCommandMin, pd::kCommandMax);
   missing_limit_ = running_.missing_limit;
   ++fc_.sets_applied;
   sets_applied_.set(static_cast<std::uint8_t>(fc_.sets_applied));
@@ -702,7 +614,7 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   const auto& rp = node_->rpdo(1);
   const bool fresh = rp.syncsSinceReception() == 0;  // a position arrived in the last cycle
   const std::int32_t raw = position_.get();
-  const double y = raw * 1e-3;
+  const double y = pd::countsToMm(raw);
   // Plausibility (0x2022): a position outside the measuring range is no position - the controller gets
   // NaN for it (it holds the last usable one and reports it as not used) and a run of them is a fault;
   // a position that does not change while the command moves is a stuck sensor.

@@ -27,37 +27,11 @@
 #include "canopen/node.hpp"
 #include "control/controller.hpp"
 #include "nodes/cycle_stats.hpp"
+#include "nodes/faults.hpp"
 #include "sim/trajectory.hpp"
 
 namespace pamc::nodes {
 
-enum class Fault : std::uint8_t {
-  None = 0,
-  SensorHeartbeat = 1,   // no heartbeat from the sensor node
-  PositionMissing = 2,   // no usable position PDO for more than 0x2021 cycles
-  Estimator = 3,         // non-finite command or estimate, the UKF had to reset, or a set that does not configure
-  BusError = 4,          // CAN controller error passive
-  ValveHeartbeat = 5,    // no heartbeat from the valve node
-  SyncLost = 6,          // SYNC consumer: no SYNC within 1.5 periods
-  SensorState = 7,       // the sensor rebooted (boot-up) or is not Operational
-  ValveState = 8,        // the valve rebooted, is stopped, or does not stay Operational
-  ValvePdoMissing = 9,   // no pressure PDO from the valve for more than 0x2021 cycles
-  CanOverrun = 10,       // frames lost: this node's transmit queue full, or a controller overflow
-  BusOff = 11,           // CAN controller bus off (EMCY 0x8140 once it has restarted)
-  IdCollision = 12,      // another node sends on this node's identifiers (same node-ID)
-  SensorConflict = 13,   // two different positions in one cycle, three cycles running (two sensors)
-  // Warnings: EMCY and counted, the loop runs on (the frame itself is discarded).
-  PdoLength = 14,        // an RPDO with a wrong length (never decoded)
-  SyncLength = 15,       // a SYNC with a wrong length (consumer)
-  // Safety faults of the position's plausibility (0x2022).
-  SensorStuck = 16,      // the position has not changed while the command moved by 0x2022:03 V
-  PositionRange = 17,    // more than 0x2021 positions in a row outside the measuring range 0x2022:01
-};
-inline constexpr int kFaultCount = 18;
-const char* toString(Fault f);
-// CiA 301 emergency error code of a fault.
-std::uint16_t emcyCode(Fault f);
-bool isWarning(Fault f);
 
 struct ControllerNodeConfig {
   std::string eds_path = "od/controller.eds";

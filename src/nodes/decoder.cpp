@@ -1,5 +1,7 @@
 #include "nodes/decoder.hpp"
 
+#include "nodes/process_data.hpp"
+
 #include <dirent.h>
 #include <sys/stat.h>
 
@@ -59,11 +61,11 @@ std::vector<std::string> expand(const std::vector<std::string>& paths) {
 // Known process data of the rig, in engineering units.
 void roleOf(PdoField& f) {
   if (f.index == 0x6004 && f.sub == 0) {
-    f.role = "y", f.scale = 1e-3, f.unit = "mm";  // CiA 406 position, 0.001 mm steps
+    f.role = "y", f.scale = pd::kPositionStep_mm, f.unit = "mm";  // CiA 406 position, 0.001 mm steps
   } else if (f.index == 0x6411 && f.sub == 1) {
-    f.role = "u", f.scale = 10.0 / 32767.0, f.offset = -5.0, f.unit = "V";  // command relative to mid-range
+    f.role = "u", f.scale = pd::kValveFullScale_V / pd::kAnalogFullScaleCounts, f.offset = -pd::kValveMid_V, f.unit = "V";  // command relative to mid-range
   } else if (f.index == 0x6401 && f.sub == 1) {
-    f.role = "p", f.scale = 10.0 / 32767.0, f.unit = "bar";
+    f.role = "p", f.scale = pd::kPressureFullScale_bar / pd::kAnalogFullScaleCounts, f.unit = "bar";
   }
 }
 

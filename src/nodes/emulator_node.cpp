@@ -1,5 +1,7 @@
 #include "nodes/emulator_node.hpp"
 
+#include "nodes/process_data.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -39,8 +41,8 @@ EmulatorNodes::EmulatorNodes(const EmulatorConfig& cfg, canopen::Transport& tran
     if (id == master_id_ && ev == canopen::HeartbeatEvent::Timeout) updateValve(now);
   });
   // The valve holds its command at 0 V (vented) until the controller sends one.
-  plant_.reset(-5.0, 0.0);
-  position_.set(static_cast<std::int32_t>(std::lround(plant_.position() * 1000.0)));
+  plant_.reset(pd::kCommandMin, 0.0);  // vented: 0 V at the valve
+  position_.set(pd::mmToCounts(plant_.position()));
 }
 
 void EmulatorNodes::start(TimeUs now) {
@@ -113,7 +115,7 @@ void EmulatorNodes::updateValve(TimeUs now) {
   if (!ok) valve_error_ = true;
   else if (valve_error_ && valve_->rpdo(1).syncsSinceReception() == 0) valve_error_ = false;  // a fresh command
   const bool error_out = valve_error_ && error_mode_.get() != 0;
-  const double u = (error_out ? static_cast<double>(std::clamp(error_value_.get(), 0, 32767)) : command_.get()) * 10.0 / 32767.0 - 5.0;
+  const double u = pd::countsToCommand(error_out ? static_cast<double>(std::clamp(error_value_.get(), 0, 32767)) : command_.get());
   if (u != u_held_) {
     u_held_ = u;
     valve_changed_us_ = now;
@@ -130,11 +132,11 @@ void EmulatorNodes::onFrame(const Frame& f, TimeUs now) {
     const double F = cfg_.payload_at_s >= 0 && time() >= cfg_.payload_at_s ? cfg_.payload_N : 0.0;
     plant_.step(u_held_, F);
     const double y = plant_.measure();
-    const auto counts = static_cast<std::int32_t>(std::lround(std::clamp(y, -2.0e6, 2.0e6) * 1000.0));
+    const auto counts = pd::mmToCounts(y);
     late_[syncs_ % late_.size()] = counts;
     const int lag = std::clamp(cfg_.late_pdo_cycles, 0, static_cast<int>(late_.size()) - 1);
     position_.set(syncs_ > static_cast<std::uint64_t>(lag) ? late_[(syncs_ - static_cast<std::uint64_t>(lag)) % late_.size()] : counts);
-    pressure_.set(static_cast<std::int16_t>(std::lround(std::clamp(plant_.pressure_bar(), 0.0, 10.0) * 32767.0 / 10.0)));
+    pressure_.set(pd::barToCounts(plant_.pressure_bar()));
   }
   if (!sensorSilent()) sensor_->onFrame(f, now);
   valve_->onFrame(f, now);

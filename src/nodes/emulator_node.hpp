@@ -21,6 +21,7 @@
 #include <string>
 
 #include "canopen/node.hpp"
+#include "nodes/process_data.hpp"
 #include "plant/plant.hpp"
 
 namespace pamc::nodes {
@@ -71,7 +72,7 @@ class EmulatorNodes : public canopen::BusClient {
   // and Pre-operational, as after a power cycle.
   void rebootSensor(canopen::TimeUs downtime_us);
   // What the valve outputs (0..10 V), whether it is at its error value, and when the output last changed.
-  double valveVolts() const { return u_held_ + 5.0; }
+  double valveVolts() const { return pd::valveVolts(u_held_); }
   bool valveInError() const { return valve_error_; }
   canopen::TimeUs valveChangedUs() const { return valve_changed_us_; }
 
@@ -103,7 +104,7 @@ class EmulatorNodes : public canopen::BusClient {
   canopen::Ref<std::int16_t> command_{nullptr};
   std::uint32_t sync_cob_ = 0x80;
   std::uint32_t pdo_cob_ = 0x182;
-  double u_held_ = -5.0;
+  double u_held_ = pd::kCommandMin;
   std::atomic<std::uint64_t> syncs_{0};
   std::uint64_t dropped_ = 0;
   std::mt19937_64 rng_;

@@ -1,5 +1,7 @@
 #include "nodes/fault_rig.hpp"
 
+#include "nodes/process_data.hpp"
+
 #include <malloc.h>
 #include <time.h>
 #include <unistd.h>
@@ -359,7 +361,7 @@ FaultRun runOne(BusFault setup, BusFault f, double fault_s, const FaultRigOption
   const FaultCounters fc0 = r.ctrl->faultCounters();
   begin(r, f);
   bool injected = true, faulted = false, safe = false;
-  const double safe_volts = r.ctrl->safeCommand() + 5.0;
+  const double safe_volts = pd::valveVolts(r.ctrl->safeCommand());
   while (r.bus.now() < t_stop) {
     // Fine steps around the fault, for the reaction times.
     const bool fine = r.bus.now() < t_end + 300'000;
@@ -1004,8 +1006,8 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
   row("0x2003:02 staged flag (ro)", kAbortReadOnly, sdo.writeU8(0x2003, 2, 1), unchanged());
   row("0x2004 (no such object)", kAbortNoObject, sdo.writeU8(0x2004, 0, 1), unchanged());
   row("0x2000:09 (no such sub-index)", kAbortNoSubIndex, sdo.writeDouble(0x2000, 9, 1.0), unchanged());
-  row("kp 0x2000:01 = 20 V/mm (above 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 20.0), unchanged());
-  row("kp 0x2000:01 = 5000 (above the EDS limit 1000)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 5000.0), unchanged());
+  row("kp 0x2000:01 = 20 V/mm (above the EDS limit 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 20.0), unchanged());
+  row("kp 0x2000:01 = 5000 (far above the EDS limit 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 5000.0), unchanged());
   row("kp 0x2000:01 = -1", kAbortValueTooLow, sdo.writeDouble(0x2000, 1, -1.0), unchanged());
   row("ki 0x2000:02 = NaN", kAbortValueRange, sdo.writeDouble(0x2000, 2, nan), unchanged());
   row("ESO b0 0x2000:08 = 0", kAbortValueTooLow, sdo.writeDouble(0x2000, 8, 0.0), unchanged());

@@ -11,42 +11,54 @@
 
 namespace pamc::nodes {
 
+VirtualRig::VirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, std::uint32_t bitrate,
+                       FrameEdit emulator_tx)
+    : cport_(bus_.addPort()), eport_(bus_.addPort()), etx_(eport_, std::move(emulator_tx)) {
+  if (bitrate > 0) bus_.setBitrate(bitrate);
+  ctrl_ = std::make_unique<ControllerNode>(c, cport_, [this] { return bus_.now(); });
+  emu_ = std::make_unique<EmulatorNodes>(e, etx_);
+  cport_.setClient(&ctrl_->node());
+  eport_.setClient(emu_.get());
+}
+
+void VirtualRig::start() {
+  emu_->start(bus_.now());
+  ctrl_->start(bus_.now());
+}
+
+void VirtualRig::step(canopen::TimeUs dt_us) {
+  bus_.advanceBy(dt_us);
+  CycleRecord rec;
+  while (ctrl_->records().pop(rec)) {
+    if (sink_) sink_(rec);
+    else records_.push_back(rec);
+  }
+}
+
 VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, double duration_s,
                                const std::string& candump_log, canopen::TimeUs epoch_us, std::uint32_t bitrate,
                                const VirtualRigHooks& hooks) {
-  canopen::VirtualBus bus;
-  if (bitrate > 0) bus.setBitrate(bitrate);
-  auto& cport = bus.addPort();
-  auto& eport = bus.addPort();
-  auto ctrlp = std::make_unique<ControllerNode>(c, cport, [&bus] { return bus.now(); });  // rings: heap
-  auto& ctrl = *ctrlp;
-  auto emup = std::make_unique<EmulatorNodes>(e, eport);
-  auto& emu = *emup;
-  cport.setClient(&ctrl.node());
-  eport.setClient(&emu);
+  VirtualRig rig(c, e, bitrate);
+  auto& bus = rig.bus();
+  auto& ctrl = rig.controller();
+  VirtualRigResult r;
+  if (hooks.on_record) rig.setRecordSink(hooks.on_record);
   std::unique_ptr<canopen::CandumpWriter> log;
   if (!candump_log.empty()) {
     log = std::make_unique<canopen::CandumpWriter>(candump_log, "vcan0");
     bus.addTap(log->tap(epoch_us));
   }
   if (hooks.tap) bus.addTap(hooks.tap);
-  emu.start(bus.now());
-  ctrl.start(bus.now());
-  VirtualRigResult r;
+  rig.start();
   const bool forever = hooks.realtime && duration_s <= 0;
   const double limit_s = duration_s + c.preroll_s + 30.0;  // give up if it never starts
-  CycleRecord rec;
   using Clock = std::chrono::steady_clock;
   const auto wall0 = Clock::now();
   auto flushed = wall0;
   timespec pace{};
   ::clock_gettime(CLOCK_MONOTONIC, &pace);
   while (forever || ctrl.runTime() < duration_s) {
-    bus.advanceBy(1000);
-    while (ctrl.records().pop(rec)) {
-      if (hooks.on_record) hooks.on_record(rec);
-      else r.records.push_back(rec);
-    }
+    rig.step();
     if (!forever && bus.now() * 1e-6 > limit_s) break;
     if (hooks.on_step && !hooks.on_step(bus.now())) break;
     if (log) {
@@ -64,10 +76,8 @@ VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConf
       }
     }
   }
-  while (ctrl.records().pop(rec)) {
-    if (hooks.on_record) hooks.on_record(rec);
-    else r.records.push_back(rec);
-  }
+  rig.step(0);  // the records of the last cycle
+  r.records = std::move(rig.records());
   if (log) log->flush();
   r.stats = ctrl.stats();
   r.frames = bus.framesDelivered();

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -10,6 +11,67 @@
 #include "nodes/emulator_node.hpp"
 
 namespace pamc::nodes {
+
+// The rig declared once and then stepped (the shape of a simulation diagram: declare, then step).
+// The constructor builds the bus (with bit timing when bitrate > 0), the controller node and the
+// emulator nodes, and connects them; start() boots them; step() advances the bus by one period and
+// hands the controller's cycle records to the sink (or keeps them). Tools that need their own station
+// on the bus (an SDO client, an NMT master, a fault injector) take a port with addPort() before start().
+class VirtualRig {
+ public:
+  // Injection on the emulator's side of the bus: every frame the emulator nodes send passes through
+  // this first and may be changed (return true) or dropped (return false).
+  using FrameEdit = std::function<bool(canopen::Frame&)>;
+
+  VirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, std::uint32_t bitrate = 0,
+             FrameEdit emulator_tx = nullptr);
+  VirtualRig(const VirtualRig&) = delete;
+  VirtualRig& operator=(const VirtualRig&) = delete;
+
+  canopen::VirtualBus::Port& addPort() { return bus_.addPort(); }
+  void addTap(canopen::VirtualBus::Tap tap) { bus_.addTap(std::move(tap)); }
+  // Where the cycle records go; without a sink they are kept (records()).
+  void setRecordSink(std::function<void(const CycleRecord&)> sink) { sink_ = std::move(sink); }
+
+  void start();                                    // boot-up of the emulator nodes, then the controller
+  void step(canopen::TimeUs dt_us = 1000);         // advance the bus, collect the records
+  void runFor(double seconds) {                    // steps of 1 ms
+    for (long k = 0, n = static_cast<long>(seconds * 1000.0 + 0.5); k < n; ++k) step();
+  }
+
+  canopen::VirtualBus& bus() { return bus_; }
+  canopen::TimeUs now() const { return bus_.now(); }
+  ControllerNode& controller() { return *ctrl_; }
+  EmulatorNodes& emulator() { return *emu_; }
+  std::vector<CycleRecord>& records() { return records_; }
+
+ private:
+  canopen::VirtualBus bus_;  // first: outlives the nodes that send through it
+  canopen::VirtualBus::Port& cport_;
+  canopen::VirtualBus::Port& eport_;
+  // The emulator's transport: the port itself, or the port behind the frame edit.
+  class EditingTransport final : public canopen::Transport {
+   public:
+    EditingTransport(canopen::Transport& inner, FrameEdit edit) : inner_(inner), edit_(std::move(edit)) {}
+    bool send(const canopen::Frame& f) override { return sendUntil(f, canopen::kNever); }
+    bool sendUntil(const canopen::Frame& f, canopen::TimeUs deadline) override {
+      canopen::Frame g = f;
+      if (edit_ && !edit_(g)) return true;  // dropped on the way, as a lost frame is
+      return inner_.sendUntil(g, deadline);
+    }
+    std::size_t queued() const override { return inner_.queued(); }
+    std::uint64_t expiredCount() const override { return inner_.expiredCount(); }
+
+   private:
+    canopen::Transport& inner_;
+    FrameEdit edit_;
+  };
+  EditingTransport etx_;
+  std::unique_ptr<ControllerNode> ctrl_;  // rings: heap
+  std::unique_ptr<EmulatorNodes> emu_;
+  std::function<void(const CycleRecord&)> sink_;
+  std::vector<CycleRecord> records_;
+};
 
 struct VirtualRigResult {
   std::vector<CycleRecord> records;

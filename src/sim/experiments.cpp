@@ -68,9 +68,16 @@ std::string gainsText(const control::ControllerConfig& c) {
 std::string plantText(const plant::PlantConfig& p) {
   const nlohmann::json j = p.toJson();
   std::string t;
+  size_t line_start = 0;
   for (const auto& [name, e] : j.at("effects").items()) {
     if (!e.value("enabled", false)) continue;
-    t += (t.empty() ? "" : ", ") + name;
+    if (t.size() - line_start > 80) {  // figure titles: wrap rather than run off the picture
+      t += ",\n";
+      line_start = t.size();
+    } else if (!t.empty()) {
+      t += ", ";
+    }
+    t += name;
     std::string ps;
     for (const auto& [k, v] : e.items())
       if (k != "enabled" && v.is_number()) ps += (ps.empty() ? " " : " ") + k + " " + fmt("%g", v.get<double>());

@@ -17,47 +17,66 @@ void Record::writeCsv(const std::string& path) const {
                      {&t, &yd, &y, &y_true, &u, &u_n, &u_c, &y_hat, &force, &p});
 }
 
-Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const ClosedLoopRun& run, double u0) {
-  const double Ts = plant.config().Ts;
-  const auto n = static_cast<size_t>(std::llround(run.duration_s / Ts));
-  Record r;
-  r.reserve(n);
-  plant.reset(u0, 0.0);
-  ctrl.activate(u0, plant.measure());
-  // Commands in flight to the valve (index 0 = applied this cycle).
-  std::array<double, 8> pipe;
-  pipe.fill(u0);
-  const int d = std::clamp(run.delay_cycles, 0, 7);
-  auto send = [&](double u) {
-    for (int i = 7; i > 0; --i) pipe[static_cast<size_t>(i)] = pipe[static_cast<size_t>(i - 1)];
-    pipe[0] = u;
-    return pipe[static_cast<size_t>(d)];
-  };
-  const double y_home = run.reference.at(0.0);
-  const auto n_pre = static_cast<size_t>(std::llround(std::max(run.preroll_s, 0.0) / Ts));
+Lockstep::Lockstep(control::Controller& ctrl, plant::Plant& plant, const ClosedLoopRun& run, double u0, Hooks hooks)
+    : ctrl_(ctrl),
+      plant_(plant),
+      run_(run),
+      u0_(u0),
+      hooks_(std::move(hooks)),
+      Ts_(plant.config().Ts),
+      n_(static_cast<long>(std::llround(run.duration_s / plant.config().Ts))),
+      d_(std::clamp(run.delay_cycles, 0, 7)) {
+  rec_.reserve(static_cast<size_t>(std::max(n_, 0L)));
+}
+
+double Lockstep::send(double u) {
+  for (int i = 7; i > 0; --i) pipe_[static_cast<size_t>(i)] = pipe_[static_cast<size_t>(i - 1)];
+  pipe_[0] = u;
+  return pipe_[static_cast<size_t>(d_)];  // the valve applies what was sent d cycles ago
+}
+
+void Lockstep::start() {
+  plant_.reset(u0_, 0.0);
+  ctrl_.activate(u0_, plant_.measure());
+  pipe_.fill(u0_);
+  k_ = 0;
+  const double y_home = run_.reference.at(0.0);
+  const auto n_pre = static_cast<size_t>(std::llround(std::max(run_.preroll_s, 0.0) / Ts_));
   for (size_t k = 0; k < n_pre; ++k) {
-    const auto o = ctrl.update(y_home, y_home, plant.measure());
-    plant.step(send(o.u), 0.0);
+    const auto o = ctrl_.update(y_home, y_home, plant_.measure());
+    plant_.step(send(o.u), 0.0);
   }
-  for (size_t k = 0; k < n; ++k) {
-    const double t = static_cast<double>(k) * Ts;
-    const double F = run.force_step_time_s >= 0 && t >= run.force_step_time_s ? run.force_N : 0.0;
-    const double y = plant.measure();                 // latch
-    const auto o = ctrl.update(run.reference.at(t), run.reference.at(t + ctrl.lookahead() * Ts), y);  // estimate + control
-    r.t.push_back(t);
-    r.yd.push_back(run.reference.at(t));
-    r.y.push_back(y);
-    r.y_true.push_back(plant.position());
-    r.u.push_back(o.u);
-    r.u_n.push_back(o.u_n);
-    r.u_c.push_back(o.u_c);
-    r.y_hat.push_back(o.y_hat);
-    r.force.push_back(F);
-    r.p.push_back(plant.pressure_bar());
-    // Send: the valve applies what was sent d cycles ago.
-    plant.step(send(o.u), F);
-  }
-  return r;
+}
+
+const control::ControlOutput& Lockstep::step() {
+  const double t = static_cast<double>(k_) * Ts_;
+  const double F = run_.force_step_time_s >= 0 && t >= run_.force_step_time_s ? run_.force_N : 0.0;
+  const double y_read = plant_.measure();  // latch
+  y_given_ = hooks_.measurement ? hooks_.measurement(k_, y_read) : y_read;
+  const double yd = run_.reference.at(t);
+  out_ = ctrl_.update(yd, run_.reference.at(t + ctrl_.lookahead() * Ts_), y_given_);  // estimate + control
+  rec_.t.push_back(t);
+  rec_.yd.push_back(yd);
+  rec_.y.push_back(y_read);
+  rec_.y_true.push_back(plant_.position());
+  rec_.u.push_back(out_.u);
+  rec_.u_n.push_back(out_.u_n);
+  rec_.u_c.push_back(out_.u_c);
+  rec_.y_hat.push_back(out_.y_hat);
+  rec_.force.push_back(F);
+  rec_.p.push_back(plant_.pressure_bar());
+  double applied = send(out_.u);
+  if (hooks_.valve) applied = hooks_.valve(k_, applied);
+  plant_.step(applied, F);
+  ++k_;
+  return out_;
+}
+
+Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const ClosedLoopRun& run, double u0) {
+  Lockstep loop(ctrl, plant, run, u0);
+  loop.start();
+  while (!loop.done()) loop.step();
+  return std::move(loop.record());
 }
 
 Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s, const Trajectory* force_N) {

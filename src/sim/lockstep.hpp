@@ -5,6 +5,7 @@
 // after it was sampled (delay_cycles = 2 on the bus): the plant holds u_{k-2} during (k, k+1].
 #pragma once
 
+#include <array>
 #include <functional>
 #include <string>
 #include <vector>
@@ -31,6 +32,45 @@ struct ClosedLoopRun {
   // Before t = 0 the loop holds the first setpoint this long, as one homes a rig before a run;
   // not recorded.
   double preroll_s = 5.0;
+};
+
+// The closed loop declared once and then stepped. The constructor takes the controller, the plant
+// and the run; start() puts the plant at rest under u0, activates the controller and holds the first
+// setpoint for the pre-roll; each step() is one cycle (latch -> estimate -> control -> send -> the
+// plant advances one sample) and appends a row to the record. Hooks inject faults without copying
+// the loop: what the controller is given as the position, and what the valve applies.
+class Lockstep {
+ public:
+  struct Hooks {
+    std::function<double(long k, double y_read)> measurement;  // the position handed to the controller
+    std::function<double(long k, double u_applied)> valve;     // the command the valve applies
+  };
+  Lockstep(control::Controller& ctrl, plant::Plant& plant, const ClosedLoopRun& run, double u0, Hooks hooks = {});
+
+  void start();
+  const control::ControlOutput& step();
+  bool done() const { return k_ >= n_; }
+  long cycle() const { return k_; }            // cycles stepped since start()
+  double lastMeasurement() const { return y_given_; }  // what the controller was given in the last step
+  double lastApplied() const { return pipe_[static_cast<size_t>(d_)]; }  // the command the valve holds
+  const Record& record() const { return rec_; }
+  Record& record() { return rec_; }
+
+ private:
+  double send(double u);
+
+  control::Controller& ctrl_;
+  plant::Plant& plant_;
+  ClosedLoopRun run_;
+  double u0_;
+  Hooks hooks_;
+  double Ts_;
+  long n_, k_ = 0;
+  int d_;
+  std::array<double, 8> pipe_{};  // commands in flight to the valve (index 0 = sent this cycle)
+  control::ControlOutput out_;
+  double y_given_ = 0.0;
+  Record rec_;
 };
 
 // Runs `ctrl` on `plant` from rest at the reference's start. u0 starts the plant and the

@@ -39,16 +39,12 @@ nodes::EmulatorConfig emuConfig() {
 // estimator and controller -> valve setpoint TPDO handed to the transport. `background` frames of
 // other COB-IDs (higher priority than the position PDO) reach the node each cycle.
 void syncToSetpoint(benchmark::State& state, control::Kind kind, int background) {
-  canopen::VirtualBus bus;
-  auto& cport = bus.addPort();
-  auto& eport = bus.addPort();
-  nodes::ControllerNode ctrl(ctrlConfig(kind), cport, [&bus] { return bus.now(); });
-  nodes::EmulatorNodes emu(emuConfig(), eport);
-  cport.setClient(&ctrl.node());
-  eport.setClient(&emu);
-  emu.start(bus.now());
-  ctrl.start(bus.now());
-  bus.advanceBy(1'000'000);  // boot, NMT, first cycles
+  nodes::VirtualRig rig(ctrlConfig(kind), emuConfig());
+  rig.setRecordSink([](const nodes::CycleRecord&) {});
+  auto& bus = rig.bus();
+  auto& ctrl = rig.controller();
+  rig.start();
+  rig.runFor(1.0);  // boot, NMT, first cycles
   // The node produces the SYNC itself: time its advance() at the SYNC deadline, which sends the
   // SYNC, latches the RPDOs, runs the cycle and hands the setpoint TPDO to the transport.
   std::vector<double> ns;
@@ -79,47 +75,31 @@ void BM_SyncToSetpoint_AMC_Traffic(benchmark::State& s) { syncToSetpoint(s, cont
 // A whole 1 ms cycle of the rig on the in-process bus (SYNC, 3 PDOs, heartbeats, both node sides,
 // emulator physics, AMC): how much faster than real time the CAN-level simulation runs.
 void BM_RigCycle(benchmark::State& state) {
-  canopen::VirtualBus bus;
-  auto& cport = bus.addPort();
-  auto& eport = bus.addPort();
-  nodes::ControllerNode ctrl(ctrlConfig(control::Kind::PiAmc), cport, [&bus] { return bus.now(); });
-  nodes::EmulatorNodes emu(emuConfig(), eport);
-  cport.setClient(&ctrl.node());
-  eport.setClient(&emu);
-  emu.start(bus.now());
-  ctrl.start(bus.now());
-  nodes::CycleRecord r;
-  for (auto _ : state) {
-    bus.advanceBy(1000);
-    while (ctrl.records().pop(r)) {
-    }
-  }
+  nodes::VirtualRig rig(ctrlConfig(control::Kind::PiAmc), emuConfig());
+  rig.setRecordSink([](const nodes::CycleRecord&) {});
+  rig.start();
+  for (auto _ : state) rig.step();
   state.counters["x_realtime"] = benchmark::Counter(1e-3 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
 // Bits on the wire per cycle against the 1 ms period at 1 Mbit/s.
 void BM_BusLoadPerCycle(benchmark::State& state) {
-  canopen::VirtualBus bus;
-  auto& cport = bus.addPort();
-  auto& eport = bus.addPort();
-  nodes::ControllerNode ctrl(ctrlConfig(control::Kind::PI), cport, [&bus] { return bus.now(); });
-  nodes::EmulatorNodes emu(emuConfig(), eport);
-  cport.setClient(&ctrl.node());
-  eport.setClient(&emu);
+  nodes::VirtualRig rig(ctrlConfig(control::Kind::PI), emuConfig());
+  rig.setRecordSink([](const nodes::CycleRecord&) {});
+  auto& bus = rig.bus();
   double bits = 0;
   std::uint64_t frames = 0;
   bus.addTap([&](const canopen::Frame& f, canopen::TimeUs) {
     bits += nodes::frameBits(f);
     ++frames;
   });
-  emu.start(bus.now());
-  ctrl.start(bus.now());
-  bus.advanceBy(1'000'000);
+  rig.start();
+  rig.runFor(1.0);
   bits = 0;
   frames = 0;
   std::uint64_t cycles = 0;
   for (auto _ : state) {
-    bus.advanceBy(1000);
+    rig.step();
     ++cycles;
   }
   const double per = bits / static_cast<double>(cycles);

@@ -241,7 +241,7 @@ TEST(ObjectDictionary, RemoteWriteChecksAccessLengthLimitsAndValidators) {
   ObjectDictionary od = ObjectDictionary::load(odPath("controller.eds"));
   Entry& kp = od.entry(0x2000, 1);
   int observed = 0;
-  od.validate<double>(0x2000, 1, [](double v) { return v > 100.0 ? kAbortValueRange : kSdoOk; });
+  od.validate<double>(0x2000, 1, [](double v) { return v > 5.0 ? kAbortValueRange : kSdoOk; });
   od.addObserver(0x2000, 1, [&](Entry&) { ++observed; });
   auto write = [&](Entry& e, double v) {
     std::uint8_t b[8];
@@ -251,7 +251,7 @@ TEST(ObjectDictionary, RemoteWriteChecksAccessLengthLimitsAndValidators) {
   EXPECT_EQ(write(kp, 0.5), kSdoOk);
   EXPECT_EQ(kp.get<double>(), 0.5);
   EXPECT_EQ(observed, 1);
-  EXPECT_EQ(write(kp, 500.0), kAbortValueRange);    // application validator
+  EXPECT_EQ(write(kp, 8.0), kAbortValueRange);      // application validator (EDS limit: 10)
   EXPECT_EQ(write(kp, 5000.0), kAbortValueTooHigh);  // EDS HighLimit
   EXPECT_EQ(write(kp, -1.0), kAbortValueTooLow);     // EDS LowLimit
   EXPECT_EQ(write(kp, std::nan("")), kAbortValueRange);

@@ -73,7 +73,7 @@ TEST(SdoServer, AbortCodes) {
   Network net;
   Node& ctrl = net.addEds(odPath("controller.eds"));
   net.addText(sdoTestEds(), 5);
-  ctrl.od().validate<double>(0x2000, 1, [](double v) { return v > 100.0 ? kAbortValueRange : kSdoOk; });
+  ctrl.od().validate<double>(0x2000, 1, [](double v) { return v > 5.0 ? kAbortValueRange : kSdoOk; });
   net.startAll();
   // Object does not exist / sub-index does not exist.
   EXPECT_EQ(net.exchange("601#4000500000000000"), Frames{"581#8000500000000206"});
@@ -93,9 +93,9 @@ TEST(SdoServer, AbortCodes) {
   // Value range from the EDS limits (0x2010 is 0..3).
   EXPECT_EQ(net.exchange("601#2F10200004000000"), Frames{"581#8010200031000906"});
   EXPECT_EQ(ctrl.od().entry(0x2010, 0).get<std::uint8_t>(), 1);
-  // Value range refused by the application: kp = 500.0 (segmented, 8 bytes).
+  // Value range refused by the application (within the EDS limit 10): kp = 8.0 (segmented, 8 bytes).
   EXPECT_EQ(net.exchange("601#2100200108000000"), Frames{"581#6000200100000000"});
-  EXPECT_EQ(net.exchange("601#000000000000407F"), Frames{"581#2000000000000000"});
+  EXPECT_EQ(net.exchange("601#0000000000000020"), Frames{"581#2000000000000000"});
   EXPECT_EQ(net.exchange("601#1D40000000000000"), Frames{"581#8000200130000906"});
   EXPECT_DOUBLE_EQ(ctrl.od().entry(0x2000, 1).get<double>(), 0.1);
   // kp = -1.0 is below LowLimit 0: expedited frames cannot carry 8 bytes, so segmented again.
@@ -137,7 +137,7 @@ TEST(SdoClient, TalksToServersOverTheBus) {
   Node& sensor = net.addEds(odPath("sensor.eds"));
   Node& other = net.addEds(odPath("controller.eds"), 4);
   Node& five = net.addText(sdoTestEds(), 5);
-  other.od().validate<double>(0x2000, 1, [](double v) { return v > 100.0 ? kAbortValueRange : kSdoOk; });
+  other.od().validate<double>(0x2000, 1, [](double v) { return v > 5.0 ? kAbortValueRange : kSdoOk; });
   net.startAll();
   SdoClient& client = ctrl.sdoClient();
 
@@ -162,7 +162,7 @@ TEST(SdoClient, TalksToServersOverTheBus) {
   EXPECT_DOUBLE_EQ(other.od().entry(0x2000, 1).get<double>(), 0.25);
 
   r = Result{};
-  ASSERT_TRUE(client.downloadValue<double>(4, 0x2000, 1, 500.0, capture(r, net.bus)));
+  ASSERT_TRUE(client.downloadValue<double>(4, 0x2000, 1, 8.0, capture(r, net.bus)));
   net.bus.flush();
   EXPECT_EQ(r.code, kAbortValueRange);
   EXPECT_DOUBLE_EQ(other.od().entry(0x2000, 1).get<double>(), 0.25);

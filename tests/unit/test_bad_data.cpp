@@ -35,7 +35,9 @@
 #include "estimation/active_model.hpp"
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
+#include "nodes/virtual_rig.hpp"
 #include "plant/plant.hpp"
+#include "sim/lockstep.hpp"
 #include "sim/trajectory.hpp"
 
 using namespace pamc;
@@ -144,40 +146,16 @@ Trace simulate(const Spec& s, Checks* checks = nullptr, long run = 0) {
   auto pc = plant::PlantConfig::defaults();
   pc.seed = s.plant_seed;
   plant::Plant plant(pc);
-  const double u0 = 0.0;
-  plant.reset(u0);
-  ctrl->activate(u0, plant.measure());
-  std::array<double, 3> pipe{u0, u0, u0};  // [0] sent this cycle, [2] applied this cycle
-  auto send = [&](double u) {
-    pipe[2] = pipe[1];
-    pipe[1] = pipe[0];
-    pipe[0] = u;
-    return pipe[2];
-  };
-  const double y_home = s.traj.at(0.0);
-  for (int k = 0; k < 1000; ++k) plant.step(send(ctrl->update(y_home, y_home, plant.measure()).u));
-
-  Trace tr;
-  for (auto* v : {&tr.yd, &tr.y_true, &tr.u, &tr.integral}) v->reserve(static_cast<size_t>(s.cycles));
-  const auto* am = ctrl->activeModel();
-  const int max_run = cfg.ukf.gate_max_rejects;
-  unsigned resets_seen = am ? am->resets() : 0;
-  double integ_prev = ctrl->integral();
-  double y_last_read = plant.measure();
-  double applied_prev = pipe[2];
+  // The faults, injected through the loop's hooks: on the position the controller is given, and on
+  // the command the valve applies.
   std::vector<double> stuck_at(s.faults.size(), 0.0);
-  int outlier_run = 0;
-  for (long k = 0; k < s.cycles; ++k) {
-    const double t = static_cast<double>(k) * kTs;
-    const double yd = s.traj.at(t);
-    const double yd_next = s.traj.at(t + ctrl->lookahead() * kTs);
-    const double y_read = plant.measure();
+  double y_last_read = NAN;
+  sim::Lockstep::Hooks hooks;
+  hooks.measurement = [&](long k, double y_read) {
     double y = y_read;
-    bool valve_limit = false, valve_frozen = false;
-    double valve_u = 0.0;
     for (size_t i = 0; i < s.faults.size(); ++i) {
       const Fault& f = s.faults[i];
-      if (k == f.k0) stuck_at[i] = y_last_read;
+      if (k == f.k0) stuck_at[i] = std::isnan(y_last_read) ? y_read : y_last_read;
       if (k < f.k0 || k >= f.end()) continue;
       switch (f.kind) {
         case Bad::NaN: y = std::numeric_limits<double>::quiet_NaN(); break;
@@ -185,17 +163,43 @@ Trace simulate(const Spec& s, Checks* checks = nullptr, long run = 0) {
         case Bad::NegInf: y = -kInf; break;
         case Bad::Spike: y += f.value; break;
         case Bad::Stuck: y = stuck_at[i]; break;
-        case Bad::ValveLimit: valve_limit = true, valve_u = f.value; break;
-        case Bad::ValveFrozen: valve_frozen = true; break;
+        default: break;
       }
     }
     y_last_read = y_read;
-    const auto o = ctrl->update(yd, yd_next, y);
-    double applied = send(o.u);
-    if (valve_frozen) applied = applied_prev;
-    if (valve_limit) applied = valve_u;
+    return y;
+  };
+  double applied_prev = 0.0;
+  hooks.valve = [&](long k, double applied) {
+    for (const Fault& f : s.faults) {
+      if (k < f.k0 || k >= f.end()) continue;
+      if (f.kind == Bad::ValveFrozen) applied = applied_prev;
+      if (f.kind == Bad::ValveLimit) applied = f.value;
+    }
     applied_prev = applied;
-    plant.step(applied);
+    return applied;
+  };
+  sim::ClosedLoopRun cl;
+  cl.reference = s.traj;
+  cl.duration_s = static_cast<double>(s.cycles) * kTs;
+  cl.preroll_s = 1.0;
+  cl.delay_cycles = 2;
+  sim::Lockstep loop(*ctrl, plant, cl, 0.0, hooks);
+  loop.start();
+  applied_prev = loop.lastApplied();
+
+  Trace tr;
+  for (auto* v : {&tr.yd, &tr.y_true, &tr.u, &tr.integral}) v->reserve(static_cast<size_t>(s.cycles));
+  const auto* am = ctrl->activeModel();
+  const int max_run = cfg.ukf.gate_max_rejects;
+  unsigned resets_seen = am ? am->resets() : 0;
+  double integ_prev = ctrl->integral();
+  int outlier_run = 0;
+  while (!loop.done()) {
+    const long k = loop.cycle();
+    const auto o = loop.step();
+    const double y = loop.lastMeasurement();
+    const double yd = loop.record().yd.back();
     tr.yd.push_back(yd);
     tr.y_true.push_back(plant.position());
     tr.u.push_back(o.u);
@@ -681,31 +685,6 @@ TEST(BadDataWindup, ValveVentedForThreeSecondsIntegralStopsAtTheSaturation) {
 namespace {
 const std::string kOd = std::string(PAMC_SOURCE_DIR) + "/od/";
 
-// Sits between the emulator nodes and the bus and rewrites position PDOs (TPDO1 of node 2, INTEGER32
-// in 0.001 mm): the n-th position PDO since start goes through `edit`.
-class PositionTamper : public canopen::Transport {
- public:
-  explicit PositionTamper(canopen::Transport& inner) : inner_(inner) {}
-  std::function<void(long n, std::int32_t& counts)> edit;
-  bool send(const canopen::Frame& f) override { return sendUntil(f, canopen::kNever); }
-  bool sendUntil(const canopen::Frame& f, canopen::TimeUs deadline) override {
-    canopen::Frame g = f;
-    if (g.id == 0x182 && g.len == 4 && !g.error() && !g.remote()) {
-      auto v = static_cast<std::int32_t>(canopen::getU32(g.data));
-      if (edit) edit(n_, v);
-      ++n_;
-      canopen::putU32(g.data, static_cast<std::uint32_t>(v));
-    }
-    return inner_.sendUntil(g, deadline);
-  }
-  std::size_t queued() const override { return inner_.queued(); }
-  std::uint64_t expiredCount() const override { return inner_.expiredCount(); }
-
- private:
-  canopen::Transport& inner_;
-  long n_ = 0;
-};
-
 struct NodeRun {
   std::vector<nodes::CycleRecord> recs;
   std::vector<std::uint16_t> emcy;
@@ -724,11 +703,6 @@ struct NodeRun {
 // ki 1.5, kc 0.06 as in the fault rig, 2 s pre-roll); `edit` tampers with the position PDOs.
 NodeRun runNode(control::Kind kind, bool whole_model, const std::function<void(long, std::int32_t&)>& edit,
                 double duration_s = 6.0) {
-  canopen::VirtualBus bus;
-  auto& cport = bus.addPort();
-  auto& eport = bus.addPort();
-  PositionTamper tamper(eport);
-  tamper.edit = edit;
   nodes::ControllerNodeConfig c;
   c.eds_path = kOd + "controller.eds";
   c.kind = static_cast<int>(kind);
@@ -744,22 +718,28 @@ NodeRun runNode(control::Kind kind, bool whole_model, const std::function<void(l
   nodes::EmulatorConfig e;
   e.sensor_eds = kOd + "sensor.eds";
   e.valve_eds = kOd + "valve.eds";
-  auto ctrl = std::make_unique<nodes::ControllerNode>(c, cport, [&bus] { return bus.now(); });
-  auto emu = std::make_unique<nodes::EmulatorNodes>(e, tamper);
-  cport.setClient(&ctrl->node());
-  eport.setClient(emu.get());
+  // The position PDOs (TPDO1 of node 2, INTEGER32 in 0.001 mm) on their way: the n-th since start
+  // goes through `edit`.
+  long n = 0;
+  auto tamper = [&n, &edit](canopen::Frame& g) {
+    if (g.id == 0x182 && g.len == 4 && !g.error() && !g.remote()) {
+      auto v = static_cast<std::int32_t>(canopen::getU32(g.data));
+      if (edit) edit(n, v);
+      ++n;
+      canopen::putU32(g.data, static_cast<std::uint32_t>(v));
+    }
+    return true;
+  };
+  nodes::VirtualRig rig(c, e, 0, tamper);
   NodeRun r;
-  bus.addTap([&r](const canopen::Frame& f, canopen::TimeUs) {
+  rig.addTap([&r](const canopen::Frame& f, canopen::TimeUs) {
     if (f.id == 0x81 && f.len == 8 && !f.error()) r.emcy.push_back(canopen::getU16(f.data));
   });
-  emu->start(bus.now());
-  ctrl->start(bus.now());
-  nodes::CycleRecord rec;
-  while (ctrl->runTime() < duration_s && bus.now() < static_cast<canopen::TimeUs>((duration_s + 40) * 1e6)) {
-    bus.advanceBy(1000);
-    while (ctrl->records().pop(rec)) r.recs.push_back(rec);
-  }
-  while (ctrl->records().pop(rec)) r.recs.push_back(rec);
+  rig.start();
+  auto* ctrl = &rig.controller();
+  while (ctrl->runTime() < duration_s && rig.now() < static_cast<canopen::TimeUs>((duration_s + 40) * 1e6)) rig.step();
+  rig.step(0);
+  r.recs = std::move(rig.records());
   r.faults = ctrl->faultsRaised();
   r.recoveries = ctrl->faultCounters().recoveries;
   r.final_fault = ctrl->fault();

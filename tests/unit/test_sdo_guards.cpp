@@ -14,6 +14,7 @@
 #include "canopen/bus.hpp"
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
+#include "nodes/virtual_rig.hpp"
 #include "nodes/fault_rig.hpp"
 #include "plant/plant.hpp"
 
@@ -37,30 +38,30 @@ nodes::ControllerNodeConfig controllerConfig() {
 }
 
 // Controller and emulator on the in-process bus, and a raw port for SDO requests and NMT commands.
+nodes::EmulatorConfig emulatorConfig() {
+  nodes::EmulatorConfig e;
+  e.sensor_eds = kOd + "sensor.eds";
+  e.valve_eds = kOd + "valve.eds";
+  return e;
+}
+nodes::ControllerNodeConfig controllerConfig(control::Kind kind) {
+  auto c = controllerConfig();
+  c.kind = static_cast<int>(kind);
+  return c;
+}
+
 struct Rig {
-  explicit Rig(control::Kind kind = control::Kind::PiAmc) : cport(bus.addPort()), eport(bus.addPort()), tool(bus.addPort()) {
-    nodes::EmulatorConfig e;
-    e.sensor_eds = kOd + "sensor.eds";
-    e.valve_eds = kOd + "valve.eds";
-    auto c = controllerConfig();
-    c.kind = static_cast<int>(kind);
-    ctrl = std::make_unique<nodes::ControllerNode>(c, cport, [this] { return bus.now(); });
-    emu = std::make_unique<nodes::EmulatorNodes>(e, eport);
-    cport.setClient(&ctrl->node());
-    eport.setClient(emu.get());
-    bus.addTap([this](const Frame& f, canopen::TimeUs) {
+  explicit Rig(control::Kind kind = control::Kind::PiAmc)
+      : rig(controllerConfig(kind), emulatorConfig()), bus(rig.bus()), tool(rig.addPort()), ctrl(&rig.controller()),
+        emu(&rig.emulator()), recs(rig.records()) {
+    rig.addTap([this](const Frame& f, canopen::TimeUs) {
       if (f.id == 0x581) last = f, answered = true;
       if (f.id == 0x81 && f.len == 8) emcy.push_back(canopen::getU16(f.data));
     });
-    emu->start(0);
-    ctrl->start(0);
+    rig.start();
     recs.reserve(20000);
   }
-  void cycle() {
-    bus.advanceBy(1000);
-    nodes::CycleRecord r;
-    while (ctrl->records().pop(r)) recs.push_back(r);
-  }
+  void cycle() { rig.step(); }
   void runTo(double t) {
     while (ctrl->runTime() < t) cycle();
   }
@@ -94,11 +95,12 @@ struct Rig {
     bus.flush();
   }
 
-  canopen::VirtualBus bus;
-  canopen::VirtualBus::Port &cport, &eport, &tool;
-  std::unique_ptr<nodes::ControllerNode> ctrl;
-  std::unique_ptr<nodes::EmulatorNodes> emu;
-  std::vector<nodes::CycleRecord> recs;
+  nodes::VirtualRig rig;
+  canopen::VirtualBus& bus;
+  canopen::VirtualBus::Port& tool;
+  nodes::ControllerNode* ctrl;
+  nodes::EmulatorNodes* emu;
+  std::vector<nodes::CycleRecord>& recs;
   std::vector<std::uint16_t> emcy;
   Frame last;
   bool answered = false;

@@ -1,0 +1,45 @@
+// What the numbers in the process data mean, written once: the position sensor's counts (CiA 406),
+// the valve's analogue output and pressure input (CiA 401), and the offset between the controller's
+// command u (volts relative to the valve's mid-range) and the valve's 0-10 V.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace pamc::nodes::pd {
+
+inline constexpr double kPositionStep_mm = 0.001;       // 0x6004 position value: counts of 1 um
+inline constexpr double kAnalogFullScaleCounts = 32767;  // 0x6411 / 0x6401: 0..32767 = 0..full scale
+inline constexpr double kValveFullScale_V = 10.0;        // 0x6411:01 setpoint, 0..10 V
+inline constexpr double kValveMid_V = 5.0;               // u = 0 is the valve's mid-range: volts = 5 V + u
+inline constexpr double kPressureFullScale_bar = 10.0;   // 0x6401:01 pressure feedback, 0..10 bar
+inline constexpr double kCommandMin = -kValveMid_V;      // u of 0 V at the valve
+inline constexpr double kCommandMax = kValveFullScale_V - kValveMid_V;
+
+constexpr double valveVolts(double u) { return u + kValveMid_V; }
+constexpr double commandFromVolts(double volts) { return volts - kValveMid_V; }
+
+// Command u [V relative to mid-range] <-> the valve's setpoint counts (clamped to 0..10 V).
+inline std::int16_t commandToCounts(double u) {
+  const double v = std::clamp(valveVolts(u), 0.0, kValveFullScale_V);
+  return static_cast<std::int16_t>(std::lround(v * kAnalogFullScaleCounts / kValveFullScale_V));
+}
+constexpr double countsToCommand(double counts) {
+  return commandFromVolts(counts * kValveFullScale_V / kAnalogFullScaleCounts);
+}
+
+// Position [mm] <-> sensor counts.
+constexpr double countsToMm(double counts) { return counts * kPositionStep_mm; }
+inline std::int32_t mmToCounts(double y_mm) {
+  return static_cast<std::int32_t>(std::lround(std::clamp(y_mm, -2.0e6, 2.0e6) / kPositionStep_mm));
+}
+
+// Pressure [bar] <-> the valve's feedback counts (clamped to 0..10 bar).
+inline std::int16_t barToCounts(double bar) {
+  return static_cast<std::int16_t>(
+      std::lround(std::clamp(bar, 0.0, kPressureFullScale_bar) * kAnalogFullScaleCounts / kPressureFullScale_bar));
+}
+constexpr double countsToBar(double counts) { return counts * kPressureFullScale_bar / kAnalogFullScaleCounts; }
+
+}  // namespace pamc::nodes::pd
