@@ -24,9 +24,9 @@
 #include "nodes/controller_node.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/emulator_node.hpp"
-#include "nodes/fault_rig.hpp"
+#include "rig/fault_rig.hpp"
 #include "nodes/monitor.hpp"
-#include "nodes/virtual_rig.hpp"
+#include "rig/virtual_rig.hpp"
 #include "sim/trajectory.hpp"
 
 namespace pamc::app {

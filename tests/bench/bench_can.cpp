@@ -9,7 +9,7 @@
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
 #include "nodes/monitor.hpp"
-#include "nodes/virtual_rig.hpp"
+#include "rig/virtual_rig.hpp"
 
 using namespace pamc;
 

@@ -111,7 +111,7 @@ INSTANTIATE_TEST_SUITE_P(Controllers, AllocationFree,
 // prediction, setpoint TPDO, heartbeats, EMCY path), emulator nodes and physics - for 10 000 cycles.
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
-#include "nodes/virtual_rig.hpp"
+#include "rig/virtual_rig.hpp"
 
 TEST(Allocation, RigCyclesOnTheBusAllocateNothing) {
   if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";

@@ -35,7 +35,7 @@
 #include "estimation/active_model.hpp"
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
-#include "nodes/virtual_rig.hpp"
+#include "rig/virtual_rig.hpp"
 #include "plant/plant.hpp"
 #include "sim/lockstep.hpp"
 #include "sim/trajectory.hpp"

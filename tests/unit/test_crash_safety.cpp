@@ -16,8 +16,8 @@
 
 #include "canopen/candump_log.hpp"
 #include "io/measurement.hpp"
-#include "nodes/fault_rig.hpp"
-#include "nodes/virtual_rig.hpp"
+#include "rig/fault_rig.hpp"
+#include "rig/virtual_rig.hpp"
 
 using namespace pamc;
 

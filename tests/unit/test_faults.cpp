@@ -12,7 +12,7 @@
 #include "canopen/bus.hpp"
 #include "canopen/eds.hpp"
 #include "canopen/node.hpp"
-#include "nodes/fault_rig.hpp"
+#include "rig/fault_rig.hpp"
 
 using namespace pamc;
 using nodes::BusFault;

@@ -7,7 +7,7 @@
 
 #include "canopen/candump_log.hpp"
 #include "control/controller.hpp"
-#include "nodes/virtual_rig.hpp"
+#include "rig/virtual_rig.hpp"
 #include "sim/lockstep.hpp"
 
 using namespace pamc;

@@ -14,8 +14,8 @@
 #include "canopen/bus.hpp"
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
-#include "nodes/virtual_rig.hpp"
-#include "nodes/fault_rig.hpp"
+#include "rig/virtual_rig.hpp"
+#include "rig/fault_rig.hpp"
 #include "plant/plant.hpp"
 
 using namespace pamc;

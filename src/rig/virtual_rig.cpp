@@ -1,4 +1,4 @@
-#include "nodes/virtual_rig.hpp"
+#include "rig/virtual_rig.hpp"
 
 #include <time.h>
 

@@ -1,0 +1,237 @@
+// The rig of the fault tools (fault table, soak, parameter guards): controller and emulator nodes on
+// the in-process bus plus the stations a fault needs (a SYNC producer, a flooder, impostors on the
+// controller's and the sensor's node-IDs), and the table of bus faults. Internal to src/rig.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "canopen/bus.hpp"
+#include "canopen/node.hpp"
+#include "nodes/emulator_node.hpp"
+#include "plant/plant.hpp"
+#include "rig/fault_rig.hpp"
+
+namespace pamc::nodes::detail {
+
+using canopen::Frame;
+using canopen::TimeUs;
+using canopen::VirtualBus;
+
+
+constexpr TimeUs kPeriod = 1000;
+constexpr double kSafeVolts = 0.0;  // 0x2020 default: vented
+
+// A SYNC producer on its own (the controller consumes in the runs that use it).
+class SyncSource : public canopen::BusClient {
+ public:
+  explicit SyncSource(canopen::Transport& t) : t_(t) {}
+  void start(TimeUs now) { next_ = now + kPeriod; }
+  bool active = true;
+  std::uint8_t len = 0;
+  std::uint64_t sent = 0;
+  void onFrame(const Frame&, TimeUs) override {}
+  void advance(TimeUs now) override {
+    while (next_ != canopen::kNever && now >= next_) {
+      if (active) {
+        t_.send(canopen::makeFrame(0x80, len));
+        ++sent;
+      }
+      next_ += kPeriod;
+    }
+  }
+  TimeUs nextDeadline() const override { return next_; }
+
+ private:
+  canopen::Transport& t_;
+  TimeUs next_ = canopen::kNever;
+};
+
+// Sends 8-byte frames with a high-priority identifier at a fixed interval.
+class Flooder : public canopen::BusClient {
+ public:
+  explicit Flooder(canopen::Transport& t) : t_(t) {}
+  void begin(TimeUs now, TimeUs interval, int prefill) {
+    interval_ = interval;
+    for (int i = 0; i < prefill; ++i) send();
+    next_ = now + interval_;
+  }
+  void end() { next_ = canopen::kNever; }
+  void onFrame(const Frame&, TimeUs) override {}
+  void advance(TimeUs now) override {
+    while (next_ != canopen::kNever && now >= next_) {
+      send();
+      next_ += interval_;
+    }
+  }
+  TimeUs nextDeadline() const override { return next_; }
+  std::uint64_t sent = 0;
+
+ private:
+  void send() {
+    const std::uint8_t d[8] = {0xAA, 0x55, 0xAA, 0x55, 0xAA, 0x55, 0xAA, 0x55};
+    t_.send(canopen::makeFrame(0x010, 8, d));
+    ++sent;
+  }
+  canopen::Transport& t_;
+  TimeUs interval_ = kPeriod;
+  TimeUs next_ = canopen::kNever;
+};
+
+// A second node with an ID already in use: boot-up, heartbeats every 100 ms (Operational), and - as
+// a second sensor - a position PDO on every SYNC.
+class Impostor : public canopen::BusClient {
+ public:
+  Impostor(canopen::Transport& t, std::uint8_t id, bool sensor) : t_(t), id_(id), sensor_(sensor) {}
+  void begin(TimeUs now) {
+    const std::uint8_t boot = 0;
+    t_.send(canopen::makeFrame(0x700u + id_, 1, &boot));
+    next_ = now + 100'000;
+    on_ = true;
+  }
+  void end() {
+    on_ = false;
+    next_ = canopen::kNever;
+  }
+  void onFrame(const Frame& f, TimeUs) override {
+    if (!on_ || !sensor_ || f.id != 0x80 || f.error()) return;
+    std::uint8_t d[4];
+    canopen::putU32(d, 10000);  // 10 mm: not what the real sensor says
+    t_.send(canopen::makeFrame(0x180u + id_, 4, d));
+  }
+  void advance(TimeUs now) override {
+    while (next_ != canopen::kNever && now >= next_) {
+      const std::uint8_t op = 0x05;
+      t_.send(canopen::makeFrame(0x700u + id_, 1, &op));
+      next_ += 100'000;
+    }
+  }
+  TimeUs nextDeadline() const override { return next_; }
+
+ private:
+  canopen::Transport& t_;
+  std::uint8_t id_;
+  bool sensor_;
+  bool on_ = false;
+  TimeUs next_ = canopen::kNever;
+};
+
+inline Frame errorFrame(std::uint32_t cls, std::uint8_t d1) {
+  Frame f;
+  f.flags = canopen::kFrameError;
+  f.id = cls;
+  f.len = 8;
+  f.data[1] = d1;
+  return f;
+}
+
+struct Rig;
+
+// One row per bus fault: what it is called, how long it lasts, what the rig needs for it, and how it
+// is injected and cleared. Adding a fault: one enum value (fault_rig.hpp) and one row here.
+enum Needs : unsigned { kPlain = 0, kSyncSource = 1, kTimedBus = 2, kDupController = 4, kDupSensor = 8 };
+struct FaultSpec {
+  BusFault fault;
+  const char* name;         // for --only
+  const char* description;  // for the table
+  double seconds;           // how long it is injected
+  unsigned needs;
+  void (*begin)(Rig&);
+  void (*end)(Rig&);
+};
+const FaultSpec& spec(BusFault f);
+inline bool consumesSync(BusFault f) { return (spec(f).needs & kSyncSource) != 0; }
+inline bool timedBus(BusFault f) { return (spec(f).needs & kTimedBus) != 0; }
+inline double faultSeconds(BusFault f) { return spec(f).seconds; }
+
+// The whole rig of one run.
+struct Rig {
+  // f sets the rig up for that fault (SYNC source, timed bus, second node); nothing is injected yet.
+  // soak: everything any fault needs at once - the controller consumes the SYNC of a separate producer,
+  // the bus has 1 Mbit/s timing, a flooder and a second node-ID 1 and 2 are on it (all idle).
+  Rig(BusFault f, const FaultRigOptions& o, bool soak = false)
+      : bus(), cport(bus.addPort()), eport(bus.addPort()), aux(bus.addPort()) {
+    const bool consume = soak || consumesSync(f);
+    if (soak || timedBus(f)) bus.setBitrate(1'000'000, 32);
+    ControllerNodeConfig c;
+    c.eds_path = o.od_dir + "/controller.eds";
+    c.kind = static_cast<int>(o.kind);
+    c.gains_from_config = true;
+    c.ctrl.kp = o.kp;
+    c.ctrl.ki = o.ki;
+    c.ctrl.kc = o.kc;
+    c.ctrl.model = plant::PlantConfig::defaults().truth;
+    c.has_trajectory = true;
+    c.trajectory = sim::Trajectory::sine(0.2, 5.0, 15.0);
+    c.preroll_s = o.preroll_s;
+    c.produce_sync = !consume;
+    traj = c.trajectory;
+    EmulatorConfig e;
+    e.sensor_eds = o.od_dir + "/sensor.eds";
+    e.valve_eds = o.od_dir + "/valve.eds";
+    e.seed = o.seed;
+    ctrl = std::make_unique<ControllerNode>(c, cport, [this] { return bus.now(); });
+    emu = std::make_unique<EmulatorNodes>(e, eport);
+    cport.setClient(&ctrl->node());
+    eport.setClient(emu.get());
+    if (consume) {
+      auto& p = bus.addPort();
+      sync = std::make_unique<SyncSource>(p);
+      p.setClient(sync.get());
+    }
+    if (soak || timedBus(f)) {
+      auto& p = bus.addPort();
+      flood = std::make_unique<Flooder>(p);
+      p.setClient(flood.get());
+    }
+    if (soak || (spec(f).needs & kDupController)) {
+      auto& p = bus.addPort();
+      imp_ctrl = std::make_unique<Impostor>(p, 1, false);
+      p.setClient(imp_ctrl.get());
+    }
+    if (soak || (spec(f).needs & kDupSensor)) {
+      auto& p = bus.addPort();
+      imp_sensor = std::make_unique<Impostor>(p, 2, true);
+      p.setClient(imp_sensor.get());
+    }
+    bus.addTap([this](const Frame& fr, TimeUs t) {
+      if (fr.id != 0x81 || fr.len != 8 || fr.error()) return;
+      ++emcy_frames;
+      if (t >= emcy_from) emcy.push_back(canopen::getU16(fr.data));
+    });
+    emu->start(0);
+    ctrl->start(0);
+    if (sync) sync->start(0);
+  }
+  void step(TimeUs dt) {
+    bus.advanceBy(dt);
+    CycleRecord r;
+    while (ctrl->records().pop(r)) {
+      recs.push_back(r);
+      rec_us.push_back(bus.now());
+    }
+  }
+
+  VirtualBus bus;
+  VirtualBus::Port &cport, &eport, &aux;
+  std::unique_ptr<ControllerNode> ctrl;
+  std::unique_ptr<EmulatorNodes> emu;
+  std::unique_ptr<SyncSource> sync;
+  std::unique_ptr<Flooder> flood;
+  std::unique_ptr<Impostor> imp_ctrl, imp_sensor;
+  sim::Trajectory traj;
+  std::vector<CycleRecord> recs;
+  std::vector<TimeUs> rec_us;
+  std::vector<std::uint16_t> emcy;
+  std::uint64_t emcy_frames = 0;
+  TimeUs emcy_from = canopen::kNever;
+};
+
+void begin(Rig& r, BusFault f);
+void end(Rig& r, BusFault f);
+
+}  // namespace pamc::nodes::detail
