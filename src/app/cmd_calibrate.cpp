@@ -2,7 +2,10 @@
 // emulator's pressure lag x the reading of ki x the reading of eq. 17) runs the paper's experiments;
 // the table shows its Table 1 and Table 2 figures beside the paper's and how many of the paper's
 // claims it reproduces, best first.
-#include "app/cmd_calibrate.hpp"
+#include "app/command.hpp"
+
+#include <cmath>
+#include <string>
 
 #include <chrono>
 #include <cstdio>
@@ -31,12 +34,12 @@ std::vector<double> numbers(const std::string& flag, const std::string& s) {
   return v;
 }
 
-}  // namespace
-
-CalibrateCommand::CalibrateCommand(CLI::App& app) {
-  cmd_ = app.add_subcommand("calibrate",
+class CalibrateCommand final : public Command {
+ public:
+  explicit CalibrateCommand(CLI::App& app)
+      : Command(app.add_subcommand("calibrate",
                             "fit the emulator's pressure lag and the reading of the paper's gains to Table 1 and to "
-                            "the closed-loop results at once; prints the calibration table (docs/CALIBRATION.md)");
+                            "the closed-loop results at once; prints the calibration table (docs/CALIBRATION.md)")) {
   cmd_->add_option("--lag", lag_, "comma list of pressure-lag time constants to try [s]")->capture_default_str();
   cmd_->add_option("--ki", ki_, "comma list of PI integral gains to try [V/(mm s)] (0.15: as printed)")->capture_default_str();
   cmd_->add_option("--forms", forms_, "eq. (17) readings to try: printed, increment (comma list)")->capture_default_str();
@@ -45,7 +48,7 @@ CalibrateCommand::CalibrateCommand(CLI::App& app) {
   cmd_->add_option("--out", out_, "also write the table (Markdown) to this file");
 }
 
-int CalibrateCommand::run() {
+int run() override {
   sim::CalibrationSettings s;
   if (!plant_.empty()) s.base.plant = plant::PlantConfig::fromFile(plant_);
   s.lag_tau_s = numbers("--lag", lag_);
@@ -75,5 +78,17 @@ int CalibrateCommand::run() {
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), work_.c_str());
   return 0;
 }
+
+ private:
+  std::string lag_ = "0.04,0.1,0.15,0.2,0.25,0.3";
+  std::string ki_ = "0.15,0.9,1.0,1.1,1.2,1.3";
+  std::string forms_ = "printed,increment";
+  std::string plant_, out_;
+  std::string work_ = "calibration";
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeCalibrateCommand(CLI::App& app) { return std::make_unique<CalibrateCommand>(app); }
 
 }  // namespace pamc::app

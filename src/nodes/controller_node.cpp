@@ -285,7 +285,7 @@ void ControllerNode::configureFromOd() {
   // Build everything first, then swap: a failure leaves the running controller in place.
   const double Ts = period_us * 1e-6;
   p.ctrl.Ts = Ts;
-  p.ctrl.delay_cycles = 2;  // see controller_node.hpp: y_k reflects u_{k-3}
+  p.ctrl.delay_cycles = cfg_.delay_cycles;  // 2 on this rig: y_k reflects u_{k-3} (controller_node.hpp)
   const auto kind = static_cast<control::Kind>(od.ref<std::uint8_t>(0x2010, 0).get());
   auto traj = trajectoryFromOd(od);
   if (traj_override_) traj = cfg_.trajectory;  // shapes the OD cannot hold

@@ -39,6 +39,9 @@ struct ControllerNodeConfig {
   int kind = -1;                      // control::Kind
   control::ControllerConfig ctrl;     // the model (and, with gains_from_config, the gains)
   bool gains_from_config = false;     // write ctrl's gains into the OD instead of reading them
+  // Cycles from a command to the position that shows it, beyond one sample: 2 with this node's
+  // timing (a synchronous valve RPDO, a sensor sending right after the SYNC); other slaves may differ.
+  int delay_cycles = 2;
   bool has_trajectory = false;
   sim::Trajectory trajectory;
   double preroll_s = 5.0;             // hold the first setpoint this long before the trajectory starts

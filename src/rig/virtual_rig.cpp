@@ -50,7 +50,7 @@ VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConf
   }
   if (hooks.tap) bus.addTap(hooks.tap);
   rig.start();
-  const bool forever = hooks.realtime && duration_s <= 0;
+  const bool forever = (hooks.realtime || hooks.until_stopped) && duration_s <= 0;
   const double limit_s = duration_s + c.preroll_s + 30.0;  // give up if it never starts
   using Clock = std::chrono::steady_clock;
   const auto wall0 = Clock::now();

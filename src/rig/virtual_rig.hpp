@@ -88,6 +88,8 @@ struct VirtualRigHooks {
   // Pace the run: 1 ms of bus time per millisecond of wall time (CLOCK_MONOTONIC), as a node on a real
   // bus would run; a late step is caught up at once.
   bool realtime = false;
+  // With duration 0: run until on_step says stop (also in virtual time).
+  bool until_stopped = false;
   // Every frame on the bus with its bus time (e.g. into a logger's ring).
   std::function<void(const canopen::Frame&, canopen::TimeUs)> tap;
   // Each cycle record as the controller produces it; when set, the result keeps no records.
@@ -96,8 +98,8 @@ struct VirtualRigHooks {
   std::function<bool(canopen::TimeUs)> on_step;
 };
 
-// Runs until the controller's trajectory time reaches duration_s (after its pre-roll; with realtime,
-// 0 runs until on_step says stop). candump_log, if not empty, receives every frame in candump -l format
+// Runs until the controller's trajectory time reaches duration_s (after its pre-roll; with realtime or
+// until_stopped, 0 runs until on_step says stop). candump_log, if not empty, receives every frame in candump -l format
 // with virtual timestamps from epoch_us; it is handed to the kernel (write(2)) at cycle boundaries at
 // least once per millisecond of wall time, so a crash loses at most the last millisecond of frames.
 // bitrate > 0 gives the bus bit timing and CAN arbitration (VirtualBus::setBitrate); 0 is the ideal bus.

@@ -83,5 +83,28 @@ check "decode of the rig's log" grep -q "^t,u,y,p,t_log" "$work/rig_dec.csv"
 "$PAMC" monitor --log "$work/rig.log" --od "$SRC/od" --once > "$work/mon.txt"
 check "monitor shows the nodes operational" test "$(grep -c operational "$work/mon.txt")" -eq 3
 
+
+# Every subcommand's help, and every option it lists accepted by the parser.
+python3 "$SRC/tests/cli/help_options.py" "$PAMC" > "$work/help_options.txt"
+check "every listed option is accepted ($(tail -1 "$work/help_options.txt"))" test $? -eq 0
+grep FAIL "$work/help_options.txt"
+
+# Live monitor runs until Ctrl-C unless --duration is given (it used to stop after 40 s).
+"$PAMC" monitor --help | grep -qE -- "--duration FLOAT:NONNEGATIVE=0( |$)"
+check "monitor's --duration defaults to 0 (until Ctrl-C)" test $? -eq 0
+# rig --duration 0 runs until stopped (it used to run zero cycles and exit at once).
+start=$(date +%s%N)
+timeout -s INT 3 "$PAMC" rig --od "$SRC/od" --duration 0 --preroll 0.1 > "$work/forever.txt" 2>&1
+rc=$?
+elapsed_ms=$(( ($(date +%s%N) - start) / 1000000 ))
+check "rig --duration 0 runs until interrupted (rc $rc, ${elapsed_ms} ms)" test "$elapsed_ms" -gt 2500
+cycles=$(sed -n 's/^cycles \([0-9]*\),.*/\1/p' "$work/forever.txt")
+check "rig --duration 0 ran cycles (${cycles:-none})" test "${cycles:-0}" -gt 5000
+# rig --faults --controller pi runs the fault table with PI (it used to run the AMC).
+"$PAMC" rig --od "$SRC/od" --faults --only sensor-silent-short --controller pi > "$work/faults.md" 2> "$work/faults_err.txt"
+check "rig --faults --controller pi runs PI" grep -q "in-process bus, pi," "$work/faults_err.txt"
+"$PAMC" rig --od "$SRC/od" --faults --only sensor-silent-short > /dev/null 2> "$work/faults_err2.txt"
+check "rig --faults without --controller runs the fault table's AMC" grep -q "in-process bus, amc," "$work/faults_err2.txt"
+
 echo "$passes passed, $fails failed"
 test $fails -eq 0

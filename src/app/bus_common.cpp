@@ -1,0 +1,112 @@
+#include "app/bus_common.hpp"
+
+#include <sched.h>
+#include <signal.h>
+#include <sys/mman.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include "plant/plant.hpp"
+
+namespace pamc::app {
+
+std::atomic<canopen::EventLoop*> g_loop{nullptr};
+std::atomic<bool> g_stop{false};
+
+namespace {
+void onSignal(int) {
+  g_stop = true;
+  if (auto* l = g_loop.load()) l->stop();
+}
+}  // namespace
+
+void installSignals() {
+  struct sigaction sa {};
+  sa.sa_handler = onSignal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+void realtimeSetup(bool enable, int cpu, int priority) {
+  if (!enable) return;
+  if (::mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
+    std::fprintf(stderr, "warning: mlockall failed (%s): pages may fault in the cycle\n", std::strerror(errno));
+  sched_param sp{};
+  sp.sched_priority = priority;
+  if (::sched_setscheduler(0, SCHED_FIFO, &sp) != 0)
+    std::fprintf(stderr, "warning: SCHED_FIFO %d not permitted (%s): running with normal priority\n", priority,
+                 std::strerror(errno));
+  if (cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(cpu, &set);
+    if (::sched_setaffinity(0, sizeof set, &set) != 0)
+      std::fprintf(stderr, "warning: cannot pin to CPU %d (%s)\n", cpu, std::strerror(errno));
+  }
+}
+
+void printStats(const nodes::CycleStats& s, const TrackingSummary& t) {
+  std::printf("cycles %llu, overruns %llu, missed SYNCs %llu\n", static_cast<unsigned long long>(s.cycles),
+              static_cast<unsigned long long>(s.overruns), static_cast<unsigned long long>(s.missed_syncs));
+  std::printf("SYNC-to-setpoint latency: median %.1f us, p99 %.1f us, max %.1f us\n", s.latency_us.quantile(0.5),
+              s.latency_us.quantile(0.99), s.latency_us.max());
+  std::printf("SYNC period jitter: median %.1f us, p99 %.1f us, max %.1f us\n", s.jitter_us.quantile(0.5),
+              s.jitter_us.quantile(0.99), s.jitter_us.max());
+  if (t.n)
+    std::printf("tracking error over %llu cycles: RMSE %.4f mm, max %.4f mm\n", static_cast<unsigned long long>(t.n),
+                std::sqrt(t.acc / static_cast<double>(t.n)), t.max);
+}
+
+
+std::unique_ptr<canopen::SocketCanTransport> openCan(const std::string& iface) {
+  try {
+    return std::make_unique<canopen::SocketCanTransport>(iface);
+  } catch (const std::exception& e) {
+    const std::string hint = std::string(e.what()).find("Address family") != std::string::npos
+                                 ? " (this kernel has no CAN support: run inside ./vcan_setup.sh vm -- ...)"
+                                 : " (bring it up first, e.g. sudo ./vcan_setup.sh up " + iface + ")";
+    throw std::runtime_error(std::string(e.what()) + hint);
+  }
+}
+
+void OdOption::add(CLI::App* a) {
+  a->add_option("--od", dir, "folder with the EDS files (controller.eds, sensor.eds, valve.eds)")->capture_default_str();
+}
+
+void EmulatorOptions::add(CLI::App* a) {
+  a->add_option("--plant", plant_file, "plant emulator config (JSON)");
+  a->add_option("--sensor-silent-at", ec.sensor_silent_at_s, "the sensor node goes silent at this time [s]");
+  a->add_option("--sensor-silent-for", ec.sensor_silent_for_s, "... for this long [s]");
+  a->add_option("--drop-pdo", ec.drop_pdo_prob, "probability of dropping each position PDO")->check(CLI::Range(0.0, 1.0));
+  a->add_option("--late-pdo", ec.late_pdo_cycles, "position PDOs this many cycles late")->check(CLI::Range(0, 255));
+  a->add_option("--payload", payload, "payload step TIME:NEWTONS, e.g. 10:40");
+}
+
+nodes::EmulatorConfig EmulatorOptions::config(const std::string& od_dir, unsigned period_us) const {
+  nodes::EmulatorConfig e = ec;
+  if (!plant_file.empty()) e.plant = plant::PlantConfig::fromFile(plant_file);
+  if (period_us) e.plant.Ts = period_us * 1e-6;  // the emulator steps one SYNC period per SYNC
+  e.sensor_eds = od_dir + "/sensor.eds";
+  e.valve_eds = od_dir + "/valve.eds";
+  if (!payload.empty()) {
+    const auto c = payload.find(':');
+    if (c == std::string::npos) throw std::invalid_argument("--payload: expected TIME:NEWTONS, got '" + payload + "'");
+    try {
+      e.payload_at_s = std::stod(payload.substr(0, c));
+      e.payload_N = std::stod(payload.substr(c + 1));
+    } catch (const std::exception&) {
+      throw std::invalid_argument("--payload: expected TIME:NEWTONS with numbers, got '" + payload + "'");
+    }
+  }
+  return e;
+}
+
+void RealtimeOptions::add(CLI::App* a) {
+  a->add_flag("--rt", rt, "real time: mlockall, SCHED_FIFO, CPU affinity (warns when not permitted)");
+  a->add_option("--cpu", cpu, "pin to this CPU with --rt");
+  a->add_option("--priority", priority, "SCHED_FIFO priority with --rt")->capture_default_str()->check(CLI::Range(1, 99));
+}
+
+}  // namespace pamc::app

@@ -1,0 +1,153 @@
+// What the bus commands (rig, controller, emulator, decode, monitor) share: signals, the real-time
+// set-up, the logger thread that keeps formatting off the cycle, the end-of-run statistics, and the
+// option groups of the nodes (one struct per concern).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "canopen/candump_log.hpp"
+#include "canopen/event_loop.hpp"
+#include "canopen/socketcan.hpp"
+#include "nodes/controller_node.hpp"
+#include "nodes/emulator_node.hpp"
+
+namespace pamc::app {
+
+extern std::atomic<canopen::EventLoop*> g_loop;
+extern std::atomic<bool> g_stop;
+void installSignals();
+// Real-time set-up when permitted, a warning when not.
+void realtimeSetup(bool enable, int cpu, int priority);
+
+// Joins a watcher thread however the event loop ends (a destroyed joinable thread would abort).
+struct Joiner {
+  std::thread& t;
+  ~Joiner() {
+    g_stop = true;
+    if (t.joinable()) t.join();
+  }
+};
+
+// Tracking error of the cycles in control (no fault), for the summary at the end.
+struct TrackingSummary {
+  double acc = 0, max = 0;
+  std::uint64_t n = 0;
+  void add(const nodes::CycleRecord& r) {
+    if (r.fault != 0) return;
+    const double e = r.yd - r.y;
+    acc += e * e;
+    max = std::max(max, std::fabs(e));
+    ++n;
+  }
+};
+
+struct LogItem {
+  canopen::Frame frame;
+  canopen::TimeUs unix_us;
+};
+
+// Formats frames and cycle records off the real-time thread and hands them to the kernel once per
+// SYNC period (one write(2) per file when there is something new), so a crash or kill -9 loses at most
+// the records of the last cycle or two: those still in the ring. Data handed over survives the death
+// of the process in the page cache, so no fsync (the kernel writes it back within seconds; only a
+// power failure or a kernel crash in that time would lose it).
+class Logger {
+ public:
+  // period_us: how often the files are brought up to date (the SYNC period).
+  Logger(const std::string& candump, const std::string& iface, const std::string& csv, unsigned period_us)
+      : period_(std::chrono::microseconds(period_us ? period_us : 1000)) {
+    if (!candump.empty()) dump_ = std::make_unique<canopen::CandumpWriter>(candump, iface);
+    if (!csv.empty()) {
+      csv_ = std::fopen(csv.c_str(), "w");
+      if (!csv_) throw std::runtime_error(csv + ": cannot write");
+      std::fprintf(csv_, "t,yd,y,u,u_n,u_c,y_hat,fault,latency_us\n");
+      std::fflush(csv_);
+    }
+  }
+  ~Logger() {
+    stop();
+    if (csv_) std::fclose(csv_);
+  }
+  nodes::SpscRing<LogItem, 1 << 16> frames;
+  nodes::SpscRing<nodes::CycleRecord, 1 << 15>* records = nullptr;
+  void start() {
+    thread_ = std::thread([this] {
+      while (!quit_) {
+        drain();
+        std::this_thread::sleep_for(period_);
+      }
+      drain();
+    });
+  }
+  void stop() {
+    quit_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  TrackingSummary summary;  // accumulated, so a node running for days does not grow
+
+ private:
+  void drain() {
+    LogItem it;
+    bool wrote = false;
+    while (frames.pop(it)) {
+      if (!dump_) continue;
+      dump_->write(it.frame, it.unix_us);
+      wrote = true;
+    }
+    if (dump_ && wrote) dump_->flush();
+    nodes::CycleRecord r;
+    wrote = false;
+    while (records && records->pop(r)) {
+      summary.add(r);
+      if (csv_) {
+        std::fprintf(csv_, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%u,%.1f\n", r.t, r.yd, r.y, r.u, r.u_n, r.u_c, r.y_hat,
+                     r.fault, static_cast<double>(r.latency_us));
+        wrote = true;
+      }
+    }
+    if (csv_ && wrote) std::fflush(csv_);
+  }
+  std::unique_ptr<canopen::CandumpWriter> dump_;
+  std::FILE* csv_ = nullptr;
+  std::chrono::microseconds period_;
+  std::thread thread_;
+  std::atomic<bool> quit_{false};
+};
+
+
+void printStats(const nodes::CycleStats& s, const TrackingSummary& t);
+
+// Opens the interface with a hint on what to do when it is not there.
+std::unique_ptr<canopen::SocketCanTransport> openCan(const std::string& iface);
+
+// --od: the folder with controller.eds, sensor.eds and valve.eds.
+struct OdOption {
+  std::string dir = "od";
+  void add(CLI::App* a);
+};
+
+// The emulator nodes: plant, fault injection, payload (rig, emulator).
+struct EmulatorOptions {
+  std::string plant_file, payload;
+  nodes::EmulatorConfig ec;
+  void add(CLI::App* a);
+  // The emulator's configuration for the EDS folder and the SYNC period (0: 1 ms).
+  nodes::EmulatorConfig config(const std::string& od_dir, unsigned period_us) const;
+};
+
+// Real-time scheduling of a process on a live bus (controller, emulator).
+struct RealtimeOptions {
+  bool rt = false;
+  int cpu = -1, priority = 80;
+  void add(CLI::App* a);
+};
+
+}  // namespace pamc::app

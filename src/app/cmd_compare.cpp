@@ -1,0 +1,48 @@
+#include "app/command.hpp"
+
+#include <cstdio>
+
+#include "diagnose/compare.hpp"
+#include "io/measurement.hpp"
+#include "io/model_file.hpp"
+
+namespace pamc::app {
+namespace {
+
+// pamc compare: where a model fails on a measurement (docs/MODELING.md).
+class CompareCommand final : public Command {
+ public:
+  explicit CompareCommand(CLI::App& app)
+      : Command(app.add_subcommand("compare", "simulate a model on a measurement's input and show where it fails: "
+                                              "RMSE, max error, fit %, error by where it happens, residual tests, figures")) {
+    cmd_->add_option("model", cmp_model, "model file (JSON, from `pamc fit` or `pamc diagnose`)")->required();
+    cmd_->add_option("data", cmp_data, "measurement CSV with header t,u,y")->required();
+    cmd_->add_option("--report", cmp_report, "folder for CSVs and figures (default: DATA.compare/)");
+    cmd_->add_option("--json", cmp_json, "write the numbers as JSON to this file");
+  }
+  int run() override {
+    const auto m = io::readModelFile(cmp_model);
+    const auto d = io::readMeasurementCsv(cmp_data);
+    if (!d.warning.empty()) std::fprintf(stderr, "warning: %s\n", d.warning.c_str());
+    const auto c = diagnose::compare(m, d);
+    std::printf("model %s (%s) on %s: %zu samples, Ts = %g s\n", cmp_model.c_str(), m.describe().c_str(),
+                cmp_data.c_str(), d.size(), d.Ts);
+    std::printf("%s", diagnose::formatReport(c.report).c_str());
+    std::string dir = cmp_report.empty() ? cmp_data + ".compare" : cmp_report;
+    std::string warn;
+    diagnose::writeCompareReport(c, d, dir, warn);
+    if (!warn.empty()) std::fprintf(stderr, "warning: %s\n", warn.c_str());
+    std::printf("figures and CSVs in %s/\n", dir.c_str());
+    if (!cmp_json.empty()) io::writeFileAtomic(cmp_json, diagnose::toJson(c).dump(2) + "\n");
+    return 0;
+  }
+
+ private:
+  std::string cmp_model, cmp_data, cmp_report, cmp_json;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeCompareCommand(CLI::App& app) { return std::make_unique<CompareCommand>(app); }
+
+}  // namespace pamc::app

@@ -1,0 +1,107 @@
+#include "app/command.hpp"
+
+#include <fcntl.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+
+#include "app/bus_common.hpp"
+#include "app/controller_options.hpp"
+#include "app/node_options.hpp"
+#include "io/measurement.hpp"
+#include "nodes/decoder.hpp"
+#include "nodes/monitor.hpp"
+#include "rig/fault_rig.hpp"
+#include "rig/virtual_rig.hpp"
+
+namespace pamc::app {
+namespace {
+
+// pamc controller: the controller node on a SocketCAN interface.
+class ControllerCommand final : public Command {
+ public:
+  explicit ControllerCommand(CLI::App& app)
+      : Command(app.add_subcommand("controller", "run the controller node on a SocketCAN interface")) {
+    cmd_->add_option("--iface", iface, "CAN interface (can0, vcan0, ...)")->capture_default_str();
+    od_.add(cmd_);
+    kind_.add(cmd_);
+    ctrl_.add(cmd_);
+    run_.add(cmd_);
+    cmd_->add_flag("--consume-sync", consume_sync, "another master produces SYNC");
+    cmd_->add_option("--log", candump, "file for every frame as a candump -l log");
+    rt_.add(cmd_);
+  }
+  int run() override {
+    const std::string& csv = run_.csv;
+    const double duration = run_.duration;
+    auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, consume_sync);
+    realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
+    auto canp = openCan(iface);
+    auto& can = *canp;
+    // On the heap: the record rings are megabytes.
+    auto nodep = std::make_unique<nodes::ControllerNode>(c, can, [] { return canopen::monotonicNowUs(); });
+    auto& node = *nodep;
+    auto loggerp = std::make_unique<Logger>(candump, iface, csv, c.period_us);
+    auto& logger = *loggerp;
+    logger.records = &node.records();
+    can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
+    canopen::EventLoop loop(can, node.node());
+    g_loop = &loop;
+    installSignals();
+    logger.start();
+    std::fprintf(stderr, "controller node 1 on %s: %s, %s%s\n", iface.c_str(), control::toString(node.kind()),
+                 c.trajectory.describe().c_str(), c.produce_sync ? ", producing SYNC" : ", consuming SYNC");
+    std::thread watch([&] {
+      nodes::Fault last = nodes::Fault::None;
+      while (!g_stop) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const auto f = node.fault();
+        if (f != last) {
+          if (f == nodes::Fault::IdCollision)
+            std::fprintf(stderr, "fault: %s (frame on COB-ID 0x%03X from another node) -> valve to its safe value, "
+                         "EMCY 0x%04X sent\n", nodes::toString(f), node.lastCollisionCob(), nodes::emcyCode(f));
+          else if (f != nodes::Fault::None)
+            std::fprintf(stderr, "fault: %s -> valve to its safe value, EMCY 0x%04X sent\n", nodes::toString(f),
+                         nodes::emcyCode(f));
+          else
+            std::fprintf(stderr, "fault cleared: estimator and integrator restarted\n");
+          last = f;
+        }
+        if (duration > 0 && node.runTime() >= duration) loop.stop();
+      }
+    });
+    {
+      Joiner j{watch};
+      node.start(canopen::monotonicNowUs());
+      loop.run();
+    }
+    g_loop = nullptr;
+    logger.stop();
+    printStats(node.stats(), logger.summary);
+    const auto& st = can.stats();
+    std::printf("socket: rx %llu, tx %llu, tx queued %llu, tx dropped %llu, tx expired %llu, error frames %llu\n",
+                static_cast<unsigned long long>(st.rx_frames), static_cast<unsigned long long>(st.tx_frames),
+                static_cast<unsigned long long>(st.tx_queued), static_cast<unsigned long long>(st.tx_dropped),
+                static_cast<unsigned long long>(st.tx_expired), static_cast<unsigned long long>(st.error_frames));
+    return 0;
+  }
+
+ private:
+  std::string iface = "vcan0", candump;
+  bool consume_sync = false;
+  OdOption od_;
+  ControllerKindOption kind_;
+  ControllerOptions ctrl_;
+  NodeRunOptions run_;
+  RealtimeOptions rt_;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeControllerCommand(CLI::App& app) { return std::make_unique<ControllerCommand>(app); }
+
+}  // namespace pamc::app

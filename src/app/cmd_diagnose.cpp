@@ -1,0 +1,76 @@
+#include "app/command.hpp"
+
+#include <cstdio>
+
+#include "diagnose/diagnose.hpp"
+#include "io/measurement.hpp"
+#include "model/effect.hpp"
+
+namespace pamc::app {
+namespace {
+
+// pamc diagnose: which physical effect is missing; add it, refit, repeat (docs/MODELING.md).
+class DiagnoseCommand final : public Command {
+ public:
+  explicit DiagnoseCommand(CLI::App& app)
+      : Command(app.add_subcommand("diagnose", "fit the reference model, find which physical effect is missing, add "
+                                               "it, refit, and repeat while the validated error falls")) {
+    cmd_->add_option("data", dg_data, "training measurement CSV (t,u,y[,load,...])")->required();
+    cmd_->add_option("--validate", dg_val, "validation measurement (default: hold out the last part of DATA)");
+    cmd_->add_option("--holdout", ds.holdout, "fraction held out without --validate")->capture_default_str()->check(CLI::Range(0.06, 0.94));
+    cmd_->add_option("--max-effects", ds.max_effects, "at most this many effects added")->capture_default_str()->check(CLI::Range(0, 9));
+    cmd_->add_option("--min-gain", ds.min_gain, "an effect must lower the validated RMSE by this fraction")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 0.99));
+    cmd_->add_option("--candidates", dg_cands, "comma list of effects to try (default: the whole catalogue)");
+    cmd_->add_option("--report", dg_report, "folder for figures, CSVs and the final model");
+    cmd_->add_option("--json", dg_json, "write the result as JSON to this file");
+    cmd_->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
+    cmd_->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
+  }
+  int run() override {
+    const auto d = io::readMeasurementCsv(dg_data);
+    if (!d.warning.empty()) std::fprintf(stderr, "warning: %s\n", d.warning.c_str());
+    io::Measurement v;
+    if (!dg_val.empty()) {
+      v = io::readMeasurementCsv(dg_val);
+      if (!v.warning.empty()) std::fprintf(stderr, "warning: %s\n", v.warning.c_str());
+    }
+    ds.candidates = splitList(dg_cands);
+    for (const auto& c : ds.candidates) (void)model::makeEffect(c);
+    ds.log = progressLine;
+    const auto r = diagnose::diagnose(d, dg_val.empty() ? nullptr : &v, ds);
+    std::printf("\nFirst round (on top of the reference model), best first:\n");
+    if (!r.rounds.empty())
+      for (const auto& c : r.rounds.front())
+        std::printf("  %-20s validation RMSE %-10.5g train %-10.5g  %s\n", c.effect.c_str(), c.rmse_val, c.rmse_train,
+                    c.evidence.text.c_str());
+    std::printf("\nLadder (validation: %s):\n", r.validation.c_str());
+    for (const auto& g : r.ladder) {
+      std::string e;
+      for (const auto& x : g.effects) e += (e.empty() ? "" : " + ") + x;
+      std::printf("  %-50s train %-10.5g validation %-10.5g\n", e.empty() ? "reference model" : ("+ " + e).c_str(),
+                  g.rmse_train, g.rmse_val);
+    }
+    std::printf("\n%s\n", r.verdict.c_str());
+    std::printf("%.1f s\n", r.seconds);
+    if (!dg_report.empty()) {
+      std::string warn;
+      diagnose::writeReport(r, d, dg_val.empty() ? nullptr : &v, ds, dg_report, warn);
+      if (!warn.empty()) std::fprintf(stderr, "warning: %s\n", warn.c_str());
+      std::printf("report in %s/ (ladder.png, validation.png, residual_tests.png, model.json)\n", dg_report.c_str());
+    }
+    if (!dg_json.empty()) io::writeFileAtomic(dg_json, diagnose::toJson(r).dump(2) + "\n");
+    return 0;
+  }
+
+ private:
+  std::string dg_data, dg_val, dg_report, dg_json, dg_cands;
+  diagnose::DiagnoseSettings ds;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeDiagnoseCommand(CLI::App& app) { return std::make_unique<DiagnoseCommand>(app); }
+
+}  // namespace pamc::app

@@ -1,0 +1,86 @@
+#include "app/command.hpp"
+
+#include <fcntl.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+
+#include "app/bus_common.hpp"
+#include "app/controller_options.hpp"
+#include "app/node_options.hpp"
+#include "io/measurement.hpp"
+#include "nodes/decoder.hpp"
+#include "nodes/monitor.hpp"
+#include "rig/fault_rig.hpp"
+#include "rig/virtual_rig.hpp"
+
+namespace pamc::app {
+namespace {
+
+// pamc emulator: the sensor and valve nodes with the emulator's physics on a SocketCAN interface.
+class EmulatorCommand final : public Command {
+ public:
+  explicit EmulatorCommand(CLI::App& app)
+      : Command(app.add_subcommand("emulator", "play the valve and sensor nodes with the emulator physics on SocketCAN")) {
+    cmd_->add_option("--iface", iface, "CAN interface")->capture_default_str();
+    od_.add(cmd_);
+    emu_.add(cmd_);
+    cmd_->add_option("--duration", emu_duration, "stop after this many seconds of SYNCs (0: until Ctrl-C)")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
+    cmd_->add_option("--period-us", period_us, "SYNC period the physics steps by (default 1000 us)")->check(CLI::Range(100u, 1000000u));
+    cmd_->add_option("--log", candump, "file for every frame as a candump -l log");
+    rt_.add(cmd_);
+  }
+  int run() override {
+    const nodes::EmulatorConfig ec = emu_.config(od_.dir, period_us);
+    realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
+    auto canp = openCan(iface);
+    auto& can = *canp;
+    auto emup = std::make_unique<nodes::EmulatorNodes>(ec, can);
+    auto& emu = *emup;
+    auto loggerp = std::make_unique<Logger>(candump, iface, "", period_us);
+    auto& logger = *loggerp;
+    can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
+    canopen::EventLoop loop(can, emu);
+    g_loop = &loop;
+    installSignals();
+    logger.start();
+    std::fprintf(stderr, "emulator on %s: sensor node %u, valve node %u; stepped by SYNC\n", iface.c_str(),
+                 emu.sensor().nodeId(), emu.valve().nodeId());
+    std::thread watch([&] {
+      while (!g_stop) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        if (emu_duration > 0 && emu.time() >= emu_duration) loop.stop();
+      }
+    });
+    {
+      Joiner j{watch};
+      emu.start(canopen::monotonicNowUs());
+      loop.run();
+    }
+    g_loop = nullptr;
+    logger.stop();
+    std::printf("emulated %.3f s (%llu position PDOs dropped by fault injection)\n", emu.time(),
+                static_cast<unsigned long long>(emu.pdosDropped()));
+    return 0;
+  }
+
+ private:
+  std::string iface = "vcan0", candump;
+  double emu_duration = 0.0;
+  unsigned period_us = 0;
+  OdOption od_;
+  EmulatorOptions emu_;
+  RealtimeOptions rt_;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeEmulatorCommand(CLI::App& app) { return std::make_unique<EmulatorCommand>(app); }
+
+}  // namespace pamc::app

@@ -1,0 +1,62 @@
+#include "app/command.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "app/controller_options.hpp"
+#include "plant/plant.hpp"
+#include "sim/experiments.hpp"
+
+namespace pamc::app {
+namespace {
+
+// pamc experiments: the paper's experiments on the emulator (docs/EXPERIMENTS.md).
+class ExperimentsCommand final : public Command {
+ public:
+  explicit ExperimentsCommand(CLI::App& app)
+      : Command(app.add_subcommand("experiments", "run the paper's experiments on the plant emulator (Tables 1 and 2, "
+                                                  "square/sawtooth, payload step); write CSVs, figures and a summary")) {
+    cmd_->add_option("--out", out_, "output folder (CSVs, figures, summary.txt, summary.json)")->capture_default_str();
+    cmd_->add_option("--plant", plant_, "plant emulator config (JSON; see `pamc plant`)");
+    cmd_->add_option("--only", only_, "comma list of: table1, table2, discontinuous, payload (table1 always runs)");
+    cmd_->add_option("--seed", seed_, "GA seed")->capture_default_str();
+    cmd_->add_flag("--no-figures", nofig_, "skip the PNG figures");
+    ctrl_.add(cmd_);
+    cmd_->get_option("--model")->description("use this model file instead of identifying one on u0");
+  }
+  int run() override {
+    sim::ExperimentSettings s;
+    if (!plant_.empty()) s.plant = plant::PlantConfig::fromFile(plant_);
+    s.out_dir = out_;
+    s.model_file = ctrl_.model_file;
+    s.figures = !nofig_;
+    s.only = splitList(only_);
+    for (const auto& o : s.only)
+      if (o != "table1" && o != "table2" && o != "discontinuous" && o != "payload")
+        throw std::invalid_argument("--only: unknown experiment '" + o + "' (known: table1, table2, discontinuous, payload)");
+    s.fit.ga.seed = seed_;
+    ControllerOptions no_model = ctrl_;
+    no_model.model_file.clear();  // the experiments read it themselves (Table 1 reports on it)
+    s.ctrl = no_model.config();
+    s.log = progressLine;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto rep = sim::runExperiments(s);
+    std::printf("\n%s", rep.text.c_str());
+    std::printf("results in %s/ (CSV per run, PNG figures, summary.txt, summary.json); %.1f s\n", out_.c_str(),
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    return 0;
+  }
+
+ private:
+  std::string out_ = "results", plant_, only_;
+  bool nofig_ = false;
+  std::uint64_t seed_ = 1;
+  ControllerOptions ctrl_;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeExperimentsCommand(CLI::App& app) { return std::make_unique<ExperimentsCommand>(app); }
+
+}  // namespace pamc::app

@@ -1,0 +1,84 @@
+#include "app/command.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "ident/identify.hpp"
+#include "io/measurement.hpp"
+#include "io/model_file.hpp"
+
+namespace pamc::app {
+namespace {
+
+// pamc fit: identify a model (the Bouc-Wen core plus chosen effects) from a measurement.
+class FitCommand final : public Command {
+ public:
+  explicit FitCommand(CLI::App& app)
+      : Command(app.add_subcommand("fit", "identify a model from a measurement CSV (t,u,y[,load,...]) by GA, "
+                                          "Levenberg-Marquardt and Nelder-Mead")) {
+    cmd_->add_option("data", data_, "measurement CSV with header t,u,y")->required();
+    cmd_->add_option("--out", out_, "model file (JSON) to write");
+    cmd_->add_option("--effects", effects_, "comma list of effects to add to the Bouc-Wen core (see `pamc effects`)");
+    cmd_->add_option("--seed", fs_.ga.seed, "GA seed (same seed, same result)")->capture_default_str();
+    cmd_->add_option("--population", fs_.ga.population, "GA population")->capture_default_str()->check(CLI::Range(4, 10000));
+    cmd_->add_option("--generations", fs_.ga.max_generations, "GA generation limit")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000));
+    cmd_->add_option("--threads", fs_.ga.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
+    cmd_->add_flag("--quiet", quiet_, "no progress on stderr");
+  }
+  int run() override {
+    const std::string& data = data_;
+    const std::string& out = out_;
+    const std::string& effects = effects_;
+    const ident::FitSettings& fs = fs_;
+    const bool quiet = quiet_;
+  io::Measurement m = io::readMeasurementCsv(data);
+  if (!m.warning.empty()) std::fprintf(stderr, "warning: %s\n", m.warning.c_str());
+  model::Model structure;
+  for (const auto& e : splitList(effects)) structure.addEffect(e);
+  if (!quiet)
+    std::fprintf(stderr, "fitting %s (%d parameters) to %zu samples of %s, Ts = %g s\n", structure.describe().c_str(),
+                 structure.numParams() - 1, m.size(), data.c_str(), m.Ts);
+  int last = 0;
+  const auto r = ident::fit(structure, m, fs, [&](const char* stage, int it, double rmse) {
+    if (quiet) return;
+    if (std::string(stage) == "ga" && (it == 1 || it - last >= 10)) {
+      last = it;
+      std::fprintf(stderr, "  GA generation %4d  best RMSE %.6g\n", it, rmse);
+    } else if (std::string(stage) == "refine") {
+      std::fprintf(stderr, "  refined (Nelder-Mead)  RMSE %.6g\n", rmse);
+    }
+  });
+  const auto specs = r.model.paramSpecs();
+  const auto p = r.model.params();
+  std::printf("model: %s\n", r.model.describe().c_str());
+  for (size_t i = 0; i < specs.size(); ++i)
+    std::printf("  %-28s = %-14.8g %s%s\n", specs[i].name.c_str(), p[i], specs[i].unit.c_str(),
+                specs[i].name == "alpha" ? "  (fixed: scale of h)" : "");
+  const auto& c = r.model.core();
+  std::printf("  (gain of u: k rho = %.6g; gain of h: k (1 - rho) = %.6g)\n", c.k * c.rho, c.k * (1 - c.rho));
+  std::printf("RMSE %.6g (MSE %.6g) over %zu samples\n", r.rmse, r.mse, m.size());
+  std::printf("%d generations, %d evaluations, %.2f s wall time\n", r.generations, r.evaluations, r.seconds);
+  if (!out.empty()) {
+    io::writeModelFile(out, r.model,
+                             {{"data", data}, {"samples", m.size()}, {"Ts", m.Ts}, {"rmse", r.rmse},
+                              {"generations", r.generations}, {"evaluations", r.evaluations},
+                              {"seconds", r.seconds}, {"seed", fs.ga.seed}});
+    std::printf("wrote %s\n", out.c_str());
+  }
+  return 0;
+}
+
+ private:
+  std::string data_, out_, effects_;
+  ident::FitSettings fs_;
+  bool quiet_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeFitCommand(CLI::App& app) { return std::make_unique<FitCommand>(app); }
+
+}  // namespace pamc::app

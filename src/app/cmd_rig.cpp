@@ -1,0 +1,255 @@
+#include "app/command.hpp"
+
+#include <fcntl.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+
+#include "app/bus_common.hpp"
+#include "app/controller_options.hpp"
+#include "app/node_options.hpp"
+#include "io/measurement.hpp"
+#include "nodes/decoder.hpp"
+#include "nodes/monitor.hpp"
+#include "rig/fault_rig.hpp"
+#include "rig/virtual_rig.hpp"
+
+namespace pamc::app {
+namespace {
+
+// pamc rig: the controller and emulator nodes on the in-process bus (virtual time, or paced with --rt),
+// and the fault tools: --faults, --sdo-guards, --soak.
+class RigCommand final : public Command {
+ public:
+  explicit RigCommand(CLI::App& app)
+      : Command(app.add_subcommand("rig", "controller and emulator as CANopen nodes on the in-process bus (virtual "
+                                          "time, no CAN hardware): the whole rig through the CANopen layer; also the "
+                                          "fault table (--faults), the SDO guards (--sdo-guards) and the soak (--soak HOURS)")) {
+    od_.add(cmd_);
+    kind_.add(cmd_);
+    ctrl_.add(cmd_);
+    run_.add(cmd_);
+    emu_.add(cmd_);
+    cmd_->add_option("--log", candump, "file for every frame as a candump -l log");
+    cmd_->add_flag("--faults", faults,
+                   "run each fault on the bus (seeded) and print the fault table: reaction, cycles to the safe "
+                   "valve value, EMCY, recovery, data lost (with --controller and the gains given)");
+    cmd_->add_option("--only", only, "with --faults or --soak: comma list of faults, e.g. sync-stop,bus-off (an unknown name lists them)");
+    cmd_->add_flag("--sdo-guards", sdo_guards, "write parameters over SDO to the running controller and print "
+                                                "the abort codes and what the loop saw");
+    cmd_->add_option("--soak", soak_hours,
+                     "soak: HOURS of 1 kHz cycles in virtual time (PI + AMC kp 0.1, ki 1.5, kc 0.06 unless --controller, "
+                     "--kp, --ki, --kc are given; a 0.2 Hz sine; the controller consuming "
+                     "the SYNC of a producer node, 1 Mbit/s bus) with faults of the catalogue injected one after the "
+                     "other at random times; prints per report interval the cycles, SYNC gaps, faults, tracking "
+                     "after each fault against the no-fault baseline, heap and RSS, CPU per cycle; exit 1 if memory "
+                     "grew, a cycle was lost outside a fault, tracking did not come back or left its level between faults, or "
+                     "CPU per cycle drifted")
+        ->check(CLI::PositiveNumber);
+    cmd_->add_option("--seed", seed, "with --soak: seed of the fault times, fault choices and sensor noise")->capture_default_str();
+    cmd_->add_option("--report-every", report_every, "with --soak: simulated seconds per report line")
+        ->capture_default_str()
+        ->check(CLI::Range(1.0, 1e6));
+    auto* rt_flag = cmd_->add_flag("--rt,--realtime", realtime,
+                                   "pace the rig to the wall clock (1 ms of bus time per ms) like a live node: --log "
+                                   "and --csv (t,yd,y,u,u_n,u_c,y_hat,fault,latency_us) are streamed by a logger thread "
+                                   "and on disk within a millisecond, the log's times are wall-clock times");
+    cmd_->add_option("--progress", progress, "with --rt: append 'cycle K t T bus_us B' to this file as each "
+                                              "cycle is computed (a marker for crash tests and watchdogs)")
+        ->needs(rt_flag);
+  }
+  int run() override {
+    if (soak_hours > 0) return runSoak();
+    if (faults || sdo_guards) return runRigChecks();
+    const auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, false);
+    ec = emu_.config(od_.dir, run_.period_us);
+    if (realtime) return runRigRealtime(c);
+    return runVirtual(c);
+  }
+
+ private:
+  // The fault tools with the controller and gains the command line gives (the tools' own otherwise).
+  template <class Options>
+  void applyController(Options& o) const {
+    if (cmd_->count("--controller")) o.kind = kind_.kind();
+    if (cmd_->count("--kp")) o.kp = ctrl_.cc.kp;
+    if (cmd_->count("--ki")) o.ki = ctrl_.cc.ki;
+    if (cmd_->count("--kc")) o.kc = ctrl_.cc.kc;
+  }
+  std::vector<nodes::BusFault> faultList() const {
+    std::vector<nodes::BusFault> list;
+    std::string rest = only;
+    while (!rest.empty()) {
+      const auto c = rest.find(',');
+      const std::string name = rest.substr(0, c);
+      rest = c == std::string::npos ? "" : rest.substr(c + 1);
+      bool found = false;
+      for (auto f : nodes::allBusFaults())
+        if (name == nodes::busFaultName(f)) list.push_back(f), found = true;
+      if (!found) {
+        std::string names;
+        for (auto f : nodes::allBusFaults()) names += std::string(names.empty() ? "" : ", ") + nodes::busFaultName(f);
+        throw std::invalid_argument("--only: unknown fault '" + name + "' (one of: " + names + ")");
+      }
+    }
+    return list;
+  }
+
+  int runRigChecks() {
+    nodes::FaultRigOptions o;
+    o.od_dir = od_.dir;
+    applyController(o);
+    if (sdo_guards) {
+      std::printf("%s", nodes::guardTableMarkdown(nodes::runParameterGuards(o)).c_str());
+      if (!faults) return 0;
+      std::printf("\n");
+    }
+    const auto list = faultList();
+    std::fprintf(stderr, "in-process bus, %s, fault injected after %g s of a 0.2 Hz sine, run on %g s after it cleared\n",
+                 control::toString(o.kind), o.inject_at_s, o.after_s);
+    std::printf("%s", nodes::faultTableMarkdown(nodes::runFaultTable(list, o)).c_str());
+    return 0;
+  }
+
+  int runSoak() {
+    nodes::SoakOptions o;
+    o.od_dir = od_.dir;
+    o.hours = soak_hours;
+    o.seed = seed;
+    o.report_s = report_every;
+    o.faults = faultList();
+    // The fault table's controller and gains unless given.
+    applyController(o);
+    std::fprintf(stderr,
+                 "soak: %g h of 1 kHz cycles in virtual time, %s (kp %g, ki %g, kc %g), 0.2 Hz sine 10-20 mm; "
+                 "controller consuming the SYNC of a producer node, 1 Mbit/s bus; faults (%zu kinds) every %g-%g s "
+                 "after the last check, seed %llu\n",
+                 o.hours, control::toString(o.kind), o.kp, o.ki, o.kc,
+                 o.faults.empty() ? nodes::allBusFaults().size() : o.faults.size(), o.gap_min_s, o.gap_max_s,
+                 static_cast<unsigned long long>(o.seed));
+    std::printf("%s", nodes::soakIntervalHeader().c_str());
+    std::fflush(stdout);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto r = nodes::runSoak(
+        o,
+        [](const nodes::SoakInterval& i) {
+          std::printf("%s", nodes::soakIntervalLine(i).c_str());
+          std::fflush(stdout);
+        },
+        [&](double sim_s) {
+          if (std::fmod(sim_s, 600.0) > 1.0) return;  // every 10 simulated minutes
+          const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          const double total = o.hours * 3600.0;
+          std::fprintf(stderr, "soak: %.2f of %g h simulated, %.0f s wall, about %.0f s to go\n", sim_s / 3600.0,
+                       o.hours, wall, wall / sim_s * (total - sim_s));
+        });
+    std::printf("%s", nodes::soakReport(o, r, false).c_str());  // the intervals are printed above
+    return r.passed() ? 0 : 1;
+  }
+
+  int runRigRealtime(const nodes::ControllerNodeConfig& c) {
+    auto ring = std::make_unique<nodes::SpscRing<nodes::CycleRecord, 1 << 15>>();
+    auto loggerp = std::make_unique<Logger>(candump, "vcan0", run_.csv, run_.period_us);
+    auto& logger = *loggerp;
+    logger.records = ring.get();
+    int progress_fd = -1;
+    if (!progress.empty()) {
+      progress_fd = ::open(progress.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+      if (progress_fd < 0) throw std::runtime_error(progress + ": cannot write");
+    }
+    timespec wall{};
+    ::clock_gettime(CLOCK_REALTIME, &wall);
+    const canopen::TimeUs epoch = static_cast<canopen::TimeUs>(wall.tv_sec) * 1000000 + wall.tv_nsec / 1000;
+    nodes::VirtualRigHooks hooks;
+    hooks.realtime = true;
+    hooks.tap = [&](const canopen::Frame& f, canopen::TimeUs t) { logger.frames.push({f, epoch + t}); };
+    nodes::CycleRecord last{};
+    bool fresh = false;
+    hooks.on_record = [&](const nodes::CycleRecord& r) {
+      ring->push(r);
+      last = r;
+      fresh = true;
+    };
+    hooks.on_step = [&](canopen::TimeUs now) {
+      if (progress_fd >= 0 && fresh) {
+        // What the rig has computed so far (the logger may not have written it yet): the cycle, its
+        // trajectory time and the bus time (the log's time stamps count from the first frame at bus time 0).
+        char b[96];
+        const int n = std::snprintf(b, sizeof b, "cycle %u t %.3f bus_us %lld\n", last.k, last.t, static_cast<long long>(now));
+        if (::write(progress_fd, b, static_cast<size_t>(n)) < 0) progress_fd = -1;
+        fresh = false;
+      }
+      return !g_stop.load();
+    };
+    installSignals();
+    logger.start();
+    std::fprintf(stderr, "in-process bus paced in real time: controller (node 1) + sensor (2) + valve (3), %g s pre-roll + %s\n",
+                 run_.preroll, run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
+    const auto r = nodes::runVirtualRig(c, ec, run_.duration, "", epoch, 0, hooks);
+    logger.stop();
+    if (progress_fd >= 0) ::close(progress_fd);
+    std::printf("%llu frames on the bus, %llu faults%s%s\n", static_cast<unsigned long long>(r.frames),
+                static_cast<unsigned long long>(r.faults), r.final_fault == nodes::Fault::None ? "" : ", last: ",
+                r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
+    printStats(r.stats, logger.summary);
+    return 0;
+  }
+
+
+  // Virtual time, as fast as it goes; --duration 0 runs until Ctrl-C.
+  int runVirtual(const nodes::ControllerNodeConfig& c) {
+    nodes::VirtualRigHooks hooks;
+    const bool forever = run_.duration <= 0;
+    if (forever) {
+      installSignals();
+      hooks.until_stopped = true;
+      hooks.on_step = [](canopen::TimeUs) { return !g_stop.load(); };
+    }
+    // Records are kept only for --csv (a run until Ctrl-C would otherwise grow without bound).
+    TrackingSummary t;
+    std::vector<nodes::CycleRecord> kept;
+    hooks.on_record = [&](const nodes::CycleRecord& x) {
+      t.add(x);
+      if (!run_.csv.empty()) kept.push_back(x);
+    };
+    std::fprintf(stderr, "in-process bus: controller (node 1) + sensor (2) + valve (3), %g s pre-roll + %s\n",
+                 run_.preroll, forever ? "until Ctrl-C" : (std::to_string(run_.duration) + " s run").c_str());
+    const auto r = nodes::runVirtualRig(c, ec, run_.duration, candump, 1700000000000000, 0, hooks);
+    if (!run_.csv.empty()) {
+      std::vector<double> tt, yd, y, u, un, uc, yh, f;
+      for (const auto& x : kept) {
+        tt.push_back(x.t), yd.push_back(x.yd), y.push_back(x.y), u.push_back(x.u), un.push_back(x.u_n),
+            uc.push_back(x.u_c), yh.push_back(x.y_hat), f.push_back(x.fault);
+      }
+      io::writeCsvAtomic(run_.csv, {"t", "yd", "y", "u", "u_n", "u_c", "y_hat", "fault"}, {&tt, &yd, &y, &u, &un, &uc, &yh, &f});
+    }
+    std::printf("%s controller: %llu frames on the bus, %llu faults%s%s\n", control::toString(static_cast<control::Kind>(c.kind)),
+                static_cast<unsigned long long>(r.frames),
+                static_cast<unsigned long long>(r.faults), r.final_fault == nodes::Fault::None ? "" : ", last: ",
+                r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
+    printStats(r.stats, t);
+    if (!candump.empty()) std::printf("candump log: %s\n", candump.c_str());
+    return 0;
+  }
+
+  OdOption od_;
+  ControllerKindOption kind_;
+  ControllerOptions ctrl_;
+  NodeRunOptions run_;
+  EmulatorOptions emu_;
+  nodes::EmulatorConfig ec;
+  std::string candump, only, progress;
+  bool faults = false, sdo_guards = false, realtime = false;
+  double soak_hours = 0, report_every = 3600;
+  std::uint64_t seed = 1;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeRigCommand(CLI::App& app) { return std::make_unique<RigCommand>(app); }
+
+}  // namespace pamc::app

@@ -1,0 +1,53 @@
+// One subcommand of pamc per file (cmd_<name>.cpp): its constructor adds the subcommand and its
+// options to the app, run() does the work once the command line is parsed. commands.cpp lists them.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace pamc::app {
+
+class Command {
+ public:
+  explicit Command(CLI::App* cmd) : cmd_(cmd) {}
+  virtual ~Command() = default;
+  Command(const Command&) = delete;
+  Command& operator=(const Command&) = delete;
+  bool selected() const { return cmd_->parsed(); }
+  virtual int run() = 0;
+
+ protected:
+  CLI::App* cmd_;
+};
+
+using CommandFactory = std::unique_ptr<Command> (*)(CLI::App&);
+
+// The modelling side.
+std::unique_ptr<Command> makeExperimentsCommand(CLI::App& app);
+std::unique_ptr<Command> makeCalibrateCommand(CLI::App& app);
+std::unique_ptr<Command> makeFitCommand(CLI::App& app);
+std::unique_ptr<Command> makeCompareCommand(CLI::App& app);
+std::unique_ptr<Command> makeDiagnoseCommand(CLI::App& app);
+std::unique_ptr<Command> makeEmulateCommand(CLI::App& app);
+std::unique_ptr<Command> makePlantCommand(CLI::App& app);
+std::unique_ptr<Command> makeEffectsCommand(CLI::App& app);
+// The bus side.
+std::unique_ptr<Command> makeRigCommand(CLI::App& app);
+std::unique_ptr<Command> makeControllerCommand(CLI::App& app);
+std::unique_ptr<Command> makeEmulatorCommand(CLI::App& app);
+std::unique_ptr<Command> makeDecodeCommand(CLI::App& app);
+std::unique_ptr<Command> makeMonitorCommand(CLI::App& app);
+
+// In the order `pamc --help` lists them.
+inline const CommandFactory kCommands[] = {
+    makeExperimentsCommand, makeCalibrateCommand, makeFitCommand,        makeCompareCommand, makeDiagnoseCommand,
+    makeEmulateCommand,     makePlantCommand,     makeEffectsCommand,    makeRigCommand,     makeControllerCommand,
+    makeEmulatorCommand,    makeDecodeCommand,    makeMonitorCommand};
+
+std::vector<std::string> splitList(const std::string& s);
+void progressLine(const std::string& m);
+
+}  // namespace pamc::app

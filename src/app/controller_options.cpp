@@ -1,0 +1,52 @@
+#include "app/controller_options.hpp"
+
+#include "io/model_file.hpp"
+
+namespace pamc::app {
+
+void ControllerOptions::add(CLI::App* a) {
+  a->add_option("--kp", cc.kp, "PI proportional gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--ki", cc.ki, "PI integral gain [V/(mm s)] (the paper prints 0.15; see docs/CALIBRATION.md)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  a->add_option("--kc", cc.kc, "AMC compensation gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--amc-form", amc_form,
+                "eq. (17): 'printed' predicts Y_{k+1} from the nominal command itself (the paper); 'increment' adds "
+                "the model's one-step increment to the posterior output")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"printed", "increment"}));
+  a->add_option("--amc-horizon", cc.amc_horizon,
+                "AMC prediction horizon [samples]; 1 = eq. (17), 0 = automatic (bus delay + the model's response time)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 2000));
+  a->add_option("--amc-inverse", cc.amc_inverse,
+                "predictive AMC: fraction of the predicted error at the horizon corrected through the model's "
+                "response (0: the paper's kc e_hat)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  a->add_option("--eso-b0", cc.b0, "ESO input gain b0 [mm/(s^2 V)]")->capture_default_str()->check(CLI::PositiveNumber);
+  a->add_option("--eso-delta", cc.delta, "ESO fal() linear zone delta [mm]")->capture_default_str()->check(CLI::PositiveNumber);
+  a->add_option("--eso-beta1", cc.beta1, "ESO observer gain beta1")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--eso-beta2", cc.beta2, "ESO observer gain beta2")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--eso-beta3", cc.beta3, "ESO observer gain beta3")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--delay", cc.delay_cycles,
+                "cycles from command to the measurement that shows it, beyond one sample (2 on the CAN bus)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 7));
+  a->add_option("--model", model_file, "identified model (JSON) for the AMC's UKF and the open loop");
+}
+
+control::ControllerConfig ControllerOptions::config() const {
+  control::ControllerConfig c = cc;
+  c.amc_as_printed = amc_form == "printed";
+  if (!model_file.empty()) c.model = io::readModelFile(model_file);
+  return c;
+}
+
+void ControllerKindOption::add(CLI::App* a) {
+  a->add_option("--controller", name, "open, pi, pid (the same as pi: the paper's \"PID\" is a PI), eso or amc")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"open", "pi", "pid", "eso", "amc"}));
+}
+
+}  // namespace pamc::app

@@ -1,0 +1,31 @@
+// The controller's options, one struct shared by every command that builds a controller
+// (experiments, rig, controller): gains, the reading of eq. (17), the predictive AMC, the ESO, the
+// delay and the model file. Defaults are control::ControllerConfig's.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+#include "control/controller.hpp"
+
+namespace pamc::app {
+
+struct ControllerOptions {
+  control::ControllerConfig cc;
+  std::string amc_form = "printed";
+  std::string model_file;
+  // with_model: --model (the experiments identify their own model unless given one).
+  void add(CLI::App* a);
+  // The configuration with the model file read (throws with the file's one-line error).
+  control::ControllerConfig config() const;
+};
+
+// --controller: open, pi (pid: the paper's "PID" is a PI), eso, amc.
+struct ControllerKindOption {
+  std::string name = "pi";
+  void add(CLI::App* a);
+  control::Kind kind() const { return control::kindFromString(name); }
+};
+
+}  // namespace pamc::app
