@@ -126,6 +126,11 @@ double mse(const model::Model& m, const io::Measurement& d) {
   return s / static_cast<double>(y.size());
 }
 
+// The Bouc-Wen core of a parameter vector (k, rho, b, alpha, beta, gamma, ...) is bounded for every
+// input only when beta sign(alpha) + gamma > 0 (bouc_wen.cpp). An unbounded set can fit one record by
+// coincidence and diverge on the next, so the search never takes one.
+bool boundedCore(const std::vector<double>& p) { return std::copysign(1.0, p[3]) * p[4] + p[5] > 0.0; }
+
 FitResult fit(const model::Model& structure, const io::Measurement& d, const FitSettings& s,
               const std::function<void(const char*, int, double)>& progress, const model::Model* start) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -143,6 +148,7 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
     auto& m = models[static_cast<size_t>(w)];
     auto& p = pbuf[static_cast<size_t>(w)];
     searchToModel(x, p);
+    if (!boundedCore(p)) return std::numeric_limits<double>::max();
     m.setParams(p);
     auto& y = ybuf[static_cast<size_t>(w)];
     m.simulate(d.u.data(), lp, d.size(), d.Ts, y.data());
@@ -184,6 +190,10 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
       auto& m = models[static_cast<size_t>(w)];
       auto& p = pb[static_cast<size_t>(w)];
       searchToModel(x, p);
+      if (!boundedCore(p)) {
+        std::fill(e.begin(), e.end(), 1e6);  // a step into an unbounded set is refused by its cost
+        return;
+      }
       m.setParams(p);
       m.simulate(d.u.data(), lp, d.size(), d.Ts, e.data());
       for (size_t i = 0; i < e.size(); ++i) e[i] -= d.y[i];
@@ -192,6 +202,7 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
     // the GA finds basins, LM their bottoms.
     std::vector<std::vector<double>> starts = {r.x};
     for (size_t k = 0; k < r.runners_up.size() && static_cast<int>(k) < s.lm_starts; ++k) starts.push_back(r.runners_up[k]);
+    std::vector<std::vector<double>> spread;  // starts spread over the box, not from the GA
     {
       std::mt19937_64 rng(gs.seed ^ 0x5851f42d4c957f2dull);
       std::uniform_real_distribution<double> U(0.0, 1.0);
@@ -207,7 +218,7 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
         // Fixed parameters (lo == hi) stay where the GA has them.
         for (size_t i = 0; i < x.size(); ++i)
           if (!(b.hi[i] > b.lo[i])) x[i] = r.x[i];
-        starts.push_back(x);
+        spread.push_back(x);
       }
     }
     if (!gs.start.empty()) {
@@ -226,26 +237,37 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
         if (any) starts.push_back(x);
       }
     }
-    OptResult best_l;
-    best_l.cost = std::numeric_limits<double>::max();
-    std::vector<OptResult> short_runs;
-    for (const auto& x0 : starts) {
-      OptResult l = levenbergMarquardt(resid, d.size(), x0, b.lo, b.hi, starts.size() > 1 ? 8 : s.lm_iterations, threads);
-      out.evaluations += l.evaluations;
-      short_runs.push_back(l);
-    }
-    std::sort(short_runs.begin(), short_runs.end(), [](const OptResult& a, const OptResult& c) { return a.cost < c.cost; });
-    if (starts.size() > 1) {
-      // The three best basins to the end: after eight iterations the eventual winner is not always ahead
-      // (a hysteretic effect's width and the core's beta/gamma trade places before they settle).
-      for (size_t k = 0; k < std::min<size_t>(3, short_runs.size()); ++k) {
-        OptResult l = levenbergMarquardt(resid, d.size(), short_runs[k].x, b.lo, b.hi, s.lm_iterations, threads);
+    // Short runs from every start, then the best few of each group to the end. A start spread over the
+    // box wins only by a clear margin: where the GA's basin already fits, another basin that fits the
+    // record as well may be a degenerate one that does not generalise (a slew limit that never binds).
+    const bool multi = starts.size() + spread.size() > 1;
+    auto group = [&](const std::vector<std::vector<double>>& xs, std::size_t keep) {
+      std::vector<OptResult> runs;
+      for (const auto& x0 : xs) {
+        OptResult l = levenbergMarquardt(resid, d.size(), x0, b.lo, b.hi, multi ? 8 : s.lm_iterations, threads);
         out.evaluations += l.evaluations;
-        if (l.cost < short_runs[k].cost) short_runs[k] = l;
+        runs.push_back(l);
       }
+      std::sort(runs.begin(), runs.end(), [](const OptResult& a, const OptResult& c) { return a.cost < c.cost; });
+      // The best few to the end: after eight iterations the eventual winner is not always ahead (a
+      // hysteretic effect's width and the core's beta/gamma trade places before they settle).
+      OptResult best;
+      best.cost = std::numeric_limits<double>::max();
+      for (std::size_t k = 0; k < std::min(keep, runs.size()); ++k) {
+        if (multi) {
+          OptResult l = levenbergMarquardt(resid, d.size(), runs[k].x, b.lo, b.hi, s.lm_iterations, threads);
+          out.evaluations += l.evaluations;
+          if (l.cost < runs[k].cost) runs[k] = l;
+        }
+        if (runs[k].cost < best.cost) best = runs[k];
+      }
+      return best;
+    };
+    OptResult best_l = group(starts, 2);
+    if (!spread.empty()) {
+      const OptResult far = group(spread, 2);
+      if (far.cost < 0.9 * best_l.cost) best_l = far;
     }
-    for (const auto& l : short_runs)
-      if (l.cost < best_l.cost) best_l = l;
     if (best_l.cost <= r.cost) r = best_l;
     if (progress) progress("refine", best_l.iterations, std::sqrt(r.cost));
   }
