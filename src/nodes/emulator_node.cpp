@@ -110,10 +110,28 @@ void EmulatorNodes::releaseDelayed(TimeUs now) {
 }
 
 void EmulatorNodes::updateValve(TimeUs now) {
-  const bool ok = valve_->nmtState() == NmtState::Operational && !valve_->sync().timedOut() &&
-                  !(master_id_ != 0 && valve_->heartbeatConsumer().timedOut(master_id_));
-  if (!ok) valve_error_ = true;
-  else if (valve_error_ && valve_->rpdo(1).syncsSinceReception() == 0) valve_error_ = false;  // a fresh command
+  const bool sync_lost = valve_->sync().timedOut();
+  const bool master_lost = master_id_ != 0 && valve_->heartbeatConsumer().timedOut(master_id_);
+  const bool ok = valve_->nmtState() == NmtState::Operational && !sync_lost && !master_lost;
+  // The output goes to its error value (CiA 401: 0x6443/0x6444) and says so: an EMCY with the cause
+  // and the communication bit of the error register 0x1001, until a fresh synchronous command (RPDO1
+  // received since the last SYNC while Operational, with SYNC and the master's heartbeat present)
+  // re-arms it - an SDO write to 0x6411:01 is stored but does not (docs/CANOPEN.md).
+  // A commanded NMT state (Pre-operational, Stopped) applies the error value without an EMCY; a lost
+  // SYNC or master heartbeat sends one (again if the cause changes).
+  const std::uint16_t cause = master_lost ? canopen::kEmcyHeartbeat : sync_lost ? canopen::kEmcyCommunication : 0;
+  if (!ok) {
+    valve_error_ = true;
+    if (cause != 0 && cause != valve_error_code_) {
+      if (valve_error_code_ != 0) valve_->emcy().clear(valve_error_code_);
+      valve_->emcy().report(cause);
+      valve_error_code_ = cause;
+    }
+  } else if (valve_error_ && valve_->rpdo(1).syncsSinceReception() == 0) {
+    valve_error_ = false;  // a fresh command
+    if (valve_error_code_ != 0) valve_->emcy().clear(valve_error_code_);
+    valve_error_code_ = 0;
+  }
   const bool error_out = valve_error_ && error_mode_.get() != 0;
   const double u = pd::countsToCommand(error_out ? static_cast<double>(std::clamp(error_value_.get(), 0, 32767)) : command_.get());
   if (u != u_held_) {

@@ -123,6 +123,7 @@ class EmulatorNodes : public canopen::BusClient {
   canopen::Ref<std::uint8_t> error_mode_{nullptr};
   canopen::Ref<std::int32_t> error_value_{nullptr};
   bool valve_error_ = false;
+  std::uint16_t valve_error_code_ = 0;  // the EMCY sent on entering the error state
   canopen::TimeUs valve_changed_us_ = 0;
 };
 

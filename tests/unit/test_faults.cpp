@@ -13,6 +13,9 @@
 #include "canopen/eds.hpp"
 #include "canopen/node.hpp"
 #include "rig/fault_rig.hpp"
+#include "rig/bus_fault_rig.hpp"
+
+#include <cstring>
 
 using namespace pamc;
 using nodes::BusFault;
@@ -366,4 +369,40 @@ TEST(BusModel, SyncConsumerTimesOutAfterOneAndAHalfPeriods) {
   tool.send(frame(0x080, 0));
   bus.flush();
   EXPECT_FALSE(sensor->sync().timedOut());
+}
+
+// The valve that loses its SYNC (the producer stops while everything stays Operational) goes to its
+// error value and says so: EMCY 0x8100 on node 3 and the communication bit of its 0x1001. An SDO write
+// to 0x6411:01 is stored but does not re-arm the output; the next synchronous command does, with an
+// EMCY error reset.
+TEST(FaultRig, AValveWithoutSyncShowsItsErrorStateUntilAFreshCommand) {
+  nodes::FaultRigOptions o;
+  o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
+  nodes::detail::Rig r(nodes::BusFault::SyncStop, o);
+  std::vector<std::uint16_t> valve_emcy;
+  r.bus.addTap([&](const canopen::Frame& f, canopen::TimeUs) {
+    if (f.id == 0x83 && f.len == 8) valve_emcy.push_back(canopen::getU16(f.data));
+  });
+  while (r.ctrl->runTime() < 1.0) r.step(1000);
+  EXPECT_FALSE(r.emu->valveInError());
+  EXPECT_EQ(r.emu->valve().emcy().errorRegister(), 0);
+  nodes::detail::begin(r, nodes::BusFault::SyncStop);
+  for (int k = 0; k < 20; ++k) r.step(1000);
+  EXPECT_TRUE(r.emu->valveInError());
+  ASSERT_EQ(valve_emcy.size(), 1u);
+  EXPECT_EQ(valve_emcy[0], canopen::kEmcyCommunication);
+  EXPECT_NE(r.emu->valve().emcy().errorRegister() & 0x10, 0) << "communication bit of 0x1001";
+  auto& out = r.emu->valve().od().entry(0x6411, 1);
+  const std::int16_t v = 20000;
+  std::uint8_t b[2];
+  std::memcpy(b, &v, 2);
+  EXPECT_EQ(r.emu->valve().od().remoteWrite(out, b, 2), 0u);
+  for (int k = 0; k < 5; ++k) r.step(1000);
+  EXPECT_TRUE(r.emu->valveInError()) << "an SDO write of the output does not re-arm it";
+  nodes::detail::end(r, nodes::BusFault::SyncStop);
+  for (int k = 0; k < 2000 && r.emu->valveInError(); ++k) r.step(1000);
+  EXPECT_FALSE(r.emu->valveInError());
+  ASSERT_EQ(valve_emcy.size(), 2u);
+  EXPECT_EQ(valve_emcy[1], canopen::kEmcyNoError);
+  EXPECT_EQ(r.emu->valve().emcy().errorRegister(), 0);
 }
