@@ -38,50 +38,51 @@ class CalibrateCommand final : public Command {
  public:
   explicit CalibrateCommand(CLI::App& app)
       : Command(app.add_subcommand("calibrate",
-                            "fit the emulator's pressure lag and the reading of the paper's gains to Table 1 and to "
-                            "the closed-loop results at once; prints the calibration table (docs/CALIBRATION.md)")) {
-  cmd_->add_option("--lag", lag_, "comma list of pressure-lag time constants to try [s]")->capture_default_str();
-  cmd_->add_option("--ki", ki_, "comma list of PI integral gains to try [V/(mm s)] (0.15: as printed)")->capture_default_str();
-  cmd_->add_option("--forms", forms_, "eq. (17) readings to try: printed, increment (comma list)")->capture_default_str();
-  cmd_->add_option("--plant", plant_, "start from this emulator configuration (JSON) instead of the defaults");
-  cmd_->add_option("--work", work_, "directory for every candidate's runs")->capture_default_str();
-  cmd_->add_option("--out", out_, "also write the table (Markdown) to this file");
-}
+                                   "fit the emulator's pressure lag and the reading of the paper's gains to Table 1 "
+                                   "and to the closed-loop results at once; prints the calibration table "
+                                   "(docs/CALIBRATION.md)")) {
+    cmd_->add_option("--lag", lag_, "comma list of pressure-lag time constants to try [s]")->capture_default_str();
+    cmd_->add_option("--ki", ki_, "comma list of PI integral gains to try [V/(mm s)] (0.15: as printed)")->capture_default_str();
+    cmd_->add_option("--forms", forms_, "eq. (17) readings to try: printed, increment (comma list)")->capture_default_str();
+    cmd_->add_option("--plant", plant_, "start from this emulator configuration (JSON) instead of the defaults");
+    cmd_->add_option("--work", work_, "directory for every candidate's runs")->capture_default_str();
+    cmd_->add_option("--out", out_, "also write the table (Markdown) to this file");
+  }
 
-int run() override {
-  sim::CalibrationSettings s;
-  if (!plant_.empty()) s.base.plant = plant::PlantConfig::fromFile(plant_);
-  s.lag_tau_s = numbers("--lag", lag_);
-  s.ki = numbers("--ki", ki_);
-  std::stringstream ss(forms_);
-  std::string f;
-  while (std::getline(ss, f, ',')) {
-    if (f == "printed") s.amc_as_printed.push_back(true);
-    else if (f == "increment") s.amc_as_printed.push_back(false);
-    else throw std::invalid_argument("--forms: unknown reading '" + f + "' (known: printed, increment)");
+  int run() override {
+    sim::CalibrationSettings s;
+    if (!plant_.empty()) s.base.plant = plant::PlantConfig::fromFile(plant_);
+    s.lag_tau_s = numbers("--lag", lag_);
+    s.ki = numbers("--ki", ki_);
+    std::stringstream ss(forms_);
+    std::string f;
+    while (std::getline(ss, f, ',')) {
+      if (f == "printed") s.amc_as_printed.push_back(true);
+      else if (f == "increment") s.amc_as_printed.push_back(false);
+      else throw std::invalid_argument("--forms: unknown reading '" + f + "' (known: printed, increment)");
+    }
+    if (s.amc_as_printed.empty()) throw std::invalid_argument("--forms: empty list");
+    s.work_dir = work_;
+    s.log = [](const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); };
+    const auto t0 = std::chrono::steady_clock::now();
+    auto rows = sim::runCalibration(s);
+    sim::rankCalibration(rows);
+    const std::string table = sim::formatCalibration(rows, 0);
+    std::printf("%s\n", table.c_str());
+    if (!rows.empty()) {
+      std::printf("Best: lag %g s, ki %g, eq. 17 %s - %d/%zu of the paper's claims:\n%s", rows[0].lag_tau_s, rows[0].ki,
+                  rows[0].amc_as_printed ? "as printed" : "as increment", rows[0].met, rows[0].criteria.size(),
+                  sim::formatCriteria(rows[0].criteria).c_str());
+    }
+    if (!out_.empty()) io::writeFileAtomic(out_, table);
+    std::printf("%zu candidates in %.0f s; every run in %s/\n", rows.size(),
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), work_.c_str());
+    return 0;
   }
-  if (s.amc_as_printed.empty()) throw std::invalid_argument("--forms: empty list");
-  s.work_dir = work_;
-  s.log = [](const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); };
-  const auto t0 = std::chrono::steady_clock::now();
-  auto rows = sim::runCalibration(s);
-  sim::rankCalibration(rows);
-  const std::string table = sim::formatCalibration(rows, 0);
-  std::printf("%s\n", table.c_str());
-  if (!rows.empty()) {
-    std::printf("Best: lag %g s, ki %g, eq. 17 %s - %d/%zu of the paper's claims:\n%s", rows[0].lag_tau_s, rows[0].ki,
-                rows[0].amc_as_printed ? "as printed" : "as increment", rows[0].met, rows[0].criteria.size(),
-                sim::formatCriteria(rows[0].criteria).c_str());
-  }
-  if (!out_.empty()) io::writeFileAtomic(out_, table);
-  std::printf("%zu candidates in %.0f s; every run in %s/\n", rows.size(),
-              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), work_.c_str());
-  return 0;
-}
 
  private:
   std::string lag_ = "0.04,0.1,0.15,0.2,0.25,0.3";
-  std::string ki_ = "0.15,0.9,1.0,1.1,1.2,1.3";
+  std::string ki_ = "0.15,1.0,1.1,1.2,1.3";
   std::string forms_ = "printed,increment";
   std::string plant_, out_;
   std::string work_ = "calibration";

@@ -26,8 +26,7 @@ class EmulateCommand final : public Command {
     cmd_->add_option("--out", em_out, "measurement CSV to write (t,u,y,p)")->required();
   }
   int run() override {
-      plant::PlantConfig pc = em_plant.empty() ? plant::PlantConfig::defaults()
-                                                   : plant::PlantConfig::fromFile(em_plant);
+    plant::PlantConfig pc = em_plant.empty() ? plant::PlantConfig::defaults() : plant::PlantConfig::fromFile(em_plant);
     plant::Plant p(pc);
     const auto traj = sim::Trajectory::parse(em_input);
     sim::Trajectory force;
