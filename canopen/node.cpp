@@ -65,11 +65,8 @@ Node::Node(ObjectDictionary od, std::uint8_t node_id, Transport& transport, Node
 
 std::unique_ptr<Node> Node::fromEds(const std::string& eds_path, Transport& transport, std::uint8_t node_id,
                                     NodeOptions options) {
-  EdsFile eds = EdsFile::load(eds_path);
-  if (node_id == 0) node_id = eds.node_id;
-  if (node_id == 0) {
-    throw EdsError(eds_path, 0, "DeviceComissioning", "no node-ID given and no [DeviceComissioning] NodeID");
-  }
+  const EdsFile eds = EdsFile::load(eds_path);
+  node_id = ObjectDictionary::resolveNodeId(eds, eds_path, node_id);  // the same check as ObjectDictionary::load
   return std::make_unique<Node>(ObjectDictionary::fromEds(eds, node_id), node_id, transport, options);
 }
 

@@ -303,14 +303,18 @@ ObjectDictionary ObjectDictionary::fromEds(const EdsFile& eds, std::uint8_t node
   return ObjectDictionary(std::move(objects), std::move(specs));
 }
 
-ObjectDictionary ObjectDictionary::load(const std::string& eds_path, std::uint8_t node_id) {
-  EdsFile eds = EdsFile::load(eds_path);
+std::uint8_t ObjectDictionary::resolveNodeId(const EdsFile& eds, const std::string& eds_path, std::uint8_t node_id) {
   if (node_id == 0) node_id = eds.node_id;
   if (node_id == 0 || node_id > 127) {
     throw EdsError(eds_path, 0, "DeviceComissioning",
                    "no valid node-ID given and none in [DeviceComissioning] NodeID (1..127)");
   }
-  return fromEds(eds, node_id);
+  return node_id;
+}
+
+ObjectDictionary ObjectDictionary::load(const std::string& eds_path, std::uint8_t node_id) {
+  EdsFile eds = EdsFile::load(eds_path);
+  return fromEds(eds, resolveNodeId(eds, eds_path, node_id));
 }
 
 Entry* ObjectDictionary::find(std::uint16_t index, std::uint8_t sub) {

@@ -187,6 +187,8 @@ class ObjectDictionary {
   static ObjectDictionary fromEds(const EdsFile& eds, std::uint8_t node_id);
   // Loads and parses an EDS file; node_id 0 takes [DeviceComissioning] NodeID from the file. Throws EdsError.
   static ObjectDictionary load(const std::string& eds_path, std::uint8_t node_id = 0);
+  // The node-ID to use: the given one, else the EDS's [DeviceComissioning] NodeID; 1..127 or EdsError.
+  static std::uint8_t resolveNodeId(const EdsFile& eds, const std::string& eds_path, std::uint8_t node_id);
 
   ObjectDictionary(std::vector<ObjectInfo> objects, std::vector<EntrySpec> specs);
   ObjectDictionary(ObjectDictionary&&) noexcept = default;

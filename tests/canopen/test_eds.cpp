@@ -4,6 +4,8 @@
 #include <fstream>
 
 #include "test_util.hpp"
+#include "canopen/bus.hpp"
+#include "canopen/node.hpp"
 
 namespace pamc::canopen::test {
 namespace {
@@ -260,6 +262,15 @@ TEST(ObjectDictionary, RemoteWriteChecksAccessLengthLimitsAndValidators) {
   std::uint8_t two[2] = {1, 2};
   EXPECT_EQ(od.remoteWrite(kp, two, 2), kAbortLengthTooLow);
   EXPECT_EQ(od.remoteWrite(od.entry(0x1000, 0), two, 2), kAbortReadOnly);
+}
+
+// A node built from an EDS meets the same node-ID rule as its dictionary (1..127).
+TEST(ObjectDictionary, NodeFromEdsChecksTheNodeIdLikeLoad) {
+  VirtualBus bus;
+  auto& port = bus.addPort();
+  EXPECT_THROW(ObjectDictionary::load(odPath("sensor.eds"), 200), EdsError);
+  EXPECT_THROW(Node::fromEds(odPath("sensor.eds"), port, 200), EdsError);
+  EXPECT_EQ(Node::fromEds(odPath("sensor.eds"), port, 0)->nodeId(), 2);  // [DeviceComissioning] NodeID
 }
 
 }  // namespace
