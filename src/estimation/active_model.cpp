@@ -199,16 +199,11 @@ double ActiveModel::predictNext(double u_eff_prev, double u_eff_next, double loa
   // Eq. (17): h_{k+1} = h_k + [BW(u_n,delta, h_k) + f_h] Ts; Y_{k+1} = k rho u_n(k) + b + k (1 - rho) h_{k+1},
   // taken as an increment on the posterior output: Y_{k+1} = Y_post(k) + H(h_{k+1}, u_n(k)) - H(h_k, u_n(k-1)).
   // Without compensation (u = u_n) this is eq. (17) exactly; with it, the estimate (fitted with the
-  // applied u = u_n + u_c) is not compared against u_n through the direct feedthrough k rho, which
-  // would feed u_c back onto itself with gain kc k rho and ring when that exceeds 1.
-  const double h0 = h();
-  const double h1 = model::boucWenNext(model_.core(), h0, u_eff_next - u_eff_prev, fh(), Ts_);
-  model::StepContext c1 = c;
-  c1.u_eff = u_eff_next;
+  // applied u = u_n + u_c) is not compared against u_n through the direct feedthrough k rho, as the
+  // printed form (predictNextAsPrinted) does, feeding u_c back onto itself with gain kc k rho.
   c.u_eff = u_eff_prev;
-  const double y1 = model_.outputPeek(st_, model_.coreOutput(u_eff_next, h1), c1);
-  const double y0 = model_.outputPeek(st_, model_.coreOutput(u_eff_prev, h0), c);
-  return y_post_ + (y1 - y0);
+  const double y0 = model_.outputPeek(st_, model_.coreOutput(u_eff_prev, h()), c);
+  return y_post_ + (predictNextAsPrinted(u_eff_prev, u_eff_next, load) - y0);
 }
 
 double ActiveModel::predictNextAsPrinted(double u_eff_prev, double u_eff_next, double load) const noexcept {

@@ -129,7 +129,9 @@ double mse(const model::Model& m, const io::Measurement& d) {
 // The Bouc-Wen core of a parameter vector (k, rho, b, alpha, beta, gamma, ...) is bounded for every
 // input only when beta sign(alpha) + gamma > 0 (bouc_wen.cpp). An unbounded set can fit one record by
 // coincidence and diverge on the next, so the search never takes one.
-bool boundedCore(const std::vector<double>& p) { return std::copysign(1.0, p[3]) * p[4] + p[5] > 0.0; }
+bool boundedCore(const std::vector<double>& p) {
+  return model::boucWenBounded(model::BoucWenParams{p[0], p[1], p[2], p[3], p[4], p[5]});
+}
 
 FitResult fit(const model::Model& structure, const io::Measurement& d, const FitSettings& s,
               const std::function<void(const char*, int, double)>& progress, const model::Model* start) {

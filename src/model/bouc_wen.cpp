@@ -11,7 +11,7 @@ namespace pamc::model {
 // beta' + gamma' > 0 (Ikhouane and Rodellar, classes I-III from h = 0) and unbounded otherwise. The
 // discrete form is then driven through sweeps and steps over the whole command range as a check.
 bool boucWenStable(const BoucWenParams& p, double u_min, double u_max, std::string* why) {
-  if (p.alpha != 0.0 && !(std::copysign(1.0, p.alpha) * p.beta + p.gamma > 0.0)) {
+  if (!boucWenBounded(p)) {
     if (why) *why = "Bouc-Wen parameters unstable: beta * sign(alpha) + gamma must be > 0";
     return false;
   }

@@ -87,6 +87,12 @@ inline double boucWenNext(const BoucWenParams& p, double h, double du, double f_
   return h;
 }
 
+// The continuous model's condition for h to stay bounded for every input (Ikhouane and Rodellar,
+// classes I-III from h = 0): beta sign(alpha) + gamma > 0 (any beta, gamma when alpha = 0).
+inline bool boucWenBounded(const BoucWenParams& p) noexcept {
+  return p.alpha == 0.0 || std::copysign(1.0, p.alpha) * p.beta + p.gamma > 0.0;
+}
+
 // Whether a parameter set is bounded (see bouc_wen.cpp): the sign condition of the continuous model,
 // then the discrete form driven through sweeps and full-range steps of the command range
 // [u_min, u_max]. On false, why says which test failed. Slow (a few thousand steps): call it when a

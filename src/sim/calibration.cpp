@@ -14,14 +14,8 @@ namespace {
 
 using io::fmt;
 
-double at(const nlohmann::json& j, std::initializer_list<const char*> path) {
-  const nlohmann::json* p = &j;
-  for (const char* k : path) {
-    if (!p->is_object() || !p->contains(k)) return NAN;
-    p = &(*p)[k];
-  }
-  return p->is_number() ? p->get<double>() : NAN;
-}
+// The summaries' numbers by path (paper_criteria.hpp).
+double at(const nlohmann::json& j, std::initializer_list<const char*> path) { return jsonNumber(j, path); }
 
 double distanceToPaper(const nlohmann::json& s) {
   double sum = 0;

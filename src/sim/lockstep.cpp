@@ -166,7 +166,6 @@ StepStats stepResponse(const Record& r, int dir, double min_jump, double band_fr
     s.max_error_crossings = std::max(s.max_error_crossings, crossings);
     s.max_u_reversals = std::max(s.max_u_reversals, reversals);
     if (j - i < 10) continue;
-    (void)ramp;
     if (last_out + 1 >= j) ++s.unsettled;
     os_sum += 100.0 * peak / std::fabs(jump);
     ts_sum += static_cast<double>(last_out + 1 - i) * Ts;

@@ -4,34 +4,34 @@
 #include <cmath>
 #include <cstdio>
 
+#include "io/text.hpp"
+
 namespace pamc::sim {
 
 namespace {
 
-std::string f(const char* format, double a) {
-  char b[64];
-  std::snprintf(b, sizeof b, format, a);
-  return b;
-}
-
-double num(const nlohmann::json& j, std::initializer_list<const char*> path, bool& ok) {
-  const nlohmann::json* p = &j;
-  for (const char* k : path) {
-    if (!p->is_object() || !p->contains(k)) {
-      ok = false;
-      return NAN;
-    }
-    p = &(*p)[k];
-  }
-  if (!p->is_number()) {
-    ok = false;
-    return NAN;
-  }
-  return p->get<double>();
-}
+using io::fmt;
 
 const char* const kCols[4] = {"open", "pi", "eso", "amc"};
 
+}  // namespace
+
+double jsonNumber(const nlohmann::json& j, std::initializer_list<const char*> path) {
+  const nlohmann::json* p = &j;
+  for (const char* k : path) {
+    if (!p->is_object() || !p->contains(k)) return NAN;
+    p = &(*p)[k];
+  }
+  return p->is_number() ? p->get<double>() : NAN;
+}
+
+namespace {
+// jsonNumber that also clears `ok` when the entry is missing.
+double num(const nlohmann::json& j, std::initializer_list<const char*> path, bool& ok) {
+  const double v = jsonNumber(j, path);
+  if (std::isnan(v)) ok = false;
+  return v;
+}
 }  // namespace
 
 std::vector<Criterion> paperCriteria(const nlohmann::json& s) {
@@ -48,7 +48,7 @@ std::vector<Criterion> paperCriteria(const nlohmann::json& s) {
       const double v = num(s, {"table1", u[i], "reference_rmse"}, have);
       const double r = v / PaperNumbers::table1_reference[i];
       ok = ok && r <= 1.3 && r >= 1 / 1.3;
-      d += std::string(i ? ", " : "") + u[i] + " " + f("%.2f", v) + f(" (%.2fx)", r);
+      d += std::string(i ? ", " : "") + u[i] + " " + fmt("%.2f", v) + fmt(" (%.2fx)", r);
     }
     add("table1_within_1.3x", "reference-model RMSE within 1.3x of Table 1", have, ok, d);
   }
@@ -61,12 +61,12 @@ std::vector<Criterion> paperCriteria(const nlohmann::json& s) {
         const double v = num(s, {"table2", PaperNumbers::table2_rows[row], kCols[c], "rmse"}, have);
         const double r = v / PaperNumbers::table2[row][c][1];
         ok = ok && r <= 1.3 && r >= 1 / 1.3;
-        d += std::string(d.empty() ? "" : ", ") + kCols[c] + " " + f("%.2fx", r);
+        d += std::string(d.empty() ? "" : ", ") + kCols[c] + " " + fmt("%.2fx", r);
         if (row == 0) {
           const double m = num(s, {"table2", PaperNumbers::table2_rows[0], kCols[c], "max"}, have);
           const double rm = m / PaperNumbers::table2[0][c][0];
           ok_max = ok_max && rm <= 1.5 && rm >= 1 / 1.5;
-          dm += std::string(dm.empty() ? "" : ", ") + kCols[c] + " " + f("%.2f", m) + f(" (%.2fx)", rm);
+          dm += std::string(dm.empty() ? "" : ", ") + kCols[c] + " " + fmt("%.2f", m) + fmt(" (%.2fx)", rm);
         }
       }
     add("table2_rmse_within_1.3x", "PI, ESO and AMC RMSE within 1.3x of Table 2 (ratios row by row)", have, ok, d);
@@ -81,7 +81,7 @@ std::vector<Criterion> paperCriteria(const nlohmann::json& s) {
       const double amc = num(s, {"table2", PaperNumbers::table2_rows[row], "amc", "rmse"}, have);
       ok = ok && amc < eso && eso < pi;
       ok_amc = ok_amc && amc < pi;
-      d += std::string(row ? "; " : "") + f("%.3f", amc) + " / " + f("%.3f", eso) + " / " + f("%.3f", pi);
+      d += std::string(row ? "; " : "") + fmt("%.3f", amc) + " / " + fmt("%.3f", eso) + " / " + fmt("%.3f", pi);
     }
     add("order_amc_below_pi", "PI + AMC tracks better than PI on all three trajectories", have, ok_amc,
         "AMC / ESO / PI RMSE " + d);
@@ -98,17 +98,17 @@ std::vector<Criterion> paperCriteria(const nlohmann::json& s) {
     const double amc_xb = num(s, {"discontinuous", "square", "backward", "amc", "max_error_crossings"}, have);
     const double amc_rb = num(s, {"discontinuous", "square", "backward", "amc", "max_u_reversals"}, have);
     add("square_pi_overshoot_10_25", "square wave forward: PI overshoots 10-25 % (paper ~17 %)", have,
-        pi_os >= 10 && pi_os <= 25, "PI " + f("%.1f %%", pi_os));
+        pi_os >= 10 && pi_os <= 25, "PI " + fmt("%.1f %%", pi_os));
     add("square_amc_overshoot_half", "square wave forward: AMC overshoot at most half of PI's", have,
-        amc_os <= 0.5 * pi_os, "AMC " + f("%.1f %%", amc_os) + " vs PI " + f("%.1f %%", pi_os));
+        amc_os <= 0.5 * pi_os, "AMC " + fmt("%.1f %%", amc_os) + " vs PI " + fmt("%.1f %%", pi_os));
     add("square_amc_settles_0.6s", "square wave forward: AMC settles (2 % band) within 0.6 s", have,
-        amc_ts <= 0.6 && amc_un == 0, "AMC " + f("%.2f s", amc_ts));
+        amc_ts <= 0.6 && amc_un == 0, "AMC " + fmt("%.2f s", amc_ts));
     add("square_amc_no_ringing",
         "square wave forward: no ringing of the AMC (per step at most 2 error crossings of a 1 % band, at most 3 "
         "reversals of the 20 Hz low-passed valve command by > 0.05 V)",
         have, amc_x <= 2 && amc_r <= 3,
-        "forward " + f("%.0f", amc_x) + " crossings / " + f("%.0f", amc_r) + " reversals, backward " + f("%.0f", amc_xb) +
-            " / " + f("%.0f", amc_rb));
+        "forward " + fmt("%.0f", amc_x) + " crossings / " + fmt("%.0f", amc_r) + " reversals, backward " + fmt("%.0f", amc_xb) +
+            " / " + fmt("%.0f", amc_rb));
   }
   {  // Payload: AMC has the smallest peak and the shortest recovery.
     bool have = s.contains("payload");
@@ -120,8 +120,8 @@ std::vector<Criterion> paperCriteria(const nlohmann::json& s) {
     }
     add("payload_amc_best", "payload 40 N: AMC has the smallest peak deviation and the shortest recovery", have,
         pk[2] <= std::min(pk[0], pk[1]) && rc[2] <= std::min(rc[0], rc[1]),
-        "peak PI/ESO/AMC " + f("%.2f", pk[0]) + "/" + f("%.2f", pk[1]) + "/" + f("%.2f mm", pk[2]) + ", recovery " +
-            f("%.2f", rc[0]) + "/" + f("%.2f", rc[1]) + "/" + f("%.2f s", rc[2]));
+        "peak PI/ESO/AMC " + fmt("%.2f", pk[0]) + "/" + fmt("%.2f", pk[1]) + "/" + fmt("%.2f mm", pk[2]) + ", recovery " +
+            fmt("%.2f", rc[0]) + "/" + fmt("%.2f", rc[1]) + "/" + fmt("%.2f s", rc[2]));
   }
   return out;
 }

@@ -3,6 +3,7 @@
 // One table, so the calibration, the `experiments` summary and the tests judge alike.
 #pragma once
 
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,9 @@ struct Criterion {
 };
 
 std::vector<Criterion> paperCriteria(const nlohmann::json& summary);
+
+// The number at a path of keys in a summary; NaN where the path or the number is missing.
+double jsonNumber(const nlohmann::json& j, std::initializer_list<const char*> path);
 
 // The table as text, one line per criterion; and how many of the checked ones hold.
 std::string formatCriteria(const std::vector<Criterion>& c);
