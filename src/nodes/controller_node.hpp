@@ -24,8 +24,10 @@
 #include <memory>
 #include <string>
 
+#include "canopen/nmt_master.hpp"
 #include "canopen/node.hpp"
 #include "control/controller.hpp"
+#include "nodes/controller_parameters.hpp"
 #include "nodes/cycle_stats.hpp"
 #include "nodes/faults.hpp"
 #include "sim/trajectory.hpp"
@@ -87,71 +89,73 @@ class ControllerNode {
   double runTime() const noexcept { return run_time_pub_.load(std::memory_order_relaxed); }  // trajectory seconds so far; any thread
   std::uint64_t faultsRaised() const noexcept { return faults_raised_; }
   control::Kind kind() const noexcept { return kind_; }
-  const FaultCounters& faultCounters() const noexcept { return fc_; }
+  FaultCounters faultCounters() const noexcept;
   // Causes whose EMCY went out in the present episode (bit per Fault).
   std::uint32_t episodeCauses() const noexcept { return episode_; }
   // The parameters the loop uses (kp, ki, ... as taken into use).
-  const control::ControllerConfig& activeParameters() const noexcept { return running_.ctrl; }
-  double safeCommand() const noexcept { return safe_u_; }  // relative volts (-5 = 0 V)
-  std::uint32_t lastRefusal() const noexcept { return last_refusal_; }  // abort code of the last refused commit
+  const control::ControllerConfig& activeParameters() const noexcept { return params_->running().ctrl; }
+  double safeCommand() const noexcept { return params_->safeCommand(); }  // relative volts (-5 = 0 V)
+  std::uint32_t lastRefusal() const noexcept { return params_->lastRefusal(); }  // abort code of the last refused commit
   // COB-ID of the last frame another node sent on this node's identifiers (0: none); any thread.
   std::uint32_t lastCollisionCob() const noexcept { return collision_pub_.load(std::memory_order_relaxed); }
   // Node time of the first reaction (EMCY or safe state) of the present episode; kNever if none.
   canopen::TimeUs reactedAtUs() const noexcept { return reacted_at_us_; }
 
  private:
-  struct Params {
-    control::ControllerConfig ctrl;
-    double safe_u = -5.0;
-    unsigned missing_limit = 3;
-    double range_steps = 100000;        // 0x2022:01
-    double stuck_s = 0.25;              // 0x2022:02
-    double stuck_span_v = 1.0;          // 0x2022:03 (0: off)
-  };
-  // 0x2022 by sub-index 1..3.
-  static constexpr double Params::*kPlausibility[] = {&Params::range_steps, &Params::stuck_s, &Params::stuck_span_v};
-  struct Slave {
-    std::uint8_t id = 0;
-    bool lost = false;                          // heartbeat timed out: re-boot it when it is back
-    canopen::TimeUs start_sent = canopen::kNever;  // NMT start sent, no Operational heartbeat yet
-  };
+  // Reasons the valve is held in Pre-operational, where it outputs its error value.
   enum : std::uint8_t { kHoldSync = 1, kHoldCollision = 2, kHoldSelf = 4 };
+  // The position latched at a SYNC.
+  struct Sample {
+    std::int32_t raw = 0;
+    double y = 0.0;       // [mm]
+    double y_ctrl = 0.0;  // what the controller gets: y, or NaN outside the measuring range
+    bool fresh = false;   // it arrived in the last cycle
+    bool in_range = false;
+    bool usable() const noexcept { return fresh && in_range; }
+  };
 
+  void installHooks();
   void applyOverrides();
-  void installGuards();
-  Params readParams();
-  void writeParams(const Params& p);
-  // kSdoOk or the abort code refusing the set; why names the entry or the condition.
-  std::uint32_t checkParams(const Params& p, std::string* why);
   void configureFromOd();
-  std::uint32_t commit();
-  void discard();
+  void onOperational(canopen::TimeUs now);
   void takeCommitted(double y) noexcept;
 
+  // The cycle, in the order onSync runs it.
   void onSync(std::uint8_t counter, canopen::TimeUs now) noexcept;
-  void poll(canopen::TimeUs now, bool usable) noexcept;  // usable: a plausible position arrived
+  void measurePeriod(canopen::TimeUs now) noexcept;
+  Sample latch() const noexcept;
+  void checkPlausibility(const Sample& s) noexcept;
+  void advance(const Sample& s) noexcept;
+  void poll(canopen::TimeUs now, bool usable) noexcept;
+  CycleRecord control(const Sample& s, canopen::TimeUs now) noexcept;
+  void clearWarnings() noexcept;
+  void send(CycleRecord rec, canopen::TimeUs now) noexcept;
+
+  // Faults.
   void raise(Fault f, std::uint8_t detail = 0) noexcept;
   void takeCauses(canopen::TimeUs now) noexcept;
   void recover(double y, canopen::TimeUs now) noexcept;
-  void onHeartbeatEvent(std::uint8_t id, canopen::HeartbeatEvent ev, canopen::NmtState st, canopen::TimeUs now) noexcept;
+  void onSlaveEvent(std::uint8_t id, canopen::SlaveEvent ev) noexcept;
   void onErrorFrame(const canopen::Frame& f) noexcept;
-  bool slaveDown(Slave& s, canopen::TimeUs now) noexcept;
-  void startSlave(Slave& s, canopen::TimeUs now) noexcept;
-  void hold(std::uint8_t reason) noexcept;
-  void release(std::uint8_t reason, canopen::TimeUs now) noexcept;
+  void hold(std::uint8_t reason) noexcept { master_->hold(cfg_.valve_id, reason); }
+  void release(std::uint8_t reason, canopen::TimeUs now) noexcept { master_->release(cfg_.valve_id, reason, now); }
+  bool valveHeld() const noexcept { return master_->holdReasons(cfg_.valve_id) != 0; }
   void pushValveErrorValue() noexcept;
+
+  // Bumpless return to the trajectory.
   void startRamp(double y) noexcept;
   double setpoint(double t, int ahead) const noexcept;
+  double runSeconds() const noexcept;
 
   ControllerNodeConfig cfg_;
   std::function<canopen::TimeUs()> clock_;
   std::unique_ptr<canopen::Node> node_;
+  std::unique_ptr<canopen::NmtMaster> master_;    // of the sensor and the valve
+  std::unique_ptr<ControllerParameters> params_;  // the dictionary's parameter set and its commit
   std::unique_ptr<control::Controller> ctrl_;
   control::Kind kind_ = control::Kind::PI;
   sim::Trajectory traj_;
   double Ts_ = 1e-3;
-  double safe_u_ = -5.0;
-  unsigned missing_limit_ = 3;
   canopen::Ref<std::int32_t> position_{nullptr};
   canopen::Ref<std::int16_t> valve_cmd_{nullptr};
   bool active_ = false;         // controller activated (valid position seen)
@@ -165,12 +169,8 @@ class ControllerNode {
   int clear_cycles_ = 0;
   int warn_clear_ = 0;
   std::uint64_t faults_raised_ = 0;
-  std::uint64_t config_errors_ = 0;
   bool traj_override_ = false;
   double last_u_ = -5.0;
-  // NMT master
-  Slave sensor_, valve_;
-  std::uint8_t hold_ = 0;       // reasons the valve is kept Pre-operational
   bool bus_off_ = false;
   bool push_valve_ = false;
   std::uint64_t tx_dropped_seen_ = 0, tx_expired_seen_ = 0, pdo_length_seen_ = 0, sync_length_seen_ = 0;
@@ -188,14 +188,6 @@ class ControllerNode {
   bool slew_ = false;           // command rate-limited: during the ramp and until the limit no longer binds
   double ramp_from_ = 0.0;
   std::uint64_t ramp_k0_ = 0, ramp_cycles_ = 1;
-  // Parameter sets: the one in use, and a committed one the next SYNC takes.
-  Params running_, next_;
-  std::unique_ptr<control::Controller> next_ctrl_;
-  std::unique_ptr<control::Controller> retired_;  // replaced at a cycle boundary, freed at the next commit
-  bool commit_ready_ = false;
-  canopen::Ref<std::uint8_t> staged_flag_{nullptr};
-  canopen::Ref<std::uint8_t> sets_applied_{nullptr};
-  std::uint32_t last_refusal_ = 0;
   FaultCounters fc_;
   std::atomic<Fault> fault_pub_{Fault::None};
   std::atomic<double> run_time_pub_{0.0};

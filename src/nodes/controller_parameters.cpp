@@ -1,0 +1,242 @@
+#include "nodes/controller_parameters.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <iterator>
+#include <stdexcept>
+
+#include "model/bouc_wen.hpp"
+#include "nodes/process_data.hpp"
+
+namespace pamc::nodes {
+
+using canopen::Entry;
+using canopen::NmtState;
+
+namespace {
+
+// The parameters in 0x2000 (gains), 0x2001 (model), 0x2002 (UKF) and 0x2022 (plausibility) by
+// sub-index 1..n, read, written and checked alike.
+constexpr double control::ControllerConfig::*kGains[] = {
+    &control::ControllerConfig::kp,    &control::ControllerConfig::ki,    &control::ControllerConfig::kc,
+    &control::ControllerConfig::beta1, &control::ControllerConfig::beta2, &control::ControllerConfig::beta3,
+    &control::ControllerConfig::delta, &control::ControllerConfig::b0};
+constexpr double model::BoucWenParams::*kModel[] = {&model::BoucWenParams::k,     &model::BoucWenParams::rho,
+                                                    &model::BoucWenParams::b,     &model::BoucWenParams::alpha,
+                                                    &model::BoucWenParams::beta,  &model::BoucWenParams::gamma};
+constexpr double estimation::ActiveModelSettings::*kUkf[] = {
+    &estimation::ActiveModelSettings::P0_h, &estimation::ActiveModelSettings::P0_f,
+    &estimation::ActiveModelSettings::Q_h, &estimation::ActiveModelSettings::Q_f, &estimation::ActiveModelSettings::R,
+    &estimation::ActiveModelSettings::Q_h_lag, &estimation::ActiveModelSettings::Q_f_lag,
+    &estimation::ActiveModelSettings::Q_out, &estimation::ActiveModelSettings::diverge};
+constexpr double ParameterSet::*kPlausibility[] = {&ParameterSet::range_steps, &ParameterSet::stuck_s,
+                                                   &ParameterSet::stuck_span_v};
+
+constexpr std::uint8_t sub(std::size_t i) { return static_cast<std::uint8_t>(i + 1); }
+
+// Ranges the application adds to the EDS limits: the divisors ESO delta, ESO b0 and UKF R above 0.
+std::uint32_t applicationRange(std::uint16_t idx, std::uint8_t s, double v) {
+  if (((idx == 0x2000 && (s == 7 || s == 8)) || (idx == 0x2002 && s == 5)) && !(v > 0.0))
+    return canopen::kAbortValueTooLow;
+  return canopen::kSdoOk;
+}
+
+}  // namespace
+
+sim::Trajectory trajectoryFromOd(canopen::ObjectDictionary& od) {
+  const int choice = od.ref<std::uint8_t>(0x2011, 0).get();
+  auto p = [&](std::uint8_t s) { return od.ref<double>(0x2012, s).get(); };
+  switch (choice) {
+    case 0: return sim::Trajectory::constant(p(4));
+    case 1: return sim::Trajectory::triangle(p(1), p(2), p(3));
+    case 2: return sim::Trajectory::sine(p(1), p(5), p(4));
+    case 3: return sim::Trajectory::sineDescending(p(1), p(4), p(5), p(6), p(7));
+    case 4: return sim::Trajectory::square(p(1), p(2), p(3));
+    case 5: return sim::Trajectory::sawtooth(p(1), p(2), p(3));
+  }
+  throw std::invalid_argument("0x2011 trajectory choice " + std::to_string(choice) + " is not 0..5");
+}
+
+bool trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t) {
+  using S = sim::Trajectory::Shape;
+  int choice = 0;
+  switch (t.shape) {
+    case S::Constant: choice = 0; break;
+    case S::Triangle: choice = 1; break;
+    case S::Sine: choice = 2; break;
+    case S::SineDescending: choice = 3; break;
+    case S::Square: choice = 4; break;
+    case S::Sawtooth: choice = 5; break;
+    default: return false;
+  }
+  od.ref<std::uint8_t>(0x2011, 0).set(static_cast<std::uint8_t>(choice));
+  const double values[] = {t.freq_hz, t.lo, t.hi, t.offset, t.amplitude, t.amplitude_end, t.duration};
+  for (std::size_t i = 0; i < std::size(values); ++i) od.ref<double>(0x2012, sub(i)).set(values[i]);
+  return true;
+}
+
+ControllerParameters::ControllerParameters(canopen::Node& node, const control::ControllerConfig& base)
+    : node_(node) {
+  running_.ctrl = base;
+  staged_flag_ = node_.od().ref<std::uint8_t>(0x2003, 2);
+  sets_applied_ = node_.od().ref<std::uint8_t>(0x2003, 3);
+}
+
+ParameterSet ControllerParameters::read() const {
+  auto& od = node_.od();
+  ParameterSet p;
+  p.ctrl = running_.ctrl;
+  for (std::size_t i = 0; i < std::size(kGains); ++i) p.ctrl.*kGains[i] = od.ref<double>(0x2000, sub(i)).get();
+  for (std::size_t i = 0; i < std::size(kModel); ++i) p.ctrl.model.core().*kModel[i] = od.ref<double>(0x2001, sub(i)).get();
+  for (std::size_t i = 0; i < std::size(kUkf); ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, sub(i)).get();
+  p.safe_u = pd::commandFromVolts(od.ref<double>(0x2020, 0).get());
+  p.missing_limit = od.ref<std::uint8_t>(0x2021, 0).get();
+  for (std::size_t i = 0; i < std::size(kPlausibility); ++i) p.*kPlausibility[i] = od.ref<double>(0x2022, sub(i)).get();
+  return p;
+}
+
+void ControllerParameters::writeGains(const control::ControllerConfig& c) {
+  for (std::size_t i = 0; i < std::size(kGains); ++i) node_.od().ref<double>(0x2000, sub(i)).set(c.*kGains[i]);
+}
+
+void ControllerParameters::writeModel(const model::BoucWenParams& m) {
+  for (std::size_t i = 0; i < std::size(kModel); ++i) node_.od().ref<double>(0x2001, sub(i)).set(m.*kModel[i]);
+}
+
+void ControllerParameters::write(const ParameterSet& p) {
+  auto& od = node_.od();
+  writeGains(p.ctrl);
+  writeModel(p.ctrl.model.core());
+  for (std::size_t i = 0; i < std::size(kUkf); ++i) od.ref<double>(0x2002, sub(i)).set(p.ctrl.ukf.*kUkf[i]);
+  od.ref<double>(0x2020, 0).set(pd::valveVolts(p.safe_u));
+  od.ref<std::uint8_t>(0x2021, 0).set(static_cast<std::uint8_t>(p.missing_limit));
+  for (std::size_t i = 0; i < std::size(kPlausibility); ++i) od.ref<double>(0x2022, sub(i)).set(p.*kPlausibility[i]);
+}
+
+std::uint32_t ControllerParameters::check(const ParameterSet& p, std::string* why) const {
+  using canopen::kSdoOk;
+  auto& od = node_.od();
+  // Every value against the rules an SDO write would meet (values set locally skip those).
+  auto value = [&](std::uint16_t idx, std::uint8_t s, double v) -> std::uint32_t {
+    const Entry& e = od.entry(idx, s);
+    std::uint32_t code = std::isfinite(v) ? kSdoOk : canopen::kAbortValueRange;
+    if (code == kSdoOk) code = od.checkValue(e, reinterpret_cast<const std::uint8_t*>(&v), sizeof v);
+    if (code == kSdoOk) code = applicationRange(idx, s, v);
+    if (code != kSdoOk && why) {
+      char b[160];
+      std::snprintf(b, sizeof b, "%s %s = %g: %s", canopen::entryName(idx, s).c_str(), e.name().c_str(), v,
+                    canopen::sdoAbortText(code));
+      *why = b;
+    }
+    return code;
+  };
+  for (std::size_t i = 0; i < std::size(kGains); ++i)
+    if (auto c = value(0x2000, sub(i), p.ctrl.*kGains[i])) return c;
+  for (std::size_t i = 0; i < std::size(kModel); ++i)
+    if (auto c = value(0x2001, sub(i), p.ctrl.model.core().*kModel[i])) return c;
+  for (std::size_t i = 0; i < std::size(kUkf); ++i)
+    if (auto c = value(0x2002, sub(i), p.ctrl.ukf.*kUkf[i])) return c;
+  if (auto c = value(0x2020, 0, pd::valveVolts(p.safe_u))) return c;
+  for (std::size_t i = 0; i < std::size(kPlausibility); ++i)
+    if (auto c = value(0x2022, sub(i), p.*kPlausibility[i])) return c;
+  // Each value may be fine alone and the set still unusable: CiA 301 "general parameter incompatibility".
+  if (!model::boucWenStable(p.ctrl.model.core(), pd::kCommandMin, pd::kCommandMax, why))
+    return canopen::kAbortParameterIncompatible;
+  return kSdoOk;
+}
+
+void ControllerParameters::installGuards() {
+  using canopen::kAbortDeviceState;
+  using canopen::kAbortValueRange;
+  using canopen::kSdoOk;
+  auto& od = node_.od();
+  // What the loop is wired to cannot change under it: the controller choice, the trajectory, the
+  // process data, and the communication objects of the cycle are refused while Operational.
+  auto while_running = [this](const Entry&, const std::uint8_t*, std::size_t) -> std::uint32_t {
+    return node_.nmtState() == NmtState::Operational ? kAbortDeviceState : kSdoOk;
+  };
+  for (std::uint16_t idx : {0x1005, 0x1006, 0x1007, 0x1016, 0x1400, 0x1401, 0x1600, 0x1601, 0x1800, 0x1A00, 0x2010,
+                            0x2011, 0x2012, 0x3000, 0x3001, 0x3002}) {
+    if (od.hasObject(idx)) od.addValidator(idx, while_running);
+  }
+  // Numbers: finite (the EDS limits are checked before the validators run).
+  auto finite = [](const Entry& e, const std::uint8_t* d, std::size_t len) -> std::uint32_t {
+    if (e.dataType() != canopen::DataType::Real64 || len != 8) return kSdoOk;
+    double v;
+    std::memcpy(&v, d, 8);
+    return std::isfinite(v) ? kSdoOk : kAbortValueRange;
+  };
+  for (std::uint16_t idx : {0x2000, 0x2001, 0x2002, 0x2012, 0x2020, 0x2022}) od.addValidator(idx, finite);
+  for (std::uint8_t s = 1; s <= std::size(kGains); ++s)
+    od.validate<double>(0x2000, s, [s](double v) { return applicationRange(0x2000, s, v); });
+  od.validate<double>(0x2002, 5, [](double v) { return applicationRange(0x2002, 5, v); });
+  // A parameter written while the loop runs is staged: the dictionary shows it, the loop does not use it.
+  auto staged = [this](Entry&) { staged_flag_.set(1); };
+  for (std::uint16_t idx : {0x2000, 0x2001, 0x2002, 0x2020, 0x2021, 0x2022}) od.addObserver(idx, staged);
+  od.addValidator(0x2003, 1, [this](const Entry&, const std::uint8_t* d, std::size_t len) -> std::uint32_t {
+    if (len != 1) return kSdoOk;
+    if (d[0] == 1) return commit();
+    discard();
+    return kSdoOk;
+  });
+  od.addObserver(0x2003, 1, [](Entry& e) { e.set<std::uint8_t>(0); });
+}
+
+void ControllerParameters::countApplied() noexcept {
+  ++applied_;
+  sets_applied_.set(static_cast<std::uint8_t>(applied_));
+}
+
+void ControllerParameters::adopt(ParameterSet p, control::Kind kind) {
+  running_ = std::move(p);
+  kind_ = kind;
+  safe_u_ = std::clamp(running_.safe_u, pd::kCommandMin, pd::kCommandMax);
+  next_ctrl_.reset();
+  ready_ = false;
+  staged_flag_.set(0);
+  countApplied();
+}
+
+std::uint32_t ControllerParameters::commit() {
+  ParameterSet p = read();
+  std::string why;
+  std::uint32_t code = check(p, &why);
+  std::unique_ptr<control::Controller> c;
+  if (code == canopen::kSdoOk) {
+    try {
+      c = control::makeController(kind_, p.ctrl);
+    } catch (const std::exception&) {
+      code = canopen::kAbortParameterIncompatible;
+    }
+  }
+  if (code != canopen::kSdoOk) {
+    ++refused_;
+    last_refusal_ = code;
+    return code;
+  }
+  retired_.reset();  // the controller replaced at the last cycle boundary
+  next_ctrl_ = std::move(c);
+  next_ = std::move(p);
+  ready_ = true;
+  staged_flag_.set(0);
+  return canopen::kSdoOk;
+}
+
+void ControllerParameters::discard() {
+  write(running_);
+  staged_flag_.set(0);
+}
+
+bool ControllerParameters::take(std::unique_ptr<control::Controller>& ctrl) noexcept {
+  std::swap(ctrl, next_ctrl_);
+  retired_.swap(next_ctrl_);
+  std::swap(running_, next_);
+  ready_ = false;
+  safe_u_ = std::clamp(running_.safe_u, pd::kCommandMin, pd::kCommandMax);
+  countApplied();
+  return running_.safe_u != next_.safe_u;
+}
+
+}  // namespace pamc::nodes
