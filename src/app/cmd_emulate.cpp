@@ -7,7 +7,7 @@
 #include "io/measurement.hpp"
 #include "plant/plant.hpp"
 #include "sim/lockstep.hpp"
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 namespace pamc::app {
 namespace {
@@ -28,9 +28,9 @@ class EmulateCommand final : public Command {
   int run() override {
     plant::PlantConfig pc = em_plant.empty() ? plant::PlantConfig::defaults() : plant::PlantConfig::fromFile(em_plant);
     plant::Plant p(pc);
-    const auto traj = sim::Trajectory::parse(em_input);
-    sim::Trajectory force;
-    if (!em_load.empty()) force = sim::Trajectory::parse(em_load);
+    const auto traj = control::Trajectory::parse(em_input);
+    control::Trajectory force;
+    if (!em_load.empty()) force = control::Trajectory::parse(em_load);
     const auto r = sim::runOpenLoopInput(p, traj, em_duration, em_load.empty() ? nullptr : &force);
     if (em_load.empty())
       io::writeCsvAtomic(em_out, {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});

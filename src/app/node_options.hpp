@@ -9,7 +9,7 @@
 #include "app/bus_common.hpp"
 #include "app/controller_options.hpp"
 #include "nodes/controller_node.hpp"
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 namespace pamc::app {
 
@@ -41,7 +41,7 @@ inline nodes::ControllerNodeConfig controllerNodeConfig(const OdOption& od, cons
   c.delay_cycles = ctrl.cc.delay_cycles;
   c.gains_from_config = true;
   c.has_trajectory = true;
-  c.trajectory = sim::Trajectory::parse(run.trajectory);
+  c.trajectory = control::Trajectory::parse(run.trajectory);
   c.preroll_s = run.preroll;
   c.produce_sync = !consume_sync;
   c.period_us = run.period_us;

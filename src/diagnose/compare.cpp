@@ -4,7 +4,7 @@
 
 #include <stdexcept>
 
-#include "sim/figures.hpp"
+#include "report/figures.hpp"
 
 namespace pamc::diagnose {
 
@@ -60,7 +60,7 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
     io::writeFileAtomic(p + "breakdown.csv", t);
   }
   io::writeFileAtomic(p + "compare.json", toJson(c).dump(2) + "\n");
-  if (!sim::haveGnuplot()) {
+  if (!report::haveGnuplot()) {
     warnings = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
     return;
   }
@@ -68,16 +68,16 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
   const std::string cc = p + "compare.csv";
   char title[200];
   std::snprintf(title, sizeof title, "%s: RMSE %.4g, max %.4g, fit %.1f %%", d.source.c_str(), r.rmse, r.max_abs, r.fit_pct);
-  if (!sim::renderFigure(p + "compare.png", title,
+  if (!report::renderFigure(p + "compare.png", title,
                          {{"measured and model over time", "t [s]", "y", {{cc, "t", "y", "measured"}, {cc, "t", "y_model", "model"}}},
                           {"loops: y against u", "u", "y", {{cc, "u", "y", "measured"}, {cc, "u", "y_model", "model"}}},
                           {"residual over time", "t [s]", "y - model", {{cc, "t", "residual", "residual"}}}},
                          err))
     warnings += err + "; ";
-  if (!sim::renderBars(p + "breakdown.png", "Where the error is: RMSE of y - model by group", p + "breakdown.csv", 6, 4,
+  if (!report::renderBars(p + "breakdown.png", "Where the error is: RMSE of y - model by group", p + "breakdown.csv", 6, 4,
                        "RMSE", err))
     warnings += err + "; ";
-  if (!sim::renderFigure(p + "residual_tests.png", "Residual tests with 95 % bounds",
+  if (!report::renderFigure(p + "residual_tests.png", "Residual tests with 95 % bounds",
                          {{"auto-correlation of the residual", "lag [s]", "acf",
                            {{p + "acf.csv", "lag_s", "acf", "acf"}, {p + "acf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
                             {p + "acf.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}},

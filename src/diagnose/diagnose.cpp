@@ -11,7 +11,7 @@
 #include <thread>
 
 #include "io/model_file.hpp"
-#include "sim/figures.hpp"
+#include "report/figures.hpp"
 
 #include "io/text.hpp"
 
@@ -282,14 +282,14 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
   }
   io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", toJson(r)["ladder"]}});
   io::writeFileAtomic(p + "diagnosis.json", toJson(r).dump(2) + "\n");
-  if (!sim::haveGnuplot()) {
+  if (!report::haveGnuplot()) {
     warnings = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
     return;
   }
   std::string err;
   const std::string vcsv = p + "validation.csv";
-  auto fig = [&](const std::string& png, const std::string& title, const std::vector<sim::Panel>& panels) {
-    if (!sim::renderFigure(p + png, title, panels, err)) warnings += err + "; ";
+  auto fig = [&](const std::string& png, const std::string& title, const std::vector<report::Panel>& panels) {
+    if (!report::renderFigure(p + png, title, panels, err)) warnings += err + "; ";
   };
   fig("ladder.png", "Error ladder: " + r.verdict.substr(0, 90),
       {{"RMSE after each added effect (0 = reference model)", "rung", "RMSE",

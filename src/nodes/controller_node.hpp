@@ -30,7 +30,7 @@
 #include "nodes/controller_parameters.hpp"
 #include "nodes/cycle_stats.hpp"
 #include "nodes/faults.hpp"
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 namespace pamc::nodes {
 
@@ -45,7 +45,7 @@ struct ControllerNodeConfig {
   // timing (a synchronous valve RPDO, a sensor sending right after the SYNC); other slaves may differ.
   int delay_cycles = 2;
   bool has_trajectory = false;
-  sim::Trajectory trajectory;
+  control::Trajectory trajectory;
   double preroll_s = 5.0;             // hold the first setpoint this long before the trajectory starts
   bool produce_sync = true;
   unsigned period_us = 0;             // SYNC period override (0: 0x1006 of the EDS)
@@ -154,7 +154,7 @@ class ControllerNode {
   std::unique_ptr<ControllerParameters> params_;  // the dictionary's parameter set and its commit
   std::unique_ptr<control::Controller> ctrl_;
   control::Kind kind_ = control::Kind::PI;
-  sim::Trajectory traj_;
+  control::Trajectory traj_;
   double Ts_ = 1e-3;
   canopen::Ref<std::int32_t> position_{nullptr};
   canopen::Ref<std::int16_t> valve_cmd_{nullptr};

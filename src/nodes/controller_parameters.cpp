@@ -45,22 +45,22 @@ std::uint32_t applicationRange(std::uint16_t idx, std::uint8_t s, double v) {
 
 }  // namespace
 
-sim::Trajectory trajectoryFromOd(canopen::ObjectDictionary& od) {
+control::Trajectory trajectoryFromOd(canopen::ObjectDictionary& od) {
   const int choice = od.ref<std::uint8_t>(0x2011, 0).get();
   auto p = [&](std::uint8_t s) { return od.ref<double>(0x2012, s).get(); };
   switch (choice) {
-    case 0: return sim::Trajectory::constant(p(4));
-    case 1: return sim::Trajectory::triangle(p(1), p(2), p(3));
-    case 2: return sim::Trajectory::sine(p(1), p(5), p(4));
-    case 3: return sim::Trajectory::sineDescending(p(1), p(4), p(5), p(6), p(7));
-    case 4: return sim::Trajectory::square(p(1), p(2), p(3));
-    case 5: return sim::Trajectory::sawtooth(p(1), p(2), p(3));
+    case 0: return control::Trajectory::constant(p(4));
+    case 1: return control::Trajectory::triangle(p(1), p(2), p(3));
+    case 2: return control::Trajectory::sine(p(1), p(5), p(4));
+    case 3: return control::Trajectory::sineDescending(p(1), p(4), p(5), p(6), p(7));
+    case 4: return control::Trajectory::square(p(1), p(2), p(3));
+    case 5: return control::Trajectory::sawtooth(p(1), p(2), p(3));
   }
   throw std::invalid_argument("0x2011 trajectory choice " + std::to_string(choice) + " is not 0..5");
 }
 
-bool trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t) {
-  using S = sim::Trajectory::Shape;
+bool trajectoryToOd(canopen::ObjectDictionary& od, const control::Trajectory& t) {
+  using S = control::Trajectory::Shape;
   int choice = 0;
   switch (t.shape) {
     case S::Constant: choice = 0; break;

@@ -18,7 +18,7 @@
 
 #include "canopen/node.hpp"
 #include "control/controller.hpp"
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 namespace pamc::nodes {
 
@@ -32,9 +32,9 @@ struct ParameterSet {
 };
 
 // Trajectory choice 0x2011 and its parameters 0x2012 (throws on a choice outside 0..5).
-sim::Trajectory trajectoryFromOd(canopen::ObjectDictionary& od);
+control::Trajectory trajectoryFromOd(canopen::ObjectDictionary& od);
 // False when the shape has no representation in 0x2011/0x2012.
-bool trajectoryToOd(canopen::ObjectDictionary& od, const sim::Trajectory& t);
+bool trajectoryToOd(canopen::ObjectDictionary& od, const control::Trajectory& t);
 
 class ControllerParameters {
  public:

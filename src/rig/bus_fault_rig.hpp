@@ -166,7 +166,7 @@ struct Rig {
     c.ctrl.kc = o.kc;
     c.ctrl.model = plant::PlantConfig::defaults().truth;
     c.has_trajectory = true;
-    c.trajectory = sim::Trajectory::sine(0.2, 5.0, 15.0);
+    c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
     c.preroll_s = o.preroll_s;
     c.produce_sync = !consume;
     traj = c.trajectory;
@@ -223,7 +223,7 @@ struct Rig {
   std::unique_ptr<SyncSource> sync;
   std::unique_ptr<Flooder> flood;
   std::unique_ptr<Impostor> imp_ctrl, imp_sensor;
-  sim::Trajectory traj;
+  control::Trajectory traj;
   std::vector<CycleRecord> recs;
   std::vector<TimeUs> rec_us;
   std::vector<std::uint16_t> emcy;

@@ -12,7 +12,7 @@
 #include "estimation/active_model.hpp"
 #include "io/measurement.hpp"
 #include "io/model_file.hpp"
-#include "sim/figures.hpp"
+#include "report/figures.hpp"
 #include "sim/lockstep.hpp"
 #include "sim/paper_criteria.hpp"
 
@@ -23,6 +23,10 @@ namespace pamc::sim {
 namespace {
 
 using io::fmt;
+using report::Panel;
+using report::Series;
+using report::haveGnuplot;
+using report::renderFigure;
 
 bool wanted(const ExperimentSettings& s, const std::string& name) {
   return s.only.empty() || std::find(s.only.begin(), s.only.end(), name) != s.only.end();

@@ -12,9 +12,11 @@
 
 #include "control/controller.hpp"
 #include "plant/plant.hpp"
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 namespace pamc::sim {
+
+using control::Trajectory;
 
 struct Record {
   std::vector<double> t, yd, y, y_true, u, u_n, u_c, y_hat, force, p;

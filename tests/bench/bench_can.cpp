@@ -22,7 +22,7 @@ nodes::ControllerNodeConfig ctrlConfig(control::Kind kind) {
   c.kind = static_cast<int>(kind);
   c.gains_from_config = true;
   c.has_trajectory = true;
-  c.trajectory = sim::Trajectory::triangle(0.05, 0.2, 30.0);
+  c.trajectory = control::Trajectory::triangle(0.05, 0.2, 30.0);
   c.preroll_s = 0.5;
   c.ctrl.model = model::Model({9.0, 1.6, 17.0, 1.0, 0.4, 0.5});
   return c;

@@ -60,7 +60,7 @@ BENCHMARK(BM_AmcCycle);
 // GA + Nelder-Mead identification of the six parameters on 50 000 samples of emulator data.
 static void BM_Identification50k(benchmark::State& state) {
   plant::Plant p;
-  const auto r = sim::runOpenLoopInput(p, sim::Trajectory::sine(0.1, 2.9, 0.2), 50.0);
+  const auto r = sim::runOpenLoopInput(p, control::Trajectory::sine(0.1, 2.9, 0.2), 50.0);
   io::Measurement d;
   d.t = r.t;
   d.u = r.u;
@@ -86,7 +86,7 @@ static void BM_SimulationSpeed(benchmark::State& state) {
   control::ControllerConfig cfg;
   cfg.model = paperLikeModel();
   sim::ClosedLoopRun run;
-  run.reference = sim::Trajectory::triangle(0.05, 0.2, 30.0);
+  run.reference = control::Trajectory::triangle(0.05, 0.2, 30.0);
   run.duration_s = 20.0;
   run.preroll_s = 0.0;
   for (auto _ : state) {

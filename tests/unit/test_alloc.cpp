@@ -9,7 +9,7 @@
 
 #include "control/controller.hpp"
 #include "plant/plant.hpp"
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define PAMC_COUNT_ALLOCATIONS 0  // AddressSanitizer owns operator new; counting is for normal builds
@@ -124,7 +124,7 @@ TEST(Allocation, RigCyclesOnTheBusAllocateNothing) {
   c.ctrl.amc_inverse = 0.2;
   c.ctrl.model = plant::PlantConfig::defaults().truth;
   c.has_trajectory = true;
-  c.trajectory = sim::Trajectory::triangle(0.5, 5.0, 25.0);
+  c.trajectory = control::Trajectory::triangle(0.5, 5.0, 25.0);
   c.preroll_s = 0.2;
   nodes::EmulatorConfig e;
   e.sensor_eds = od + "sensor.eds";

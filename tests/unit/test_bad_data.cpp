@@ -38,7 +38,7 @@
 #include "rig/virtual_rig.hpp"
 #include "plant/plant.hpp"
 #include "sim/lockstep.hpp"
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 using namespace pamc;
 
@@ -92,7 +92,7 @@ struct Spec {
   double ki = 0.15;
   bool full_model = false;  // AMC on the emulator's whole model (the rig's choice), not its Bouc-Wen core
   double gate_nis = -1.0;   // < 0: the default of ActiveModelSettings
-  sim::Trajectory traj = sim::Trajectory::constant(20.0);
+  control::Trajectory traj = control::Trajectory::constant(20.0);
   long cycles = 8000;
   std::vector<Fault> faults;
   std::uint64_t plant_seed = 1;
@@ -302,10 +302,10 @@ Spec randomSpec(std::uint64_t seed, control::Kind kind, Bad bad, int n_faults, b
   s.plant_seed = seed;
   const double lo = uni(5, 15), hi = uni(20, 30);
   switch (pick(4)) {
-    case 0: s.traj = sim::Trajectory::sine(uni(0.05, 0.3), 0.5 * (hi - lo), 0.5 * (hi + lo)); break;
-    case 1: s.traj = sim::Trajectory::triangle(uni(0.05, 0.2), lo, hi); break;
-    case 2: s.traj = sim::Trajectory::square(uni(0.05, 0.2), lo, lo + uni(2, 8)); break;
-    default: s.traj = sim::Trajectory::constant(uni(lo, hi)); break;
+    case 0: s.traj = control::Trajectory::sine(uni(0.05, 0.3), 0.5 * (hi - lo), 0.5 * (hi + lo)); break;
+    case 1: s.traj = control::Trajectory::triangle(uni(0.05, 0.2), lo, hi); break;
+    case 2: s.traj = control::Trajectory::square(uni(0.05, 0.2), lo, lo + uni(2, 8)); break;
+    default: s.traj = control::Trajectory::constant(uni(lo, hi)); break;
   }
   for (int i = 0; i < n_faults; ++i) {
     Fault f;
@@ -466,9 +466,9 @@ TEST(BadDataProperty, MixedFaultsInOneRun) {
 // The gate changes nothing on clean data: the same commands bit for bit with and without it, on the
 // trajectories of Table 2 and on setpoint steps (where the model moves at once and the muscle lags).
 TEST(BadDataProperty, CleanDataNeverReachesTheGate) {
-  const sim::Trajectory trajs[] = {sim::Trajectory::sine(0.05, 14.9, 15.0), sim::Trajectory::sine(0.1, 14.9, 15.0),
-                                   sim::Trajectory::triangle(0.05, 0.2, 30.0), sim::Trajectory::square(0.1, 10.0, 25.0),
-                                   sim::Trajectory::sawtooth(0.1, 10.0, 25.0), sim::Trajectory::square(0.1, 5.0, 35.0)};
+  const control::Trajectory trajs[] = {control::Trajectory::sine(0.05, 14.9, 15.0), control::Trajectory::sine(0.1, 14.9, 15.0),
+                                   control::Trajectory::triangle(0.05, 0.2, 30.0), control::Trajectory::square(0.1, 10.0, 25.0),
+                                   control::Trajectory::sawtooth(0.1, 10.0, 25.0), control::Trajectory::square(0.1, 5.0, 35.0)};
   double max_nis = 0.0;
   for (const auto& traj : trajs) {
     for (double ki : {0.15, 1.5}) {
@@ -655,7 +655,7 @@ TEST(BadDataWindup, ValveVentedForThreeSecondsIntegralStopsAtTheSaturation) {
     Spec s;
     s.kind = wc.kind;
     s.ki = wc.ki;
-    s.traj = sim::Trajectory::constant(20.0);
+    s.traj = control::Trajectory::constant(20.0);
     s.faults = {Fault{Bad::ValveLimit, 2000, 3000, -5.0}};
     s.cycles = 20000;
     Spec ref = s;
@@ -713,7 +713,7 @@ NodeRun runNode(control::Kind kind, bool whole_model, const std::function<void(l
   const auto truth = plant::PlantConfig::defaults().truth;
   c.ctrl.model = whole_model ? truth : model::Model(truth.core());
   c.has_trajectory = true;
-  c.trajectory = sim::Trajectory::sine(0.2, 5.0, 15.0);
+  c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
   c.preroll_s = 2.0;
   nodes::EmulatorConfig e;
   e.sensor_eds = kOd + "sensor.eds";

@@ -6,7 +6,7 @@
 #include "ident/identify.hpp"
 #include "plant/plant.hpp"
 #include "sim/lockstep.hpp"
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -29,7 +29,7 @@ io::Measurement measurementOf(const Run& r) {
 const model::Model& identified() {
   static const model::Model m = [] {
     plant::Plant p;
-    const auto r = sim::runOpenLoopInput(p, sim::Trajectory::sine(0.1, 2.9, 0.2), 20.0);
+    const auto r = sim::runOpenLoopInput(p, control::Trajectory::sine(0.1, 2.9, 0.2), 20.0);
     const io::Measurement d = measurementOf(r);
     ident::FitSettings s;
     s.ga.max_generations = 60;
@@ -68,7 +68,7 @@ TEST_P(ClosesTheLoop, SettlesAfterAStep) {
   sim::ClosedLoopRun r;
   // 20 s at 25 mm, then 20 s at 10 mm: the ESO's slow observer mode (about 0.1 rad/s with the
   // paper's beta and delta) needs that long.
-  r.reference = sim::Trajectory::square(0.025, 10.0, 25.0);
+  r.reference = control::Trajectory::square(0.025, 10.0, 25.0);
   r.duration_s = 40.0;
   const auto rec = run(GetParam(), r);
   // Last 2 s of each half.
@@ -92,7 +92,7 @@ TEST_P(ClosesTheLoop, SettlesAfterAStep) {
 
 TEST_P(ClosesTheLoop, TracksASlowSineBetterThanOpenLoop) {
   sim::ClosedLoopRun r;
-  r.reference = sim::Trajectory::sine(0.05, 8.0, 18.0);
+  r.reference = control::Trajectory::sine(0.05, 8.0, 18.0);
   r.duration_s = 40.0;
   const auto closed = run(GetParam(), r);
   const auto open = run(control::Kind::OpenLoop, r);
@@ -107,7 +107,7 @@ INSTANTIATE_TEST_SUITE_P(Feedback, ClosesTheLoop,
 // hysteresis it cannot see).
 TEST(OpenLoop, InverseStaticLandsNearSetpoint) {
   sim::ClosedLoopRun r;
-  r.reference = sim::Trajectory::constant(15.0);
+  r.reference = control::Trajectory::constant(15.0);
   r.duration_s = 3.0;
   const auto rec = run(control::Kind::OpenLoop, r);
   EXPECT_LT(meanAbsError(rec, 2.0), 4.0);
@@ -117,7 +117,7 @@ TEST(OpenLoop, InverseStaticLandsNearSetpoint) {
 // recovers within a second instead of unwinding a huge integral.
 TEST(AntiWindup, RecoversQuicklyAfterSaturation) {
   sim::ClosedLoopRun r;
-  r.reference = sim::Trajectory::square(0.05, 15.0, 60.0);  // 60 mm is unreachable
+  r.reference = control::Trajectory::square(0.05, 15.0, 60.0);  // 60 mm is unreachable
   r.duration_s = 16.0;
   control::ControllerConfig cfg;
   cfg.ki = 1.5;
@@ -152,7 +152,7 @@ plant::PlantConfig laggingPlant() {
 
 model::Model fitOnLaggingPlant(const std::vector<std::string>& effects) {
   plant::Plant p(laggingPlant());
-  const auto r = sim::runOpenLoopInput(p, sim::Trajectory::parse("random:1:-3:3"), 30.0);
+  const auto r = sim::runOpenLoopInput(p, control::Trajectory::parse("random:1:-3:3"), 30.0);
   const io::Measurement d = measurementOf(r);
   model::Model structure;
   for (const auto& e : effects) structure.addEffect(e);
@@ -171,7 +171,7 @@ double predictiveAmcRmse(const model::Model& m, double hz) {
   control::InverseStatic inv;
   inv.build(cfg.model, cfg.u_min, cfg.u_max, cfg.Ts);
   sim::ClosedLoopRun run;
-  run.reference = sim::Trajectory::sine(hz, 15.0, 20.0);
+  run.reference = control::Trajectory::sine(hz, 15.0, 20.0);
   run.duration_s = 15.0;
   const auto rec = sim::runClosedLoop(*c, p, run, inv(run.reference.at(0)));
   // Against the true position: sensor noise is the same for both models and no model removes it.

@@ -104,7 +104,7 @@ TEST(VirtualRig, CandumpLogIsOnDiskWhileTheRunGoesOn) {
   c.kind = static_cast<int>(control::Kind::PI);
   c.gains_from_config = true;
   c.has_trajectory = true;
-  c.trajectory = sim::Trajectory::constant(15.0);
+  c.trajectory = control::Trajectory::constant(15.0);
   c.preroll_s = 0.05;
   nodes::EmulatorConfig e;
   e.sensor_eds = kOd + "/sensor.eds";

@@ -24,8 +24,8 @@ plant::PlantConfig hidden(const std::string& effects_json) {
 
 io::Measurement record(const plant::PlantConfig& pc, std::uint64_t seed, double seconds, bool with_load) {
   plant::Plant p(pc);
-  const auto u = sim::Trajectory::randomRampHold(seed, -2.5, 2.5);
-  const auto f = sim::Trajectory::randomRampHold(seed + 100, 0.0, 40.0);
+  const auto u = control::Trajectory::randomRampHold(seed, -2.5, 2.5);
+  const auto f = control::Trajectory::randomRampHold(seed + 100, 0.0, 40.0);
   const auto r = sim::runOpenLoopInput(p, u, seconds, with_load ? &f : nullptr);
   io::Measurement m;
   m.source = "emulator seed " + std::to_string(seed);
@@ -121,7 +121,7 @@ TEST(Compare, PerfectModelFitsAndDelayShowsInTheResidual) {
   io::Measurement d;
   d.source = "x";
   d.Ts = 1e-3;
-  const auto u = sim::Trajectory::randomRampHold(4, -2.5, 2.5);
+  const auto u = control::Trajectory::randomRampHold(4, -2.5, 2.5);
   for (int i = 0; i < 20000; ++i) {
     d.t.push_back(i * 1e-3);
     d.u.push_back(u.at(i * 1e-3));

@@ -15,7 +15,7 @@ using namespace pamc;
 namespace {
 const std::string kOd = std::string(PAMC_SOURCE_DIR) + "/od/";
 
-nodes::ControllerNodeConfig controllerConfig(control::Kind kind, const sim::Trajectory& traj) {
+nodes::ControllerNodeConfig controllerConfig(control::Kind kind, const control::Trajectory& traj) {
   nodes::ControllerNodeConfig c;
   c.eds_path = kOd + "controller.eds";
   c.kind = static_cast<int>(kind);
@@ -48,7 +48,7 @@ class RigMatchesLockstep : public ::testing::TestWithParam<control::Kind> {};
 // the rig waits for the first position PDO - so the traces are close, not identical; the timing
 // itself is pinned by RigTiming below.)
 TEST_P(RigMatchesLockstep, TrackingRmseAgrees) {
-  const auto traj = sim::Trajectory::triangle(0.1, 5.0, 25.0);
+  const auto traj = control::Trajectory::triangle(0.1, 5.0, 25.0);
   const double duration = 10.0;
   auto cc = controllerConfig(GetParam(), traj);
   const auto rig = nodes::runVirtualRig(cc, emulatorConfig(), duration);
@@ -91,7 +91,7 @@ int cyclesUntilResponse(const std::vector<double>& u, const std::vector<double>&
 // controller latches at SYNC k+3 (valve applies it at k+1, sensor samples at k+2, controller
 // latches at k+3) - on the bus and in the lockstep simulation with delay_cycles = 2.
 TEST(RigTiming, CommandShowsInThePositionThreeCyclesLater) {
-  const auto traj = sim::Trajectory::square(0.5, 10.0, 20.0);
+  const auto traj = control::Trajectory::square(0.5, 10.0, 20.0);
   auto cc = controllerConfig(control::Kind::OpenLoop, traj);
   cc.preroll_s = 3.0;
   auto ec = emulatorConfig();
@@ -125,7 +125,7 @@ INSTANTIATE_TEST_SUITE_P(Controllers, RigMatchesLockstep,
 
 TEST(Rig, CandumpLogOfTheRunDecodesBack) {
   const std::string log = ::testing::TempDir() + "/pamc_rig.log";
-  const auto rig = nodes::runVirtualRig(controllerConfig(control::Kind::PI, sim::Trajectory::constant(15.0)),
+  const auto rig = nodes::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)),
                                         emulatorConfig(), 1.0, log);
   const auto frames = canopen::readCandumpLog(log);
   ASSERT_GT(frames.size(), 3 * 6000u);  // SYNC + position + setpoint + pressure per cycle, 6 s
@@ -145,7 +145,7 @@ TEST(Rig, SensorSilenceDrivesTheValveSafeAndSendsEmcy) {
   auto e = emulatorConfig();
   e.sensor_silent_at_s = 7.0;  // 2 s into the run after the 5 s pre-roll
   const std::string log = ::testing::TempDir() + "/pamc_silent.log";
-  const auto rig = nodes::runVirtualRig(controllerConfig(control::Kind::PI, sim::Trajectory::constant(15.0)), e, 4.0, log);
+  const auto rig = nodes::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)), e, 4.0, log);
   EXPECT_GE(rig.faults, 1u);
   // After the fault, every record has the safe command (0 V = -5 V relative) and a fault code.
   size_t first = 0;
@@ -168,7 +168,7 @@ TEST(Rig, SensorSilenceDrivesTheValveSafeAndSendsEmcy) {
 // With 1 Mbit/s bit timing and arbitration the frames of a cycle take ~280 us of the 1000 us period and
 // all arrive before the next SYNC: the same cycle, the same result as on the ideal bus.
 TEST(RigTiming, OneMegabitBusKeepsTheCycle) {
-  const auto traj = sim::Trajectory::triangle(0.1, 5.0, 25.0);
+  const auto traj = control::Trajectory::triangle(0.1, 5.0, 25.0);
   auto cc = controllerConfig(control::Kind::PI, traj);
   cc.preroll_s = 1.0;
   const auto ideal = nodes::runVirtualRig(cc, emulatorConfig(), 3.0);

@@ -32,7 +32,7 @@ nodes::ControllerNodeConfig controllerConfig() {
   c.ctrl.ki = 1.5;
   c.ctrl.model = plant::PlantConfig::defaults().truth;
   c.has_trajectory = true;
-  c.trajectory = sim::Trajectory::sine(0.2, 5.0, 15.0);
+  c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
   c.preroll_s = 1.0;
   return c;
 }

@@ -1,4 +1,4 @@
-#include "sim/figures.hpp"
+#include "report/figures.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -8,7 +8,7 @@
 
 #include "io/measurement.hpp"
 
-namespace pamc::sim {
+namespace pamc::report {
 
 namespace {
 // gnuplot addresses CSV columns by number: read the header once per file.
@@ -114,4 +114,4 @@ bool renderBars(const std::string& png, const std::string& title, const std::str
   return runGnuplot(gp.str(), png, tmp_png, error);
 }
 
-}  // namespace pamc::sim
+}  // namespace pamc::report

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-namespace pamc::sim {
+namespace pamc::control {
 
 struct Trajectory {
   enum class Shape { Constant, Sine, Triangle, Square, Sawtooth, SineDescending, Chirp, RandomRampHold };
@@ -42,4 +42,4 @@ struct Trajectory {
   static Trajectory parse(const std::string& spec);
 };
 
-}  // namespace pamc::sim
+}  // namespace pamc::control

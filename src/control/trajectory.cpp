@@ -1,4 +1,4 @@
-#include "sim/trajectory.hpp"
+#include "control/trajectory.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <vector>
 
-namespace pamc::sim {
+namespace pamc::control {
 
 double Trajectory::at(double t) const noexcept {
   const double ph = freq_hz * t - std::floor(freq_hz * t);  // phase in [0,1)
@@ -184,4 +184,4 @@ Trajectory Trajectory::parse(const std::string& spec) {
   return {};
 }
 
-}  // namespace pamc::sim
+}  // namespace pamc::control

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-namespace pamc::sim {
+namespace pamc::report {
 
 struct Series {
   std::string csv;      // data file
@@ -32,4 +32,4 @@ bool renderBars(const std::string& png, const std::string& title, const std::str
 
 bool haveGnuplot();
 
-}  // namespace pamc::sim
+}  // namespace pamc::report
