@@ -158,7 +158,7 @@ bool parseCandumpLine(std::string_view line, CandumpRecord& out, std::string* er
   return true;
 }
 
-std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& name, std::string* warning) {
+std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& name, std::vector<std::string>* warnings) {
   std::vector<CandumpRecord> records;
   std::string line;
   int lineno = 0;
@@ -168,8 +168,8 @@ std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& n
     // killed in the middle of it). Every writer of the format ends each line with one, and a cut line
     // may still parse (a frame cut in its data bytes), so it is dropped whatever it holds.
     if (in.eof()) {
-      if (line.find_first_not_of(" \t\r") != std::string::npos && warning != nullptr)
-        *warning = name + ":" + std::to_string(lineno) + ": truncated last line ignored (no newline at the end)";
+      if (line.find_first_not_of(" \t\r") != std::string::npos && warnings != nullptr)
+        warnings->push_back(name + ":" + std::to_string(lineno) + ": truncated last line ignored (no newline at the end)");
       break;
     }
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -184,10 +184,10 @@ std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& n
   return records;
 }
 
-std::vector<CandumpRecord> readCandumpLog(const std::string& path, std::string* warning) {
+std::vector<CandumpRecord> readCandumpLog(const std::string& path, std::vector<std::string>* warnings) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(path + ": cannot open candump log");
-  return readCandumpLog(in, path, warning);
+  return readCandumpLog(in, path, warnings);
 }
 
 CandumpWriter::CandumpWriter(const std::string& path, std::string interface)

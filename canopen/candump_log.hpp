@@ -30,9 +30,10 @@ bool parseCandumpLine(std::string_view line, CandumpRecord& out, std::string* er
 
 // Reads a whole log; empty lines are skipped. Throws std::runtime_error "name:line: problem".
 // A last line without its newline is a record cut off by a crash of the writer: it is ignored, and
-// *warning (if given) says so ("name:line: truncated last line ignored ..."); otherwise it stays empty.
-std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& name, std::string* warning = nullptr);
-std::vector<CandumpRecord> readCandumpLog(const std::string& path, std::string* warning = nullptr);
+// appended to *warnings (if given, one line each): "name:line: truncated last line ignored ...".
+std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& name,
+                                          std::vector<std::string>* warnings = nullptr);
+std::vector<CandumpRecord> readCandumpLog(const std::string& path, std::vector<std::string>* warnings = nullptr);
 
 class CandumpWriter {
  public:

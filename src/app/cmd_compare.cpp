@@ -22,16 +22,16 @@ class CompareCommand final : public Command {
   }
   int run() override {
     const auto m = io::readModelFile(cmp_model);
-    const auto d = io::readMeasurementCsv(cmp_data);
-    if (!d.warning.empty()) std::fprintf(stderr, "warning: %s\n", d.warning.c_str());
+    std::vector<std::string> warnings;
+    const auto d = io::readMeasurementCsv(cmp_data, &warnings);
+    printWarnings(warnings);
     const auto c = diagnose::compare(m, d);
     std::printf("model %s (%s) on %s: %zu samples, Ts = %g s\n", cmp_model.c_str(), m.describe().c_str(),
                 cmp_data.c_str(), d.size(), d.Ts);
     std::printf("%s", diagnose::formatReport(c.report).c_str());
     std::string dir = cmp_report.empty() ? cmp_data + ".compare" : cmp_report;
-    std::string warn;
-    diagnose::writeCompareReport(c, d, dir, warn);
-    if (!warn.empty()) std::fprintf(stderr, "warning: %s\n", warn.c_str());
+    diagnose::writeCompareReport(c, d, dir, &warnings);
+    printWarnings(warnings);
     std::printf("figures and CSVs in %s/\n", dir.c_str());
     if (!cmp_json.empty()) io::writeFileAtomic(cmp_json, diagnose::toJson(c).dump(2) + "\n");
     return 0;

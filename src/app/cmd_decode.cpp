@@ -36,9 +36,9 @@ class DecodeCommand final : public Command {
     std::vector<std::string> od_paths = eds;
     od_paths.insert(od_paths.begin(), od_.dir);
     const auto dict = nodes::loadBusDictionary(od_paths);
-    std::string warning;
-    const auto log = canopen::readCandumpLog(log_in, &warning);
-    if (!warning.empty()) std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    std::vector<std::string> warnings;
+    const auto log = canopen::readCandumpLog(log_in, &warnings);
+    printWarnings(warnings);
     const auto run = nodes::decodeCandump(log, dict);
     if (run.rows.size() < 3)
       throw std::runtime_error(log_in + ": no complete cycles (SYNC, position and valve command) found in the log");

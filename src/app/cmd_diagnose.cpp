@@ -29,13 +29,13 @@ class DiagnoseCommand final : public Command {
     cmd_->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
   }
   int run() override {
-    const auto d = io::readMeasurementCsv(dg_data);
-    if (!d.warning.empty()) std::fprintf(stderr, "warning: %s\n", d.warning.c_str());
+    std::vector<std::string> warnings;
+    const auto d = io::readMeasurementCsv(dg_data, &warnings);
     io::Measurement v;
     if (!dg_val.empty()) {
-      v = io::readMeasurementCsv(dg_val);
-      if (!v.warning.empty()) std::fprintf(stderr, "warning: %s\n", v.warning.c_str());
+      v = io::readMeasurementCsv(dg_val, &warnings);
     }
+    printWarnings(warnings);
     ds.candidates = splitList(dg_cands);
     for (const auto& c : ds.candidates) (void)model::makeEffect(c);
     ds.log = progressLine;
@@ -55,9 +55,8 @@ class DiagnoseCommand final : public Command {
     std::printf("\n%s\n", r.verdict.c_str());
     std::printf("%.1f s\n", r.seconds);
     if (!dg_report.empty()) {
-      std::string warn;
-      diagnose::writeReport(r, d, dg_val.empty() ? nullptr : &v, ds, dg_report, warn);
-      if (!warn.empty()) std::fprintf(stderr, "warning: %s\n", warn.c_str());
+      diagnose::writeReport(r, d, dg_val.empty() ? nullptr : &v, ds, dg_report, &warnings);
+      printWarnings(warnings);
       std::printf("report in %s/ (ladder.png, validation.png, residual_tests.png, model.json)\n", dg_report.c_str());
     }
     if (!dg_json.empty()) io::writeFileAtomic(dg_json, diagnose::toJson(r).dump(2) + "\n");

@@ -34,8 +34,9 @@ class FitCommand final : public Command {
     const std::string& effects = effects_;
     const ident::FitSettings& fs = fs_;
     const bool quiet = quiet_;
-  io::Measurement m = io::readMeasurementCsv(data);
-  if (!m.warning.empty()) std::fprintf(stderr, "warning: %s\n", m.warning.c_str());
+  std::vector<std::string> warnings;
+  io::Measurement m = io::readMeasurementCsv(data, &warnings);
+  printWarnings(warnings);
   model::Model structure;
   for (const auto& e : splitList(effects)) structure.addEffect(e);
   if (!quiet)

@@ -41,9 +41,9 @@ class MonitorCommand final : public Command {
     auto dict = nodes::loadBusDictionary(od_paths);
     nodes::Monitor mon(dict);
     if (!log_in.empty()) {
-      std::string warning;
-      const auto log = canopen::readCandumpLog(log_in, &warning);
-      if (!warning.empty()) std::fprintf(stderr, "warning: %s\n", warning.c_str());
+      std::vector<std::string> warnings;
+      const auto log = canopen::readCandumpLog(log_in, &warnings);
+      printWarnings(warnings);
       if (log.empty()) throw std::runtime_error(log_in + ": no frames");
       const double t0 = log.front().unix_time_us * 1e-6;
       double next = 0.5;

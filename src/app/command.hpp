@@ -49,5 +49,7 @@ inline const CommandFactory kCommands[] = {
 
 std::vector<std::string> splitList(const std::string& s);
 void progressLine(const std::string& m);
+// Every warning a reader or writer appended, one "warning: ..." line each on stderr; then empties the list.
+void printWarnings(std::vector<std::string>& warnings);
 
 }  // namespace pamc::app

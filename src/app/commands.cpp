@@ -16,4 +16,9 @@ std::vector<std::string> splitList(const std::string& s) {
 
 void progressLine(const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); }
 
+void printWarnings(std::vector<std::string>& warnings) {
+  for (const auto& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+  warnings.clear();
+}
+
 }  // namespace pamc::app

@@ -28,7 +28,7 @@ nlohmann::json toJson(const Comparison& c) {
           {"acf", r.acf},    {"ccf_du", r.ccf_du}, {"conf", r.conf}, {"lag_step_s", r.lag_step_s}};
 }
 
-void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::string& warnings) {
+void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::vector<std::string>* warnings) {
   ::mkdir(dir.c_str(), 0755);
   struct stat sb {};
   if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(dir + ": cannot create the report directory");
@@ -61,7 +61,7 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
   }
   io::writeFileAtomic(p + "compare.json", toJson(c).dump(2) + "\n");
   if (!report::haveGnuplot()) {
-    warnings = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
+    if (warnings) warnings->push_back("gnuplot not found (apt-get install gnuplot-nox); figures skipped");
     return;
   }
   std::string err;
@@ -73,10 +73,10 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
                           {"loops: y against u", "u", "y", {{cc, "u", "y", "measured"}, {cc, "u", "y_model", "model"}}},
                           {"residual over time", "t [s]", "y - model", {{cc, "t", "residual", "residual"}}}},
                          err))
-    warnings += err + "; ";
+    if (warnings) warnings->push_back(err);
   if (!report::renderBars(p + "breakdown.png", "Where the error is: RMSE of y - model by group", p + "breakdown.csv", 6, 4,
                        "RMSE", err))
-    warnings += err + "; ";
+    if (warnings) warnings->push_back(err);
   if (!report::renderFigure(p + "residual_tests.png", "Residual tests with 95 % bounds",
                          {{"auto-correlation of the residual", "lag [s]", "acf",
                            {{p + "acf.csv", "lag_s", "acf", "acf"}, {p + "acf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
@@ -85,7 +85,7 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
                            {{p + "ccf.csv", "lag_s", "ccf", "ccf"}, {p + "ccf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
                             {p + "ccf.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}}},
                          err))
-    warnings += err + "; ";
+    if (warnings) warnings->push_back(err);
 }
 
 }  // namespace pamc::diagnose

@@ -19,6 +19,6 @@ struct Comparison {
 Comparison compare(const model::Model& m, const io::Measurement& d);
 nlohmann::json toJson(const Comparison& c);
 // CSVs and figures (time plot, loops, residual, breakdown, residual tests) into dir.
-void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::string& warnings);
+void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::vector<std::string>* warnings = nullptr);
 
 }  // namespace pamc::diagnose

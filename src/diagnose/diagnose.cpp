@@ -237,7 +237,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
 }
 
 void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io::Measurement* val,
-                 const DiagnoseSettings& /*s*/, const std::string& dir, std::string& warnings) {
+                 const DiagnoseSettings& /*s*/, const std::string& dir, std::vector<std::string>* warnings) {
   ::mkdir(dir.c_str(), 0755);
   struct stat sb {};
   if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(dir + ": cannot create the report directory");
@@ -283,13 +283,13 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
   io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", toJson(r)["ladder"]}});
   io::writeFileAtomic(p + "diagnosis.json", toJson(r).dump(2) + "\n");
   if (!report::haveGnuplot()) {
-    warnings = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
+    if (warnings) warnings->push_back("gnuplot not found (apt-get install gnuplot-nox); figures skipped");
     return;
   }
   std::string err;
   const std::string vcsv = p + "validation.csv";
   auto fig = [&](const std::string& png, const std::string& title, const std::vector<report::Panel>& panels) {
-    if (!report::renderFigure(p + png, title, panels, err)) warnings += err + "; ";
+    if (!report::renderFigure(p + png, title, panels, err) && warnings) warnings->push_back(err);
   };
   fig("ladder.png", "Error ladder: " + r.verdict.substr(0, 90),
       {{"RMSE after each added effect (0 = reference model)", "rung", "RMSE",

@@ -60,6 +60,6 @@ nlohmann::json toJson(const DiagnoseResult& r);
 
 // Writes figures and CSVs of a diagnosis into dir (created if missing).
 void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io::Measurement* val,
-                 const DiagnoseSettings& s, const std::string& dir, std::string& warnings);
+                 const DiagnoseSettings& s, const std::string& dir, std::vector<std::string>* warnings = nullptr);
 
 }  // namespace pamc::diagnose

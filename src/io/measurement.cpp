@@ -67,7 +67,7 @@ Measurement Measurement::slice(size_t b, size_t e) const {
   return m;
 }
 
-Measurement parseMeasurementCsv(const std::string& text, const std::string& src) {
+Measurement parseMeasurementCsv(const std::string& text, const std::string& src, std::vector<std::string>* warnings) {
   Measurement m;
   m.source = src;
   std::vector<std::string> lines;
@@ -109,7 +109,7 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src)
     const bool last = l + 1 == lines.size();
     if (cells.size() != header.size()) {
       if (last && !ends_with_newline) {  // a record cut off by a crash of the writer
-        m.warning = src + ":" + std::to_string(l + 1) + ": truncated last line ignored";
+        if (warnings) warnings->push_back(src + ":" + std::to_string(l + 1) + ": truncated last line ignored");
         break;
       }
       fail(src, l + 1, "", "expected " + std::to_string(header.size()) + " fields, found " + std::to_string(cells.size()));
@@ -132,7 +132,7 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src)
       row[c] = v;
     }
     if (truncated) {
-      m.warning = src + ":" + std::to_string(l + 1) + ": truncated last line ignored";
+      if (warnings) warnings->push_back(src + ":" + std::to_string(l + 1) + ": truncated last line ignored");
       break;
     }
     for (size_t c = 0; c < row.size(); ++c) {
@@ -171,12 +171,12 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src)
   return m;
 }
 
-Measurement readMeasurementCsv(const std::string& path) {
+Measurement readMeasurementCsv(const std::string& path, std::vector<std::string>* warnings) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(path + ": cannot open file");
   std::ostringstream ss;
   ss << f.rdbuf();
-  return parseMeasurementCsv(ss.str(), path);
+  return parseMeasurementCsv(ss.str(), path, warnings);
 }
 
 namespace {

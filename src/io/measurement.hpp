@@ -20,7 +20,6 @@ struct Measurement {
   std::vector<double> t, u, y;
   std::map<std::string, std::vector<double>> extra;  // further columns by header name
   double Ts = 0.0;                                    // sampling step read from the time column
-  std::string warning;                                // e.g. a truncated last line that was dropped
 
   size_t size() const { return t.size(); }
   bool has(const std::string& col) const { return extra.count(col) > 0; }
@@ -43,10 +42,12 @@ constexpr double kMaxDataValue = 1e9;
 constexpr double kMaxTime = 1e12;
 constexpr double kMinSamplingStep = 1e-9;
 
-// Reads and validates a measurement CSV; throws InputError.
-Measurement readMeasurementCsv(const std::string& path);
+// Reads and validates a measurement CSV; throws InputError. What it tolerates (a truncated last line,
+// dropped) is appended to warnings, one line each, when given - the same convention everywhere in pamc.
+Measurement readMeasurementCsv(const std::string& path, std::vector<std::string>* warnings = nullptr);
 // Parses CSV text (source names it in errors).
-Measurement parseMeasurementCsv(const std::string& text, const std::string& source);
+Measurement parseMeasurementCsv(const std::string& text, const std::string& source,
+                                std::vector<std::string>* warnings = nullptr);
 
 // Writes columns as CSV atomically: the file appears complete or not at all (see writeFileAtomic).
 // Throws std::runtime_error.

@@ -15,13 +15,14 @@ using pamc::fuzz::finding;
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
   pamc::io::Measurement m;
+  std::vector<std::string> warnings;
   try {
-    m = pamc::io::parseMeasurementCsv(text, "fuzz.csv");
+    m = pamc::io::parseMeasurementCsv(text, "fuzz.csv", &warnings);
   } catch (const pamc::io::InputError& e) {
     pamc::fuzz::checkMessage(e.what(), "fuzz.csv");
     return 0;
   }
-  if (!m.warning.empty()) pamc::fuzz::checkMessage(m.warning.c_str(), "fuzz.csv");
+  for (const auto& w : warnings) pamc::fuzz::checkMessage(w.c_str(), "fuzz.csv");
   const std::size_t n = m.size();
   if (n < 3) finding("accepted a measurement of " + std::to_string(n) + " rows");
   if (m.u.size() != n || m.y.size() != n) finding("columns t, u, y of different lengths");

@@ -68,9 +68,10 @@ TEST(Csv, RefusesValuesTooLargeToIdentifyFrom) {
 }
 
 TEST(Csv, TruncatedLastLineIsToleratedWithWarning) {
-  const auto m = io::parseMeasurementCsv("t,u,y\n0,1,2\n0.1,1,2\n0.2,1,2\n0.3,1", "d.csv");
+  std::vector<std::string> warnings;
+  const auto m = io::parseMeasurementCsv("t,u,y\n0,1,2\n0.1,1,2\n0.2,1,2\n0.3,1", "d.csv", &warnings);
   EXPECT_EQ(m.size(), 3u);
-  EXPECT_EQ(m.warning, "d.csv:5: truncated last line ignored");
+  EXPECT_EQ(warnings, std::vector<std::string>{"d.csv:5: truncated last line ignored"});
   // The same line with a newline is an error: it was written whole.
   EXPECT_THROW(io::parseMeasurementCsv("t,u,y\n0,1,2\n0.1,1,2\n0.2,1,2\n0.3,1\n", "d.csv"), io::InputError);
 }
