@@ -34,6 +34,7 @@ inline constexpr std::uint16_t kEmcyPdoLength = 0x8210;
 inline constexpr std::uint16_t kEmcySyncLength = 0x8240;
 inline constexpr std::uint16_t kEmcyRpdoTimeout = 0x8250;
 inline constexpr std::uint16_t kEmcySoftware = 0x6100;
+inline constexpr std::uint16_t kEmcyDataSet = 0x6300;      // software: data set (a slave's configuration)
 inline constexpr std::uint16_t kEmcySensor = 0x7300;       // additional modules: sensor
 inline constexpr std::uint16_t kEmcySensorRange = 0x7310;  // sensor: value outside its measuring range
 inline constexpr std::uint16_t kEmcyDeviceSpecific = 0xFF00;

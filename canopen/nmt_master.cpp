@@ -1,10 +1,31 @@
 #include "canopen/nmt_master.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
+#include "canopen/sdo_abort.hpp"
+
 namespace pamc::canopen {
+
+namespace {
+std::string hex32(std::uint32_t v) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%08X", v);
+  return b;
+}
+std::string where(std::uint16_t index, std::uint8_t sub) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%04X:%02X", index, sub);
+  return b;
+}
+std::uint32_t le32(const std::uint8_t* d, std::size_t len) {
+  std::uint32_t v = 0;
+  for (std::size_t i = 0; i < len && i < 4; ++i) v |= static_cast<std::uint32_t>(d[i]) << (8 * i);
+  return v;
+}
+}  // namespace
 
 const char* slaveEventName(SlaveEvent e) {
   switch (e) {
@@ -12,6 +33,8 @@ const char* slaveEventName(SlaveEvent e) {
     case SlaveEvent::BootUp: return "boot-up";
     case SlaveEvent::LeftOperational: return "left operational";
     case SlaveEvent::Stopped: return "stopped";
+    case SlaveEvent::Configured: return "configured";
+    case SlaveEvent::BootFailed: return "boot failed";
   }
   return "?";
 }
@@ -24,7 +47,32 @@ void NmtMaster::addSlave(std::uint8_t id) {
   if (id < 1 || id > 127) throw std::invalid_argument("NMT master: slave node-ID " + std::to_string(id) + " is not 1..127");
   if (id == node_.nodeId()) throw std::invalid_argument("NMT master: slave node-ID " + std::to_string(id) + " is the master's own");
   if (find(id) != nullptr) return;
-  slaves_.push_back(Slave{id});
+  slaves_.push_back(Slave{});
+  slaves_.back().id = id;
+}
+
+void NmtMaster::setBoot(std::uint8_t id, SlaveBoot boot) {
+  Slave* s = find(id);
+  if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
+  s->ops.clear();
+  const std::pair<std::optional<std::uint32_t>, std::pair<std::uint16_t, std::uint8_t>> identity[] = {
+      {boot.device_type, {0x1000, 0}}, {boot.vendor_id, {0x1018, 1}}, {boot.product_code, {0x1018, 2}},
+      {boot.revision, {0x1018, 3}},    {boot.serial, {0x1018, 4}}};
+  for (const auto& [value, at] : identity)
+    if (value) s->ops.push_back(Op{OpKind::Expect, at.first, at.second, *value, 0});
+  for (std::size_t i = 0; i < boot.reads.size(); ++i)
+    s->ops.push_back(Op{OpKind::Read, boot.reads[i].index, boot.reads[i].sub, 0, i});
+  for (std::size_t i = 0; i < boot.writes.size(); ++i)
+    s->ops.push_back(Op{OpKind::Write, boot.writes[i].index, boot.writes[i].sub, 0, i});
+  // Read back what each entry holds in the end: its last write.
+  for (std::size_t i = 0; i < boot.writes.size(); ++i) {
+    const auto& w = boot.writes[i];
+    const bool later = std::any_of(boot.writes.begin() + static_cast<std::ptrdiff_t>(i) + 1, boot.writes.end(),
+                                   [&](const DcfEntry& e) { return e.index == w.index && e.sub == w.sub; });
+    if (!later) s->ops.push_back(Op{OpKind::Verify, w.index, w.sub, 0, i});
+  }
+  s->boot = std::move(boot);
+  s->state = Boot::Idle;
 }
 
 NmtMaster::Slave* NmtMaster::find(std::uint8_t id) noexcept {
@@ -35,14 +83,161 @@ const NmtMaster::Slave* NmtMaster::find(std::uint8_t id) const noexcept {
   return const_cast<NmtMaster*>(this)->find(id);
 }
 
+namespace {
+bool needsBoot(const SlaveBoot& b, std::size_t ops) { return (b.assignment & kAssignBoot) != 0 && ops > 0; }
+}  // namespace
+
+bool NmtMaster::mandatoryReady() const noexcept {
+  return std::all_of(slaves_.begin(), slaves_.end(), [](const Slave& s) {
+    return (s.boot.assignment & kAssignMandatory) == 0 || !needsBoot(s.boot, s.ops.size()) || s.state == Boot::Done;
+  });
+}
+
+bool NmtMaster::mayStart(const Slave& s) const noexcept {
+  if ((startup_ & kStartupMaster) == 0 || (startup_ & kStartupNoSlaveStart) != 0) return false;
+  if (s.hold != 0) return false;
+  if (needsBoot(s.boot, s.ops.size()) && s.state != Boot::Done) return false;
+  return mandatoryReady();
+}
+
 void NmtMaster::startSlave(Slave& s, TimeUs now) noexcept {
   node_.sendNmt(NmtCommand::Start, s.id);
   s.start_sent = now;
   ++counters_.starts;
 }
 
+void NmtMaster::startReady(TimeUs now) noexcept {
+  if ((startup_ & kStartupBroadcastStart) != 0 && !broadcast_sent_) {
+    // One NMT start for all, once every slave may run.
+    if (!std::all_of(slaves_.begin(), slaves_.end(), [this](const Slave& s) { return mayStart(s); })) return;
+    node_.sendNmt(NmtCommand::Start, 0);
+    broadcast_sent_ = true;
+    for (auto& s : slaves_) s.start_sent = now;
+    ++counters_.starts;
+    return;
+  }
+  for (auto& s : slaves_)
+    if (mayStart(s)) startSlave(s, now);
+}
+
+void NmtMaster::begin(TimeUs now) {
+  auto& od = node_.od();
+  if (const Entry* e = od.find(0x1F80, 0)) startup_ = e->get<std::uint32_t>();
+  for (auto& s : slaves_)
+    if (const Entry* e = od.find(0x1F81, s.id)) s.boot.assignment = e->get<std::uint32_t>();
+  begun_ = true;
+  if ((startup_ & kStartupMaster) == 0) return;
+  for (auto& s : slaves_)
+    if (needsBoot(s.boot, s.ops.size()) && (s.state == Boot::Idle || s.state == Boot::Failed)) s.state = Boot::Waiting;
+  poll(now);
+  startReady(now);
+}
+
+void NmtMaster::poll(TimeUs) noexcept {
+  if (std::any_of(slaves_.begin(), slaves_.end(), [](const Slave& s) { return s.state == Boot::Running; })) return;
+  for (auto& s : slaves_) {
+    if (s.state != Boot::Waiting) continue;
+    if (node_.sdoClient().busy()) return;
+    s.state = Boot::Running;
+    s.next_op = 0;
+    s.error = BootError{};
+    runBoot(s);
+    return;
+  }
+}
+
+void NmtMaster::bootSlave(Slave& s, TimeUs now) noexcept {
+  if (!needsBoot(s.boot, s.ops.size()) || (startup_ & kStartupMaster) == 0) return;
+  s.state = Boot::Waiting;
+  poll(now);
+}
+
+void NmtMaster::runBoot(Slave& s) noexcept {
+  if (s.next_op >= s.ops.size()) {
+    s.state = Boot::Done;
+    ++counters_.boots;
+    const TimeUs now = node_.now();
+    emit(s.id, SlaveEvent::Configured, now);
+    startReady(now);
+    poll(now);  // the next slave waiting for its boot
+    return;
+  }
+  const Op& op = s.ops[s.next_op];
+  const std::uint8_t id = s.id;
+  auto reply = [this, id](std::uint32_t code, const std::uint8_t* d, std::size_t len) {
+    if (Slave* sl = find(id)) onBootReply(*sl, code, d, len);
+  };
+  auto& sdo = node_.sdoClient();
+  bool sent;
+  if (op.kind == OpKind::Write) {
+    const auto& w = s.boot.writes[op.item];
+    sent = sdo.download(id, op.index, op.sub, w.data.data(), w.data.size(), reply);
+  } else {
+    sent = sdo.upload(id, op.index, op.sub, reply);
+  }
+  if (!sent) s.state = Boot::Waiting;  // the client is busy: poll() goes on from this operation
+}
+
+void NmtMaster::onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept {
+  if (s.state != Boot::Running || s.next_op >= s.ops.size()) return;
+  const Op& op = s.ops[s.next_op];
+  const std::string at = where(op.index, op.sub);
+  if (code != kSdoOk) {
+    const char* what = op.kind == OpKind::Write ? " write refused: " : " read failed: ";
+    return bootFailed(s, code, at + what + sdoAbortText(code));
+  }
+  switch (op.kind) {
+    case OpKind::Expect: {
+      const std::uint32_t v = le32(data, len);
+      if (v != op.expected) {
+        const char* name = op.index == 0x1000 ? " device type"
+                           : op.sub == 1      ? " vendor-ID"
+                           : op.sub == 2      ? " product code"
+                           : op.sub == 3      ? " revision"
+                                              : " serial number";
+        return bootFailed(s, 0, at + name + " is " + hex32(v) + ", expected " + hex32(op.expected));
+      }
+      break;
+    }
+    case OpKind::Read: {
+      std::string why;
+      const auto& r = s.boot.reads[op.item];
+      if (r.on_value && !r.on_value(data, len, &why)) return bootFailed(s, 0, at + ": " + why);
+      break;
+    }
+    case OpKind::Write: break;
+    case OpKind::Verify: {
+      const auto& w = s.boot.writes[op.item];
+      if (len != w.data.size() || !std::equal(w.data.begin(), w.data.end(), data)) {
+        std::uint64_t got = 0, want = 0;
+        for (std::size_t i = 0; i < len && i < 8; ++i) got |= static_cast<std::uint64_t>(data[i]) << (8 * i);
+        for (std::size_t i = 0; i < w.data.size() && i < 8; ++i) want |= static_cast<std::uint64_t>(w.data[i]) << (8 * i);
+        char b[96];
+        std::snprintf(b, sizeof b, " reads back 0x%llX, written 0x%llX", static_cast<unsigned long long>(got),
+                      static_cast<unsigned long long>(want));
+        return bootFailed(s, 0, at + b);
+      }
+      break;
+    }
+  }
+  ++s.next_op;
+  runBoot(s);
+}
+
+void NmtMaster::bootFailed(Slave& s, std::uint32_t code, std::string text) noexcept {
+  s.state = Boot::Failed;
+  s.error = BootError{code, std::move(text)};
+  ++counters_.boot_failures;
+  // Left stopped: nothing of it moves on the bus until it boots again.
+  node_.sendNmt(NmtCommand::Stop, s.id);
+  s.start_sent = kNever;
+  const TimeUs now = node_.now();
+  emit(s.id, SlaveEvent::BootFailed, now);
+  poll(now);
+}
+
 void NmtMaster::start(std::uint8_t id, TimeUs now) noexcept {
-  if (Slave* s = find(id); s != nullptr && s->hold == 0) startSlave(*s, now);
+  if (Slave* s = find(id); s != nullptr && mayStart(*s)) startSlave(*s, now);
 }
 
 void NmtMaster::hold(std::uint8_t id, std::uint8_t reason) noexcept {
@@ -60,7 +255,7 @@ void NmtMaster::release(std::uint8_t id, std::uint8_t reason, TimeUs now) noexce
   Slave* s = find(id);
   if (s == nullptr || (s->hold & reason) == 0) return;
   s->hold = static_cast<std::uint8_t>(s->hold & ~reason);
-  if (s->hold == 0) startSlave(*s, now);
+  if (mayStart(*s)) startSlave(*s, now);
 }
 
 std::uint8_t NmtMaster::holdReasons(std::uint8_t id) const noexcept {
@@ -75,13 +270,28 @@ bool NmtMaster::down(std::uint8_t id, TimeUs now) noexcept {
   if (st == NmtState::Stopped) return true;
   if (st != NmtState::PreOperational) return false;
   if (starting(id, now)) return false;
-  startSlave(*s, now);  // it did not follow the last start: send another
+  if (mayStart(*s)) startSlave(*s, now);  // it did not follow the last start: send another
   return true;
 }
 
 bool NmtMaster::starting(std::uint8_t id, TimeUs now) const noexcept {
   const Slave* s = find(id);
   return s != nullptr && s->start_sent != kNever && now - s->start_sent < kStartGraceUs;
+}
+
+bool NmtMaster::configured(std::uint8_t id) const noexcept {
+  const Slave* s = find(id);
+  return s != nullptr && (!needsBoot(s->boot, s->ops.size()) || s->state == Boot::Done);
+}
+
+bool NmtMaster::booting(std::uint8_t id) const noexcept {
+  const Slave* s = find(id);
+  return s != nullptr && (s->state == Boot::Waiting || s->state == Boot::Running);
+}
+
+const BootError* NmtMaster::bootError(std::uint8_t id) const noexcept {
+  const Slave* s = find(id);
+  return s != nullptr && s->state == Boot::Failed ? &s->error : nullptr;
 }
 
 void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) noexcept {
@@ -95,20 +305,30 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
       emit(id, SlaveEvent::Lost, now);
       break;
     case HeartbeatEvent::BootUp:
-      // A slave that rebooted lost its state and waits in Pre-operational: start it again.
+      // A slave that rebooted lost its state and waits in Pre-operational: boot it and start it again.
       s->lost = false;
       emit(id, SlaveEvent::BootUp, now);
-      if (!held) startSlave(*s, now);
+      if (needsBoot(s->boot, s->ops.size()) && (startup_ & kStartupMaster) != 0) {
+        if (s->state == Boot::Running) s->state = Boot::Idle;  // a boot cut short: from the start
+        bootSlave(*s, now);
+      } else if (mayStart(*s)) {
+        startSlave(*s, now);
+      }
       break;
     case HeartbeatEvent::Started:
       if (s->lost) {
-        // Back after a timeout without a boot-up: re-boot it (reset communication); its boot-up starts it.
+        // Back after a timeout without a boot-up: re-boot it (reset communication); its boot-up boots and
+        // starts it. Without the right to reset it, it is only started.
         s->lost = false;
-        node_.sendNmt(NmtCommand::ResetCommunication, id);
-        ++counters_.reboots;
+        if ((s->boot.assignment & kAssignResetAllowed) != 0) {
+          node_.sendNmt(NmtCommand::ResetCommunication, id);
+          ++counters_.reboots;
+        } else if (mayStart(*s)) {
+          startSlave(*s, now);
+        }
       } else if (st == NmtState::Operational) {
         s->start_sent = kNever;
-      } else if (st == NmtState::PreOperational && !held) {
+      } else if (st == NmtState::PreOperational && mayStart(*s)) {
         startSlave(*s, now);
       }
       break;
@@ -117,7 +337,7 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
         s->start_sent = kNever;
       } else if (st == NmtState::PreOperational && !held) {
         emit(id, SlaveEvent::LeftOperational, now);
-        startSlave(*s, now);
+        if (mayStart(*s)) startSlave(*s, now);
       } else if (st == NmtState::Stopped && !held) {
         emit(id, SlaveEvent::Stopped, now);
       }

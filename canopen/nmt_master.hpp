@@ -1,27 +1,73 @@
 #pragma once
-// NMT master supervision of a set of slaves (CiA 301 7.2.8, the start-up part of CiA 302-2 without
-// configuration): every slave is started after its boot-up; one that comes back after a heartbeat loss
-// is re-booted (reset communication), so it boots up and is started afresh; one that stays in
+// NMT master of a set of slaves (CiA 301 7.2.8, the start-up of CiA 302-2): a slave is checked and
+// configured after its boot-up ("boot slave": its identity 0x1000 / 0x1018 against the expected one, a
+// concise DCF written and read back), then started; one that comes back after a heartbeat loss is
+// re-booted (reset communication), so it boots up and goes through all of it again; one that stays in
 // Pre-operational after a start gets another. The application may hold a slave in Pre-operational for
-// reasons of its own (a bit per reason); the slave is started when the last reason is released.
+// reasons of its own (a bit per reason); it is started when the last reason is released.
+//
+// Settings: 0x1F80 NMT start-up (bit 0 master, bit 1 start the slaves with one broadcast, bit 2 do not
+// enter Operational by itself - read by the application, bit 3 do not start the slaves) and 0x1F81
+// slave assignment (bit 0 slave, bit 2 boot: check and configure, bit 3 mandatory: no slave is started
+// before it is configured, bit 4 reset communication allowed), taken from the node's dictionary when
+// it has them (begin()), otherwise from setStartup() / SlaveBoot.
 //
 // The master takes the node's heartbeat hook and passes what the application must react to on as
-// SlaveEvents. All of it runs on the node's thread; nothing is allocated after addSlave().
+// SlaveEvents. All of it runs on the node's thread; the boot uses the node's SDO client between
+// cycles (poll() retries while the client is busy). Nothing is allocated after setBoot() except by
+// the SDO transfers of a boot.
 #include <cstdint>
 #include <functional>
+#include <optional>
+#include <string>
 #include <vector>
 
+#include "canopen/concise_dcf.hpp"
 #include "canopen/node.hpp"
 
 namespace pamc::canopen {
 
 enum class SlaveEvent : std::uint8_t {
   Lost,             // its heartbeat timed out
-  BootUp,           // it sent a boot-up: it lost its state (the master starts it unless held)
+  BootUp,           // it sent a boot-up: it lost its state (the master boots and starts it unless held)
   LeftOperational,  // it reported Pre-operational while not held (the master starts it again)
   Stopped,          // it reported Stopped while not held
+  Configured,       // the boot finished: identity checked, configuration written and read back
+  BootFailed,       // the boot failed (bootError()); the slave is left in Pre-operational
 };
 const char* slaveEventName(SlaveEvent e);
+
+// 0x1F80 bits.
+inline constexpr std::uint32_t kStartupMaster = 0x01;
+inline constexpr std::uint32_t kStartupBroadcastStart = 0x02;
+inline constexpr std::uint32_t kStartupNoSelfStart = 0x04;
+inline constexpr std::uint32_t kStartupNoSlaveStart = 0x08;
+inline constexpr std::uint32_t kStartupSupported = 0x0F;
+// 0x1F81 bits.
+inline constexpr std::uint32_t kAssignSlave = 0x01;
+inline constexpr std::uint32_t kAssignBoot = 0x04;
+inline constexpr std::uint32_t kAssignMandatory = 0x08;
+inline constexpr std::uint32_t kAssignResetAllowed = 0x10;
+
+// What the master checks, reads and writes at a slave's boot.
+struct SlaveBoot {
+  std::uint32_t assignment = kAssignSlave | kAssignResetAllowed;  // 0x1F81 bits
+  // Expected identity: 0x1000, 0x1018:01..04 (unset: not checked).
+  std::optional<std::uint32_t> device_type, vendor_id, product_code, revision, serial;
+  // Read before the writes; on_value returns false (with why) to fail the boot.
+  struct Read {
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    std::function<bool(const std::uint8_t* data, std::size_t len, std::string* why)> on_value;
+  };
+  std::vector<Read> reads;
+  ConciseDcf writes;  // in order; then the last value of every entry is read back and compared
+};
+
+struct BootError {
+  std::uint32_t abort_code = 0;  // SDO abort code (0: a mismatch, see text)
+  std::string text;              // "0x1000 device type is 0x00020192, expected 0x00080196", ...
+};
 
 class NmtMaster {
  public:
@@ -33,6 +79,8 @@ class NmtMaster {
     std::uint64_t starts = 0;   // NMT start sent to a slave
     std::uint64_t reboots = 0;  // NMT reset communication to a slave back after a heartbeat loss
     std::uint64_t holds = 0;    // slave sent to Pre-operational by hold()
+    std::uint64_t boots = 0;    // boots finished (configured)
+    std::uint64_t boot_failures = 0;
   };
 
   explicit NmtMaster(Node& node);
@@ -41,9 +89,19 @@ class NmtMaster {
 
   // Supervise this node-ID (its heartbeat must be consumed: 0x1016 of the master's dictionary).
   void addSlave(std::uint8_t id);
+  // What to check and write at its boot (throws for an unknown slave).
+  void setBoot(std::uint8_t id, SlaveBoot boot);
+  void setStartup(std::uint32_t bits) { startup_ = bits; }
+  std::uint32_t startup() const noexcept { return startup_; }
   void onEvent(EventHook hook) { hook_ = std::move(hook); }
 
-  // NMT start, unless the slave is held.
+  // The master's own start (it entered Operational): 0x1F80/0x1F81 from the dictionary, then every
+  // slave is booted or started.
+  void begin(TimeUs now);
+  // Boot and start work left waiting for the SDO client; call between cycles (cheap when idle).
+  void poll(TimeUs now) noexcept;
+
+  // NMT start when the slave may run: not held, booted if it is to be, mandatory slaves ready.
   void start(std::uint8_t id, TimeUs now) noexcept;
   // Keep the slave in Pre-operational for `reason` (a bit); the first reason sends it there.
   void hold(std::uint8_t id, std::uint8_t reason) noexcept;
@@ -57,19 +115,44 @@ class NmtMaster {
   // A start went out less than kStartGraceUs ago and no Operational heartbeat followed yet.
   bool starting(std::uint8_t id, TimeUs now) const noexcept;
   bool timedOut(std::uint8_t id) const { return node_.heartbeatConsumer().timedOut(id); }
+  // Boot state: configured (or nothing to configure), in progress, failed.
+  bool configured(std::uint8_t id) const noexcept;
+  bool booting(std::uint8_t id) const noexcept;
+  const BootError* bootError(std::uint8_t id) const noexcept;  // nullptr unless the last boot failed
 
   const Counters& counters() const noexcept { return counters_; }
 
  private:
+  enum class Boot : std::uint8_t { Idle, Waiting, Running, Done, Failed };
+  enum class OpKind : std::uint8_t { Expect, Read, Write, Verify };
+  struct Op {
+    OpKind kind;
+    std::uint16_t index;
+    std::uint8_t sub;
+    std::uint32_t expected;  // Expect
+    std::size_t item;        // Read: reads[item]; Write / Verify: writes[item]
+  };
   struct Slave {
     std::uint8_t id = 0;
     bool lost = false;             // heartbeat timed out: re-boot it when it is back
     TimeUs start_sent = kNever;    // NMT start sent, no Operational heartbeat yet
     std::uint8_t hold = 0;         // reasons to keep it in Pre-operational
+    SlaveBoot boot;
+    std::vector<Op> ops;           // the boot, flattened
+    Boot state = Boot::Idle;
+    std::size_t next_op = 0;
+    BootError error;
   };
   Slave* find(std::uint8_t id) noexcept;
   const Slave* find(std::uint8_t id) const noexcept;
+  bool mayStart(const Slave& s) const noexcept;
+  bool mandatoryReady() const noexcept;
   void startSlave(Slave& s, TimeUs now) noexcept;
+  void startReady(TimeUs now) noexcept;
+  void bootSlave(Slave& s, TimeUs now) noexcept;  // begins the boot, or starts it when nothing to check
+  void runBoot(Slave& s) noexcept;                // issues the next operation
+  void onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept;
+  void bootFailed(Slave& s, std::uint32_t code, std::string text) noexcept;
   void onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) noexcept;
   void emit(std::uint8_t id, SlaveEvent e, TimeUs now) {
     if (hook_) hook_(id, e, now);
@@ -79,6 +162,9 @@ class NmtMaster {
   std::vector<Slave> slaves_;
   EventHook hook_;
   Counters counters_;
+  std::uint32_t startup_ = kStartupMaster;
+  bool begun_ = false;
+  bool broadcast_sent_ = false;
 };
 
 }  // namespace pamc::canopen

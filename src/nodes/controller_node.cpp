@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 
@@ -19,7 +20,7 @@ constexpr std::uint32_t bit(Fault f) { return faultBit(f); }
 constexpr std::uint32_t kWarnMask = warningMask();
 constexpr std::uint32_t kSafetyMask = ((1u << kFaultCount) - 2u) & ~kWarnMask;
 
-std::int16_t toValve(double u) noexcept { return pd::commandToCounts(u); }
+std::uint32_t withNode(std::uint32_t hb, std::uint8_t id) { return (static_cast<std::uint32_t>(id) << 16) | (hb & 0xFFFFu); }
 }  // namespace
 
 ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport,
@@ -29,6 +30,26 @@ ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transpo
   master_ = std::make_unique<canopen::NmtMaster>(*node_);
   master_->addSlave(cfg.sensor_id);
   master_->addSlave(cfg.valve_id);
+  scaling_ = cfg.layout.scaling;
+  if (cfg.layout.sensor_boot || cfg.layout.position_step_from_device) {
+    canopen::SlaveBoot b = cfg.layout.sensor_boot.value_or(canopen::SlaveBoot{});
+    if (cfg.layout.position_step_from_device) {
+      b.assignment |= canopen::kAssignBoot;
+      // CiA 406: 0x6005:01 is the measuring step in nm; the loop sees it before the sensor starts.
+      b.reads.insert(b.reads.begin(), canopen::SlaveBoot::Read{0x6005, 1, [this](const std::uint8_t* d, std::size_t len, std::string* why) {
+        std::uint32_t nm = 0;
+        for (std::size_t i = 0; i < len && i < 4; ++i) nm |= static_cast<std::uint32_t>(d[i]) << (8 * i);
+        if (len != 4 || nm == 0) {
+          *why = "measuring step " + std::to_string(nm) + " nm (" + std::to_string(len) + " bytes) is not a step";
+          return false;
+        }
+        scaling_.position_step_mm = nm * 1e-6;
+        return true;
+      }});
+    }
+    master_->setBoot(cfg.sensor_id, std::move(b));
+  }
+  if (cfg.layout.valve_boot) master_->setBoot(cfg.valve_id, *cfg.layout.valve_boot);
   params_ = std::make_unique<ControllerParameters>(*node_, cfg_.ctrl);
   applyOverrides();
   position_ = node_->od().ref<std::int32_t>(0x3000, 0);
@@ -78,6 +99,8 @@ FaultCounters ControllerNode::faultCounters() const noexcept {
   c.nmt_starts = master_->counters().starts;
   c.nmt_reboots = master_->counters().reboots;
   c.valve_holds = master_->counters().holds;
+  c.slave_boots = master_->counters().boots;
+  c.slave_boot_failures = master_->counters().boot_failures;
   c.sets_applied = params_->applied();
   c.sets_refused = params_->refused();
   return c;
@@ -94,6 +117,32 @@ void ControllerNode::applyOverrides() {
     od.ref<std::uint32_t>(0x1006, 0).set(cfg_.period_us);
     // The synchronous window keeps its share of the period (0x1007 default: 800 of 1000 us).
     if (auto* w = od.find(0x1007, 0)) w->set<std::uint32_t>(cfg_.period_us / 5 * 4);
+  }
+  // Where the slaves' process data are, and whose heartbeats to watch.
+  const auto& lay = cfg_.layout;
+  if (lay.sensor_cob) od.ref<std::uint32_t>(0x1400, 1).set(lay.sensor_cob);
+  if (lay.feedback_cob) od.ref<std::uint32_t>(0x1401, 1).set(lay.feedback_cob);
+  if (!lay.feedback) {
+    auto cob = od.ref<std::uint32_t>(0x1401, 1);
+    cob.set(cob.get() | 0x80000000u);  // no feedback PDO: RPDO2 off
+  }
+  if (lay.valve_cob) od.ref<std::uint32_t>(0x1800, 1).set(lay.valve_cob);
+  for (auto [sub, id] : {std::pair<std::uint8_t, std::uint8_t>{1, cfg_.sensor_id}, {2, cfg_.valve_id}}) {
+    auto hb = od.ref<std::uint32_t>(0x1016, sub);
+    hb.set(withNode(hb.get(), id));
+  }
+  if (lay.startup) od.ref<std::uint32_t>(0x1F80, 0).set(lay.startup);
+  // 0x1F81 for the slaves (the master reads it when it begins): the rig's boot settings, or a slave that
+  // may be reset for a node-ID the EDS does not assign.
+  for (auto [id, boot] : {std::pair<std::uint8_t, const std::optional<canopen::SlaveBoot>*>{cfg_.sensor_id, &lay.sensor_boot},
+                          {cfg_.valve_id, &lay.valve_boot}}) {
+    auto* e = od.find(0x1F81, id);
+    if (e == nullptr) continue;
+    std::uint32_t a = e->get<std::uint32_t>();
+    if (*boot) a = (*boot)->assignment;
+    else if (a == 0) a = canopen::kAssignSlave | canopen::kAssignResetAllowed;
+    if (id == cfg_.sensor_id && lay.position_step_from_device) a |= canopen::kAssignBoot;
+    e->set<std::uint32_t>(a);
   }
   if (!cfg_.produce_sync) {
     auto cob = od.ref<std::uint32_t>(0x1005, 0);
@@ -140,10 +189,10 @@ void ControllerNode::onOperational(TimeUs now) {
     params_->countRefused();
     raise(Fault::Estimator);
   }
-  master_->start(cfg_.sensor_id, now);
-  // The valve starts once nothing else holds it.
-  if ((master_->holdReasons(cfg_.valve_id) & kHoldSelf) != 0) release(kHoldSelf, now);
-  else master_->start(cfg_.valve_id, now);
+  // Boots (checks and configures) the slaves that need it and starts those that may run; the valve
+  // starts once nothing else holds it.
+  master_->begin(now);
+  release(kHoldSelf, now);
   push_valve_ = true;
   pushValveErrorValue();
 }
@@ -159,7 +208,10 @@ void ControllerNode::takeCommitted(double y) noexcept {
 
 void ControllerNode::start(TimeUs now) {
   node_->start(now);
-  node_->applyNmt(NmtCommand::Start);  // the state hook starts the slaves
+  // 0x1F80 bit 2: an NMT start from elsewhere (a supervisor, cansend) makes it Operational.
+  const auto* startup = node_->od().find(0x1F80, 0);
+  if (startup == nullptr || (startup->get<std::uint32_t>() & canopen::kStartupNoSelfStart) == 0)
+    node_->applyNmt(NmtCommand::Start);  // the state hook boots and starts the slaves
 }
 
 // ---- Faults ----------------------------------------------------------------------------------------
@@ -194,7 +246,7 @@ void ControllerNode::takeCauses(TimeUs now) noexcept {
       ++fc_.episodes;
       ramp_ = slew_ = false;
       last_u_ = params_->safeCommand();
-      valve_cmd_.set(toValve(last_u_));
+      valve_cmd_.set(scaling_.commandCounts(last_u_));
       fault_pub_.store(fault_, std::memory_order_relaxed);
     }
     clear_cycles_ = 0;
@@ -218,16 +270,32 @@ void ControllerNode::recover(double y, TimeUs now) noexcept {
   startRamp(y);
 }
 
-void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) noexcept {
+void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
   const bool is_valve = id == cfg_.valve_id;
+  const char* role = is_valve ? "valve" : "sensor";
   switch (ev) {
+    case SlaveEvent::Configured:
+      if (cfg_.log) cfg_.log(std::string(role) + " (node " + std::to_string(id) + "): identity checked, configuration written and read back");
+      break;
+    case SlaveEvent::BootFailed: {
+      const auto* e = master_->bootError(id);
+      raise(Fault::SlaveBoot, id);
+      takeCauses(node_->now());
+      if (cfg_.log && e) {
+        char code[32] = "";
+        if (e->abort_code) std::snprintf(code, sizeof code, " (SDO abort 0x%08X)", e->abort_code);
+        cfg_.log(std::string(role) + " (node " + std::to_string(id) + ") not started: " + e->text + code);
+      }
+      break;
+    }
     case SlaveEvent::Lost:
       raise(is_valve ? Fault::ValveHeartbeat : Fault::SensorHeartbeat, id);
       break;
     case SlaveEvent::BootUp:
       // It lost its state (the master starts it again); the valve needs its error value again.
       if (is_valve) push_valve_ = true;
-      [[fallthrough]];
+      if (active_) raise(is_valve ? Fault::ValveState : Fault::SensorState, id);
+      break;
     case SlaveEvent::LeftOperational:
     case SlaveEvent::Stopped:
       if (active_) raise(is_valve ? Fault::ValveState : Fault::SensorState, id);
@@ -256,11 +324,12 @@ void ControllerNode::onErrorFrame(const canopen::Frame& f) noexcept {
 
 void ControllerNode::pushValveErrorValue() noexcept {
   // CiA 401: the valve outputs 0x6444:01 on a communication error; make it the controller's safe value.
-  const std::int32_t v = toValve(params_->safeCommand());
+  const std::int32_t v = scaling_.commandCounts(params_->safeCommand());
   auto& sdo = node_->sdoClient();
   if (sdo.busy()) return;
   push_valve_ = false;
-  sdo.downloadValue<std::int32_t>(cfg_.valve_id, 0x6444, 1, v, [this](std::uint32_t code, const std::uint8_t*, std::size_t) {
+  if (cfg_.layout.error_value_index == 0) return;
+  sdo.downloadValue<std::int32_t>(cfg_.valve_id, cfg_.layout.error_value_index, cfg_.layout.error_value_sub, v, [this](std::uint32_t code, const std::uint8_t*, std::size_t) {
     if (code != canopen::kSdoOk) ++fc_.valve_sdo_errors;
   });
 }
@@ -282,9 +351,10 @@ void ControllerNode::poll(TimeUs now, bool usable) noexcept {
   if (active_) {
     if (master_->down(sensor, now)) raise(Fault::SensorState, sensor);
     if (master_->timedOut(valve)) raise(Fault::ValveHeartbeat, valve);
-    if (!valveHeld()) {
+    if (!valveHeld() && master_->configured(valve)) {
       if (master_->down(valve, now)) raise(Fault::ValveState, valve);
-      if (!master_->starting(valve, now) && cycle_ > missing_limit && node_->rpdo(2).syncsSinceReception() > missing_limit)
+      if (cfg_.layout.feedback && !master_->starting(valve, now) && cycle_ > missing_limit &&
+          node_->rpdo(2).syncsSinceReception() > missing_limit)
         raise(Fault::ValvePdoMissing);
     }
   }
@@ -354,6 +424,7 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   takeCauses(now);
   if (push_valve_) pushValveErrorValue();
   const CycleRecord rec = control(s, now);
+  master_->poll(now);  // boot work left waiting for the SDO client
   clearWarnings();
   send(rec, now);
 }
@@ -376,7 +447,7 @@ ControllerNode::Sample ControllerNode::latch() const noexcept {
   Sample s;
   s.fresh = node_->rpdo(1).syncsSinceReception() == 0;
   s.raw = position_.get();
-  s.y = pd::countsToMm(s.raw);
+  s.y = scaling_.mm(s.raw);
   const double range = params_->running().range_steps, margin = 0.01 * range;
   s.in_range = static_cast<double>(s.raw) >= -margin && static_cast<double>(s.raw) <= range + margin;
   s.y_ctrl = s.in_range ? s.y : std::numeric_limits<double>::quiet_NaN();
@@ -454,15 +525,17 @@ CycleRecord ControllerNode::control(const Sample& s, TimeUs now) noexcept {
 // Warnings (wrong-length PDO or SYNC) clear themselves after recover_cycles without a new one.
 void ControllerNode::clearWarnings() noexcept {
   if ((episode_ & kWarnMask) == 0 || ++warn_clear_ < cfg_.recover_cycles) return;
-  for (Fault w : {Fault::PdoLength, Fault::SyncLength})
-    if ((episode_ & bit(w)) != 0) node_->emcy().clear(emcyCode(w));
+  for (int i = 1; i < kFaultCount; ++i) {
+    const auto w = static_cast<Fault>(i);
+    if (isWarning(w) && (episode_ & bit(w)) != 0) node_->emcy().clear(emcyCode(w));
+  }
   episode_ &= ~kWarnMask;
   if (fault_ == Fault::None) reacted_at_us_ = canopen::kNever;
 }
 
 // The setpoint goes out in this cycle's TPDO, right after this callback; the record to the ring.
 void ControllerNode::send(CycleRecord rec, TimeUs now) noexcept {
-  valve_cmd_.set(toValve(last_u_));
+  valve_cmd_.set(scaling_.commandCounts(last_u_));
   const double lat = clock_ ? static_cast<double>(clock_() - now) : 0.0;
   stats_.latency_us.add(lat);
   if (lat > Ts_ * 1e6) ++stats_.overruns;

@@ -22,6 +22,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "canopen/nmt_master.hpp"
@@ -30,10 +31,27 @@
 #include "nodes/controller_parameters.hpp"
 #include "nodes/cycle_stats.hpp"
 #include "nodes/faults.hpp"
+#include "nodes/process_data.hpp"
 #include "control/trajectory.hpp"
 
 namespace pamc::nodes {
 
+// The slaves as a rig file describes them (nodes/rig_file.hpp); the defaults are pamc's own devices
+// with the layout of od/*.eds, which need no configuration.
+struct SlaveLayout {
+  pd::Scaling scaling;
+  std::uint32_t sensor_cob = 0;    // COB-ID of the sensor's position PDO (0: the controller EDS's 0x1400:01)
+  std::uint32_t valve_cob = 0;     // COB-ID of the valve's command PDO (0: 0x1800:01)
+  std::uint32_t feedback_cob = 0;  // COB-ID of the valve's feedback PDO (0: 0x1401:01)
+  bool feedback = true;            // the valve sends its pressure; its absence is a fault
+  // The valve's error value (CiA 401 0x6444:n for the output 0x6411:n); index 0: none to write.
+  std::uint16_t error_value_index = 0x6444;
+  std::uint8_t error_value_sub = 1;
+  // Boot of the slaves (NMT master, canopen/nmt_master.hpp): identity check and configuration.
+  std::optional<canopen::SlaveBoot> sensor_boot, valve_boot;
+  bool position_step_from_device = false;  // the step is read from the sensor at its boot (0x6005:01, nm)
+  std::uint32_t startup = 0;               // 0x1F80 (0: the EDS's)
+};
 
 struct ControllerNodeConfig {
   std::string eds_path = "od/controller.eds";
@@ -53,6 +71,9 @@ struct ControllerNodeConfig {
   int recover_cycles = 500;           // a fault must be gone this long before control resumes
   double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast
   double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
+  SlaveLayout layout;
+  // Boot reports of the slaves (configured, or why not); called on the node's thread, outside the cycle.
+  std::function<void(const std::string&)> log;
 };
 
 // What the fault handling and the parameter guard did (read from the thread that runs the node).
@@ -64,6 +85,8 @@ struct FaultCounters {
   std::uint64_t warnings = 0;         // warning EMCYs sent
   std::uint64_t nmt_starts = 0;       // NMT start to a slave after its boot-up or in Pre-operational
   std::uint64_t nmt_reboots = 0;      // NMT reset communication to a slave back after a heartbeat timeout
+  std::uint64_t slave_boots = 0;      // slaves checked and configured at their boot
+  std::uint64_t slave_boot_failures = 0;
   std::uint64_t valve_holds = 0;      // valve sent to Pre-operational (it outputs its error value)
   std::uint64_t collisions = 0;       // frames on this node's own identifiers
   std::uint32_t last_collision_cob = 0;
@@ -78,7 +101,8 @@ class ControllerNode {
   ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport, std::function<canopen::TimeUs()> clock);
   canopen::Node& node() { return *node_; }
 
-  // Boot-up, then Operational; NMT start to both slaves (and again whenever one boots).
+  // Boot-up, then Operational (unless 0x1F80 bit 2 says to wait for an NMT start); the slaves are booted
+  // (checked, configured) and started, and again whenever one boots.
   void start(canopen::TimeUs now);
 
   // Safe to call from another thread (the command line's watcher).
@@ -100,6 +124,8 @@ class ControllerNode {
   std::uint32_t lastCollisionCob() const noexcept { return collision_pub_.load(std::memory_order_relaxed); }
   // Node time of the first reaction (EMCY or safe state) of the present episode; kNever if none.
   canopen::TimeUs reactedAtUs() const noexcept { return reacted_at_us_; }
+  const canopen::NmtMaster& master() const noexcept { return *master_; }
+  const pd::Scaling& scaling() const noexcept { return scaling_; }
 
  private:
   // Reasons the valve is held in Pre-operational, where it outputs its error value.
@@ -135,7 +161,7 @@ class ControllerNode {
   void raise(Fault f, std::uint8_t detail = 0) noexcept;
   void takeCauses(canopen::TimeUs now) noexcept;
   void recover(double y, canopen::TimeUs now) noexcept;
-  void onSlaveEvent(std::uint8_t id, canopen::SlaveEvent ev) noexcept;
+  void onSlaveEvent(std::uint8_t id, canopen::SlaveEvent ev);
   void onErrorFrame(const canopen::Frame& f) noexcept;
   void hold(std::uint8_t reason) noexcept { master_->hold(cfg_.valve_id, reason); }
   void release(std::uint8_t reason, canopen::TimeUs now) noexcept { master_->release(cfg_.valve_id, reason, now); }
@@ -156,6 +182,7 @@ class ControllerNode {
   control::Kind kind_ = control::Kind::PI;
   control::Trajectory traj_;
   double Ts_ = 1e-3;
+  pd::Scaling scaling_;         // set before the slaves start (a step read at the sensor's boot)
   canopen::Ref<std::int32_t> position_{nullptr};
   canopen::Ref<std::int16_t> valve_cmd_{nullptr};
   bool active_ = false;         // controller activated (valid position seen)

@@ -30,8 +30,10 @@ enum class Fault : std::uint8_t {
   // Safety faults of the position's plausibility (0x2022).
   SensorStuck = 16,      // the position has not changed while the command moved by 0x2022:03 V
   PositionRange = 17,    // more than 0x2021 positions in a row outside the measuring range 0x2022:01
+  // Warning: the slave is left stopped (the loop cannot start with it; a running loop meets ...State).
+  SlaveBoot = 18,        // a slave's identity did not match, or it refused or lost its configuration at boot
 };
-inline constexpr int kFaultCount = 18;
+inline constexpr int kFaultCount = 19;
 
 struct FaultInfo {
   Fault fault;
@@ -62,6 +64,8 @@ inline constexpr FaultInfo kFaults[kFaultCount] = {
     {Fault::SyncLength, "SYNC with wrong length discarded", canopen::kEmcySyncLength, true},
     {Fault::SensorStuck, "sensor stuck (position unchanged while the command moved)", canopen::kEmcySensor, false},
     {Fault::PositionRange, "position outside the sensor's measuring range", canopen::kEmcySensorRange, false},
+    // CiA 301 has no code for a slave's configuration: "data set" (software, 0x63xx).
+    {Fault::SlaveBoot, "slave boot failed (identity or configuration)", canopen::kEmcyDataSet, true},
 };
 
 constexpr bool faultTableInOrder() {

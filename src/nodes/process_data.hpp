@@ -42,4 +42,23 @@ inline std::int16_t barToCounts(double bar) {
 }
 constexpr double countsToBar(double counts) { return counts * kPressureFullScale_bar / kAnalogFullScaleCounts; }
 
+// The same conversions for slaves that count otherwise (a rig file's position step and valve scaling);
+// the defaults are the constants above.
+struct Scaling {
+  double position_step_mm = kPositionStep_mm;                                  // mm per position count
+  double command_full_counts = kAnalogFullScaleCounts;  // valve counts at full scale (10 V) above the zero
+  double command_zero_counts = 0.0;                     // counts for 0 V
+
+  double mm(double counts) const noexcept { return counts * position_step_mm; }
+  // Command u [V relative to mid-range] -> the valve's counts (clamped to 0..10 V and to 16 bits).
+  std::int16_t commandCounts(double u) const noexcept {
+    const double v = std::clamp(valveVolts(u), 0.0, kValveFullScale_V);
+    const long c = std::lround(command_zero_counts + v * command_full_counts / kValveFullScale_V);
+    return static_cast<std::int16_t>(std::clamp(c, -32768L, 32767L));
+  }
+  bool isDefault() const noexcept {
+    return position_step_mm == kPositionStep_mm && command_full_counts == kAnalogFullScaleCounts && command_zero_counts == 0.0;
+  }
+};
+
 }  // namespace pamc::nodes::pd
