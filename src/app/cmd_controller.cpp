@@ -28,6 +28,7 @@ class ControllerCommand final : public Command {
       : Command(app.add_subcommand("controller", "run the controller node on a SocketCAN interface")) {
     cmd_->add_option("--iface", iface, "CAN interface (can0, vcan0, ...)")->capture_default_str();
     od_.add(cmd_);
+    rig_.add(cmd_);
     kind_.add(cmd_);
     ctrl_.add(cmd_);
     run_.add(cmd_);
@@ -38,7 +39,8 @@ class ControllerCommand final : public Command {
   int run() override {
     const std::string& csv = run_.csv;
     const double duration = run_.duration;
-    auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, consume_sync);
+    auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, consume_sync, &rig_);
+    if (rig_.given() && cmd_->count("--iface") == 0) iface = nodes::readRigFile(rig_.path).interface;
     realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
     auto canp = openCan(iface);
     auto& can = *canp;
@@ -53,7 +55,7 @@ class ControllerCommand final : public Command {
     g_loop = &loop;
     installSignals();
     logger.start();
-    std::fprintf(stderr, "controller node 1 on %s: %s, %s%s\n", iface.c_str(), control::toString(node.kind()),
+    std::fprintf(stderr, "controller node %u on %s: %s, %s%s\n", node.node().nodeId(), iface.c_str(), control::toString(node.kind()),
                  c.trajectory.describe().c_str(), c.produce_sync ? ", producing SYNC" : ", consuming SYNC");
     std::thread watch([&] {
       nodes::Fault last = nodes::Fault::None;
@@ -94,6 +96,7 @@ class ControllerCommand final : public Command {
   std::string iface = "vcan0", candump;
   bool consume_sync = false;
   OdOption od_;
+  RigOption rig_;
   ControllerKindOption kind_;
   ControllerOptions ctrl_;
   NodeRunOptions run_;

@@ -30,6 +30,7 @@ class RigCommand final : public Command {
                                           "time, no CAN hardware): the whole rig through the CANopen layer; also the "
                                           "fault table (--faults), the SDO guards (--sdo-guards) and the soak (--soak HOURS)")) {
     od_.add(cmd_);
+    rig_.add(cmd_);
     kind_.add(cmd_);
     ctrl_.add(cmd_);
     run_.add(cmd_);
@@ -65,7 +66,7 @@ class RigCommand final : public Command {
   int run() override {
     if (soak_hours > 0) return runSoak();
     if (faults || sdo_guards) return runRigChecks();
-    const auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, false);
+    const auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, false, &rig_);
     ec = emu_.config(od_.dir, run_.period_us);
     if (realtime) return runRigRealtime(c);
     return runVirtual(c);
@@ -237,6 +238,7 @@ class RigCommand final : public Command {
   }
 
   OdOption od_;
+  RigOption rig_;
   ControllerKindOption kind_;
   ControllerOptions ctrl_;
   NodeRunOptions run_;

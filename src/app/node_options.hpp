@@ -9,6 +9,7 @@
 #include "app/bus_common.hpp"
 #include "app/controller_options.hpp"
 #include "nodes/controller_node.hpp"
+#include "nodes/rig_file.hpp"
 #include "control/trajectory.hpp"
 
 namespace pamc::app {
@@ -30,10 +31,22 @@ struct NodeRunOptions {
   }
 };
 
+// A rig file: the slaves the controller masters - node-IDs, EDS, identity, PDOs, scaling, what to
+// write at their boot (docs/RIG.md). Without it, pamc's own devices with their built-in layout.
+struct RigOption {
+  std::string path;
+  void add(CLI::App* a) {
+    a->add_option("--rig", path,
+                  "rig file (docs/RIG.md, od/rigs/): node-IDs, EDS files, the slaves' identity, PDOs, scaling and "
+                  "boot configuration; its interface and period unless --iface / --period-us are given");
+  }
+  bool given() const { return !path.empty(); }
+};
+
 // The controller node's configuration from the option groups.
 inline nodes::ControllerNodeConfig controllerNodeConfig(const OdOption& od, const ControllerKindOption& kind,
                                                         const ControllerOptions& ctrl, const NodeRunOptions& run,
-                                                        bool consume_sync) {
+                                                        bool consume_sync, const RigOption* rig = nullptr) {
   nodes::ControllerNodeConfig c;
   c.eds_path = od.dir + "/controller.eds";
   c.kind = static_cast<int>(kind.kind());
@@ -45,6 +58,11 @@ inline nodes::ControllerNodeConfig controllerNodeConfig(const OdOption& od, cons
   c.preroll_s = run.preroll;
   c.produce_sync = !consume_sync;
   c.period_us = run.period_us;
+  if (rig != nullptr && rig->given()) {
+    nodes::applyRig(nodes::readRigFile(rig->path), c);
+    if (run.period_us) c.period_us = run.period_us;
+    c.log = [](const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); };
+  }
   if ((c.kind == static_cast<int>(control::Kind::PiAmc) || c.kind == static_cast<int>(control::Kind::OpenLoop)) &&
       ctrl.model_file.empty())
     std::fprintf(stderr, "warning: no --model: the %s controller uses the model parameters of the EDS defaults\n",

@@ -26,7 +26,7 @@ std::uint32_t withNode(std::uint32_t hb, std::uint8_t id) { return (static_cast<
 ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport,
                                std::function<TimeUs()> clock)
     : cfg_(cfg), clock_(std::move(clock)) {
-  node_ = canopen::Node::fromEds(cfg.eds_path, transport);
+  node_ = canopen::Node::fromEds(cfg.eds_path, transport, cfg.node_id);
   master_ = std::make_unique<canopen::NmtMaster>(*node_);
   master_->addSlave(cfg.sensor_id);
   master_->addSlave(cfg.valve_id);

@@ -55,6 +55,7 @@ struct SlaveLayout {
 
 struct ControllerNodeConfig {
   std::string eds_path = "od/controller.eds";
+  std::uint8_t node_id = 0;           // 0: the EDS's
   // Overrides of the object dictionary's defaults (unset: the EDS value).
   int kind = -1;                      // control::Kind
   control::ControllerConfig ctrl;     // the model (and, with gains_from_config, the gains)

@@ -22,9 +22,11 @@ VirtualRig::VirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, s
 }
 
 void VirtualRig::start() {
-  emu_->start(bus_.now());
-  ctrl_->start(bus_.now());
+  startEmulator();
+  startController();
 }
+void VirtualRig::startEmulator() { emu_->start(bus_.now()); }
+void VirtualRig::startController() { ctrl_->start(bus_.now()); }
 
 void VirtualRig::step(canopen::TimeUs dt_us) {
   bus_.advanceBy(dt_us);

@@ -34,6 +34,8 @@ class VirtualRig {
   void setRecordSink(std::function<void(const CycleRecord&)> sink) { sink_ = std::move(sink); }
 
   void start();                                    // boot-up of the emulator nodes, then the controller
+  void startEmulator();                            // the two halves of start(): slaves first, e.g. to
+  void startController();                          // change them over SDO before the controller comes
   void step(canopen::TimeUs dt_us = 1000);         // advance the bus, collect the records
   void runFor(double seconds) {                    // steps of 1 ms
     for (long k = 0, n = static_cast<long>(seconds * 1000.0 + 0.5); k < n; ++k) step();

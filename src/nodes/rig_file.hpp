@@ -1,0 +1,43 @@
+// A rig file: one INI file with everything the controller must know about the rig it runs on - the
+// bus, its own node, and per slave (the position sensor, the valve) its node-ID and EDS, the identity
+// it must report, which object carries the position or takes the command and how to scale it, and
+// what to write into it at its boot. docs/RIG.md has every key; od/rigs/default.ini is pamc's own rig.
+//
+// The slaves' EDS files are read here (to find the objects, their types and PDOs), so that the
+// configuration the controller writes at boot is complete and checked before anything goes on the bus.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+#include "nodes/controller_node.hpp"
+
+namespace pamc::nodes {
+
+// "file:line: problem" (line 0: the file as a whole).
+class RigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct RigFile {
+  std::string path;
+  std::string interface = "can0";
+  unsigned bitrate = 1000000;
+  unsigned period_us = 1000;
+  std::uint8_t controller_id = 1;
+  std::string controller_eds;  // resolved path
+  std::uint32_t startup = canopen::kStartupMaster;
+  std::uint8_t sensor_id = 2, valve_id = 3;
+  std::string sensor_eds, valve_eds;  // resolved paths
+  SlaveLayout layout;                 // COB-IDs, scaling, boot plans
+};
+
+// Reads and checks a rig file; throws RigError (or EdsError for a bad slave EDS) naming file and line.
+RigFile readRigFile(const std::string& path);
+
+// The node settings the rig file makes: node-IDs, EDS, period, layout. The rest of cfg is kept.
+void applyRig(const RigFile& rig, ControllerNodeConfig& cfg);
+
+}  // namespace pamc::nodes

@@ -1,0 +1,276 @@
+// Rig files (od/rigs/*.ini, nodes/rig_file.hpp) and the controller as the NMT master that boots its
+// slaves from one: bad files name the line; the shipped rig boots pamc's devices; slaves whose PDOs
+// another master left scrambled are configured before anything runs; a slave with the wrong identity
+// or one that refuses a write is reported (EMCY 0x6300, the SDO abort code) and left stopped; a slave
+// that reboots is configured again.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "canopen/bus.hpp"
+#include "nodes/rig_file.hpp"
+#include "plant/plant.hpp"
+#include "rig/virtual_rig.hpp"
+
+using namespace pamc;
+using canopen::Frame;
+
+namespace {
+
+const std::string kOd = std::string(PAMC_SOURCE_DIR) + "/od/";
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+// The shipped rig with some lines replaced or added (the EDS paths made absolute).
+std::string rigText(const std::vector<std::pair<std::string, std::string>>& edits = {}) {
+  std::ifstream in(kOd + "rigs/default.ini");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const char* eds : {"controller", "sensor", "valve"}) {
+    const std::string from = std::string("../") + eds + ".eds", to = kOd + eds + ".eds";
+    text.replace(text.find(from), from.size(), to);
+  }
+  for (const auto& [from, to] : edits) {
+    const auto at = text.find(from);
+    if (at == std::string::npos) {
+      ADD_FAILURE() << "no '" << from << "' in the rig";
+      continue;
+    }
+    text.replace(at, from.size(), to);
+  }
+  return text;
+}
+
+nodes::ControllerNodeConfig controllerFromRig(const std::string& rig_path, std::vector<std::string>* log) {
+  nodes::ControllerNodeConfig c;
+  nodes::applyRig(nodes::readRigFile(rig_path), c);
+  c.kind = static_cast<int>(control::Kind::PI);
+  c.ctrl.model = plant::PlantConfig::defaults().truth;
+  c.has_trajectory = true;
+  c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
+  c.preroll_s = 0.5;
+  if (log) c.log = [log](const std::string& m) { log->push_back(m); };
+  return c;
+}
+
+nodes::EmulatorConfig emulator() {
+  nodes::EmulatorConfig e;
+  e.sensor_eds = kOd + "sensor.eds";
+  e.valve_eds = kOd + "valve.eds";
+  return e;
+}
+
+// A tool port: SDO requests to a node and NMT, answered on the ideal bus at once.
+struct Tool {
+  Tool(nodes::VirtualRig& r) : rig(r), port(r.addPort()) {
+    rig.addTap([this](const Frame& f, canopen::TimeUs) {
+      if (f.id >= 0x581 && f.id <= 0x5FF) last = f;
+      if (f.id > 0x80 && f.id < 0x100 && f.len == 8) emcy.push_back(canopen::getU16(f.data));
+    });
+  }
+  std::uint32_t write32(std::uint8_t node, std::uint16_t idx, std::uint8_t sub, std::uint32_t v) {
+    const std::uint8_t b[8] = {0x23, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub,
+                               static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8),
+                               static_cast<std::uint8_t>(v >> 16), static_cast<std::uint8_t>(v >> 24)};
+    port.send(canopen::makeFrame(0x600 + node, 8, b));
+    rig.bus().flush();
+    return last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
+  }
+  std::uint32_t write8(std::uint8_t node, std::uint16_t idx, std::uint8_t sub, std::uint8_t v) {
+    const std::uint8_t b[8] = {0x2F, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, v, 0, 0, 0};
+    port.send(canopen::makeFrame(0x600 + node, 8, b));
+    rig.bus().flush();
+    return last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
+  }
+  nodes::VirtualRig& rig;
+  canopen::VirtualBus::Port& port;
+  Frame last{};
+  std::vector<std::uint16_t> emcy;
+};
+
+double trackingRmse(const std::vector<nodes::CycleRecord>& recs, double from_s) {
+  double s = 0;
+  int n = 0;
+  for (const auto& r : recs)
+    if (r.t >= from_s) s += (r.y - r.yd) * (r.y - r.yd), ++n;
+  return n ? std::sqrt(s / n) : INFINITY;
+}
+
+}  // namespace
+
+TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
+  const auto rig = nodes::readRigFile(writeTemp("default.ini", rigText()));
+  EXPECT_EQ(rig.sensor_id, 2);
+  EXPECT_EQ(rig.valve_id, 3);
+  EXPECT_EQ(rig.layout.sensor_cob, 0x182u);
+  EXPECT_EQ(rig.layout.valve_cob, 0x203u);
+  EXPECT_EQ(rig.layout.feedback_cob, 0x183u);
+  EXPECT_TRUE(rig.layout.scaling.isDefault());
+  ASSERT_TRUE(rig.layout.sensor_boot && rig.layout.valve_boot);
+  EXPECT_EQ(*rig.layout.sensor_boot->device_type, 0x00080196u);
+  EXPECT_EQ(rig.layout.error_value_index, 0x6444);
+  // The sensor's TPDO1: disabled, synchronous, mapped to 0x6004:00 (32 bits), enabled on 0x182.
+  const auto& w = rig.layout.sensor_boot->writes;
+  auto has = [&](std::uint16_t i, std::uint8_t s, std::uint64_t v, std::size_t n) {
+    return std::find(w.begin(), w.end(), canopen::dcfValue(i, s, v, n)) != w.end();
+  };
+  EXPECT_TRUE(has(0x1800, 1, 0x80000182u, 4));
+  EXPECT_TRUE(has(0x1800, 2, 1, 1));
+  EXPECT_TRUE(has(0x1A00, 1, 0x60040020u, 4));
+  EXPECT_TRUE(has(0x1800, 1, 0x182u, 4));
+  EXPECT_TRUE(has(0x1017, 0, 100, 2));
+  // It survives a concise DCF round trip (the standard carrier of a slave's configuration).
+  const auto bytes = canopen::encodeConciseDcf(w);
+  canopen::ConciseDcf back;
+  std::string why;
+  ASSERT_TRUE(canopen::decodeConciseDcf(bytes.data(), bytes.size(), back, &why)) << why;
+  EXPECT_EQ(back, w);
+  EXPECT_FALSE(canopen::decodeConciseDcf(bytes.data(), bytes.size() - 1, back, &why));
+  EXPECT_NE(why.find("beyond the end"), std::string::npos) << why;
+}
+
+TEST(RigFile, ABadFileGetsOneLineNamingTheLine) {
+  struct Case {
+    std::vector<std::pair<std::string, std::string>> edits;
+    std::string expect;  // in the message, after "rig.ini:"
+  };
+  const std::vector<Case> cases = {
+      {{{"tpdo = 1 ", "tdpo = 1 "}}, "unknown key 'tdpo' in [sensor]"},
+      {{{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = fast ; 0x1017"}}, "heartbeat_ms 'fast' is not a number"},
+      {{{"position = 0x6004:00", "position = 0x6004"}}, "is not an object"},
+      {{{"position = 0x6004:00", "position = 0x6200:00"}}, "is not 32 bits"},
+      {{{"position = 0x6004:00", "position = 0x6005:01"}}, "cannot be mapped into a PDO"},
+      {{{"command = 0x6411:01", "command = 0x6444:01"}}, "is not a writable 16-bit object"},
+      {{{"position = 0x6004:00", "position = 0x7004:00"}}, "has no object 0x7004:00"},
+      {{{"[valve] ", "[valves] "}}, "unknown section [valves]"},
+      {{{"[valve] ", "[sensor.sdo]\n6004 = 1\n[valve] "}}, "0x6004:00 is read-only"},
+      {{{"[valve] ", "[sensor.sdo]\n60z4 = 1\n[valve] "}}, "is not an entry"},
+      {{{"boot = yes               ; configure", "boot = maybe ; configure"}}, "boot 'maybe' is not yes or no"},
+      {{{"node_id = 3", "node_id = 2"}}, "node-IDs of controller, sensor and valve must differ"},
+      {{{"startup = 0x00000001", "startup = 0x00000010"}}, "only bits 0-3 of 0x1F80"},
+      {{{"tpdo = 1 ", "tpdo = 7 "}}, "has no predefined COB-ID"},
+      {{{"mandatory = yes          ; 0x1F81", "mandatory = yes\nmandatory = no ; 0x1F81"}}, "key 'mandatory' again in [sensor]"},
+  };
+  for (const auto& c : cases) {
+    const std::string path = writeTemp("rig.ini", rigText(c.edits));
+    try {
+      (void)nodes::readRigFile(path);
+      ADD_FAILURE() << "accepted: " << c.expect;
+    } catch (const nodes::RigError& e) {
+      const std::string m = e.what();
+      EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+      EXPECT_EQ(m.rfind(path + ":", 0), 0u) << m;
+      EXPECT_NE(m.find(c.expect), std::string::npos) << m;
+      // A problem with a key names its line: "path:N: ..." with N > 0.
+      if (c.expect.find("must differ") == std::string::npos) EXPECT_GT(std::atoi(m.c_str() + path.size() + 1), 0) << m;
+    }
+  }
+  EXPECT_THROW(nodes::readRigFile(::testing::TempDir() + "no-such.ini"), nodes::RigError);
+}
+
+// pamc's own devices from the shipped rig: checked, configured, read back, started; the loop runs.
+TEST(RigBoot, TheShippedRigBootsTheEmulatorAndTheLoopRuns) {
+  std::vector<std::string> log;
+  nodes::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), &log), emulator());
+  rig.start();
+  rig.runFor(4.0);
+  const auto fc = rig.controller().faultCounters();
+  EXPECT_EQ(fc.slave_boots, 2u);
+  EXPECT_EQ(fc.slave_boot_failures, 0u);
+  EXPECT_EQ(fc.episodes, 0u);
+  ASSERT_EQ(log.size(), 2u);
+  EXPECT_NE(log[0].find("configuration written and read back"), std::string::npos) << log[0];
+  EXPECT_TRUE(rig.controller().running());
+  EXPECT_LT(trackingRmse(rig.records(), 1.0), 1.0);
+}
+
+// Another master left the sensor's position PDO asynchronous on another COB-ID and the valve's command
+// PDO mapped to nothing: without the rig the loop never starts; with it the slaves are configured first.
+TEST(RigBoot, SlavesScrambledBeforeTheControllerStartsAreConfigured) {
+  auto scramble = [](nodes::VirtualRig& rig, Tool& tool) {
+    rig.startEmulator();
+    for (std::uint8_t n : {2, 3}) {
+      const std::uint8_t nmt[2] = {0x01, n};  // another master started them
+      tool.port.send(canopen::makeFrame(0x000, 2, nmt));
+    }
+    rig.bus().flush();
+    EXPECT_EQ(tool.write32(2, 0x1800, 1, 0x80000182u), 0u);
+    EXPECT_EQ(tool.write8(2, 0x1800, 2, 254), 0u);
+    EXPECT_EQ(tool.write32(2, 0x1800, 1, 0x190u), 0u);
+    EXPECT_EQ(tool.write32(3, 0x1400, 1, 0x80000203u), 0u);
+    EXPECT_EQ(tool.write8(3, 0x1600, 0, 0), 0u);
+    EXPECT_EQ(tool.write32(3, 0x1400, 1, 0x203u), 0u);
+  };
+  {
+    nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
+    c.layout = nodes::SlaveLayout{};  // the built-in layout: nothing is configured
+    nodes::VirtualRig rig(c, emulator());
+    Tool tool(rig);
+    scramble(rig, tool);
+    rig.startController();
+    rig.runFor(3.0);
+    EXPECT_TRUE(rig.records().empty() || trackingRmse(rig.records(), 0.0) > 3.0) << "the loop ran on scrambled slaves";
+  }
+  std::vector<std::string> log;
+  nodes::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), &log), emulator());
+  Tool tool(rig);
+  scramble(rig, tool);
+  rig.startController();
+  rig.runFor(4.0);
+  EXPECT_EQ(rig.controller().faultCounters().slave_boots, 2u);
+  EXPECT_TRUE(rig.controller().running());
+  EXPECT_LT(trackingRmse(rig.records(), 1.0), 1.0);
+}
+
+TEST(RigBoot, AWrongIdentityIsReportedAndTheSlaveLeftStopped) {
+  std::vector<std::string> log;
+  const auto path = writeTemp("rig.ini", rigText({{"device_type = 0x00080196", "device_type = 0x00020196"}}));
+  nodes::VirtualRig rig(controllerFromRig(path, &log), emulator());
+  Tool tool(rig);
+  rig.start();
+  rig.runFor(2.0);
+  const auto fc = rig.controller().faultCounters();
+  EXPECT_EQ(fc.slave_boot_failures, 1u);
+  EXPECT_NE(std::find(tool.emcy.begin(), tool.emcy.end(), 0x6300), tool.emcy.end()) << "EMCY 0x6300";
+  ASSERT_FALSE(log.empty());
+  EXPECT_NE(log.front().find("sensor (node 2) not started: 0x1000:00 device type is 0x00080196, expected 0x00020196"),
+            std::string::npos)
+      << log.back();
+  EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(2), canopen::NmtState::Stopped);
+  EXPECT_FALSE(rig.controller().running()) << "no position: the loop does not start";
+  // The valve is mandatory-gated too: nothing was started while the sensor failed.
+  EXPECT_NE(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Operational);
+}
+
+TEST(RigBoot, ARefusedWriteIsReportedWithItsAbortCode) {
+  std::vector<std::string> log;
+  const auto path = writeTemp("rig.ini", rigText() +
+                                             "\n[valve.sdo]\n6411sub1 = -5\n");
+  nodes::VirtualRig rig(controllerFromRig(path, &log), emulator());
+  rig.start();
+  rig.runFor(2.0);
+  ASSERT_FALSE(log.empty());
+  EXPECT_NE(log.back().find("valve (node 3) not started: 0x6411:01 write refused"), std::string::npos) << log.back();
+  EXPECT_NE(log.back().find("SDO abort 0x06090032"), std::string::npos) << log.back();
+  EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Stopped);
+}
+
+TEST(RigBoot, ASlaveThatRebootsIsConfiguredAgain) {
+  nodes::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), nullptr), emulator());
+  rig.start();
+  rig.runFor(3.0);
+  ASSERT_EQ(rig.controller().faultCounters().slave_boots, 2u);
+  rig.emulator().rebootSensor(200'000);
+  rig.runFor(4.0);
+  const auto fc = rig.controller().faultCounters();
+  EXPECT_EQ(fc.slave_boots, 3u);
+  EXPECT_GE(fc.recoveries, 1u);
+  EXPECT_EQ(rig.controller().fault(), nodes::Fault::None);
+}
