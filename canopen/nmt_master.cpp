@@ -94,7 +94,7 @@ bool NmtMaster::mandatoryReady() const noexcept {
 }
 
 bool NmtMaster::mayStart(const Slave& s) const noexcept {
-  if ((startup_ & kStartupMaster) == 0 || (startup_ & kStartupNoSlaveStart) != 0) return false;
+  if (!begun_ || (startup_ & kStartupMaster) == 0 || (startup_ & kStartupNoSlaveStart) != 0) return false;
   if (s.hold != 0) return false;
   if (needsBoot(s.boot, s.ops.size()) && s.state != Boot::Done) return false;
   return mandatoryReady();
@@ -127,8 +127,9 @@ void NmtMaster::begin(TimeUs now) {
     if (const Entry* e = od.find(0x1F81, s.id)) s.boot.assignment = e->get<std::uint32_t>();
   begun_ = true;
   if ((startup_ & kStartupMaster) == 0) return;
+  // Every slave is booted at the master's start (CiA 302-2): whatever another master left in it.
   for (auto& s : slaves_)
-    if (needsBoot(s.boot, s.ops.size()) && (s.state == Boot::Idle || s.state == Boot::Failed)) s.state = Boot::Waiting;
+    if (needsBoot(s.boot, s.ops.size()) && s.state != Boot::Running) s.state = Boot::Waiting;
   poll(now);
   startReady(now);
 }
@@ -147,7 +148,7 @@ void NmtMaster::poll(TimeUs) noexcept {
 }
 
 void NmtMaster::bootSlave(Slave& s, TimeUs now) noexcept {
-  if (!needsBoot(s.boot, s.ops.size()) || (startup_ & kStartupMaster) == 0) return;
+  if (!begun_ || !needsBoot(s.boot, s.ops.size()) || (startup_ & kStartupMaster) == 0) return;
   s.state = Boot::Waiting;
   poll(now);
 }
@@ -308,8 +309,9 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
       // A slave that rebooted lost its state and waits in Pre-operational: boot it and start it again.
       s->lost = false;
       emit(id, SlaveEvent::BootUp, now);
-      if (needsBoot(s->boot, s->ops.size()) && (startup_ & kStartupMaster) != 0) {
-        if (s->state == Boot::Running) s->state = Boot::Idle;  // a boot cut short: from the start
+      if (needsBoot(s->boot, s->ops.size())) {
+        // It lost its configuration; a boot cut short starts over.
+        s->state = Boot::Idle;
         bootSlave(*s, now);
       } else if (mayStart(*s)) {
         startSlave(*s, now);
@@ -320,7 +322,9 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
         // Back after a timeout without a boot-up: re-boot it (reset communication); its boot-up boots and
         // starts it. Without the right to reset it, it is only started.
         s->lost = false;
-        if ((s->boot.assignment & kAssignResetAllowed) != 0) {
+        if (!begun_) {
+          // Not the master now: nothing to send.
+        } else if ((s->boot.assignment & kAssignResetAllowed) != 0) {
           node_.sendNmt(NmtCommand::ResetCommunication, id);
           ++counters_.reboots;
         } else if (mayStart(*s)) {

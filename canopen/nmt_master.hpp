@@ -98,6 +98,10 @@ class NmtMaster {
   // The master's own start (it entered Operational): 0x1F80/0x1F81 from the dictionary, then every
   // slave is booted or started.
   void begin(TimeUs now);
+  // The master's own stop (it left Operational or was reset): until the next begin() it boots and
+  // starts nothing; it still reports what it hears.
+  void end() noexcept { begun_ = false; }
+  bool begun() const noexcept { return begun_; }
   // Boot and start work left waiting for the SDO client; call between cycles (cheap when idle).
   void poll(TimeUs now) noexcept;
 

@@ -80,18 +80,30 @@ void ControllerNode::installHooks() {
     hold(kHoldCollision);
   });
   node_->onStateChange([this](NmtState from, NmtState to, TimeUs now) {
+    if (from == NmtState::Initialising && to == NmtState::PreOperational) {
+      // Booted (at start or after a reset): a master enters Operational by itself unless 0x1F80 bit 2
+      // says to wait for an NMT start - so a reset brings the rig back up without an operator.
+      const auto* startup = node_->od().find(0x1F80, 0);
+      if (startup == nullptr || (startup->get<std::uint32_t>() & canopen::kStartupNoSelfStart) == 0)
+        node_->applyNmt(NmtCommand::Start);  // boots and starts the slaves (below)
+      return;
+    }
     if (to == NmtState::Operational) {
       onOperational(now);
     } else if (from == NmtState::Operational) {
       // No more setpoints from here: the valve goes to its error value instead of holding the last one.
       // The loop stops (PDOs do not move outside Operational); NMT start configures it afresh.
       hold(kHoldSelf);
+      master_->end();
       active_ = run_started_ = false;
       ramp_ = slew_ = false;
     }
   });
   // A reset restores the EDS defaults: put the command line's choices back.
-  node_->onReset([this](NmtCommand, TimeUs) { applyOverrides(); });
+  node_->onReset([this](NmtCommand, TimeUs) {
+    master_->end();
+    applyOverrides();
+  });
 }
 
 FaultCounters ControllerNode::faultCounters() const noexcept {
@@ -206,13 +218,7 @@ void ControllerNode::takeCommitted(double y) noexcept {
   }
 }
 
-void ControllerNode::start(TimeUs now) {
-  node_->start(now);
-  // 0x1F80 bit 2: an NMT start from elsewhere (a supervisor, cansend) makes it Operational.
-  const auto* startup = node_->od().find(0x1F80, 0);
-  if (startup == nullptr || (startup->get<std::uint32_t>() & canopen::kStartupNoSelfStart) == 0)
-    node_->applyNmt(NmtCommand::Start);  // the state hook boots and starts the slaves
-}
+void ControllerNode::start(TimeUs now) { node_->start(now); }  // the state hook goes on to Operational
 
 // ---- Faults ----------------------------------------------------------------------------------------
 

@@ -1,3 +1,4 @@
+#include "canopen/ini.hpp"
 #include "canopen/nmt_master.hpp"
 
 #include "test_util.hpp"
@@ -22,7 +23,9 @@ struct MasterRig {
     master.addSlave(3);
     master.onEvent([this](std::uint8_t id, SlaveEvent ev, TimeUs) { seen.push_back({id, ev}); });
     net.startAll();
-    net.recorder.log.clear();
+    master.begin(net.bus.now());  // starts both (nothing to boot)
+    net.bus.flush();
+    EXPECT_EQ(nmt(), (Frames{"000#0102", "000#0103"}));
   }
   Frames nmt() {
     Frames v;
@@ -44,7 +47,7 @@ TEST(NmtMaster, StartsASlaveAfterItsBootUp) {
   EXPECT_TRUE(r.master.starting(2, r.net.bus.now()));
   r.net.send("702#05");
   EXPECT_FALSE(r.master.starting(2, r.net.bus.now())) << "Operational ends the start's grace";
-  EXPECT_EQ(r.master.counters().starts, 1u);
+  EXPECT_EQ(r.master.counters().starts, 3u);
 }
 
 TEST(NmtMaster, RebootsASlaveThatComesBackAfterAHeartbeatLoss) {
@@ -100,6 +103,24 @@ TEST(NmtMaster, ASlaveThatFallsBackToPreOperationalIsStartedAgainAndThenDown) {
   EXPECT_TRUE(r.master.down(2, r.net.bus.now()));
 }
 
+TEST(NmtMaster, StartsNothingBeforeItBeginsOrAfterItEnds) {
+  Network net;
+  Node& ctrl = net.addEds(odPath("controller.eds"));
+  NmtMaster master(ctrl);
+  master.addSlave(2);
+  net.startAll();
+  net.recorder.log.clear();
+  net.send("702#00");
+  EXPECT_TRUE(net.recorder.matching("000#").empty()) << "a boot-up before begin()";
+  master.begin(net.bus.now());
+  net.bus.flush();
+  EXPECT_EQ(net.recorder.matching("000#").size(), 1u);
+  master.end();
+  net.recorder.log.clear();
+  net.send("702#00");
+  EXPECT_TRUE(net.recorder.matching("000#").empty()) << "a boot-up after end()";
+}
+
 TEST(NmtMaster, IgnoresNodesItDoesNotSuperviseAndRefusesBadIds) {
   MasterRig r;
   r.net.send("704#00");
@@ -109,6 +130,110 @@ TEST(NmtMaster, IgnoresNodesItDoesNotSuperviseAndRefusesBadIds) {
   EXPECT_THROW(r.master.addSlave(0), std::invalid_argument);
   EXPECT_THROW(r.master.addSlave(128), std::invalid_argument);
   EXPECT_THROW(r.master.addSlave(r.ctrl.nodeId()), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace pamc::canopen::test
+
+namespace pamc::canopen::test {
+namespace {
+
+// The boot of a real slave (od/sensor.eds as node 2): identity, a write, its read-back, the start.
+TEST(NmtMasterBoot, ChecksIdentityConfiguresReadsBackThenStarts) {
+  Network net;
+  Node& ctrl = net.addEds(odPath("controller.eds"));
+  Node& sensor = net.addEds(odPath("sensor.eds"));
+  NmtMaster master(ctrl);
+  master.addSlave(2);
+  master.addSlave(3);  // no boot plan, absent: started blindly, as before
+  SlaveBoot b;
+  b.assignment = kAssignSlave | kAssignBoot | kAssignMandatory;
+  b.device_type = 0x00080196;
+  b.writes = {dcfValue(0x1017, 0, 50, 2), dcfValue(0x1800, 2, 1, 1)};
+  master.setBoot(2, b);
+  ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(b.assignment);  // the dictionary's 0x1F81 decides
+  std::vector<SlaveEvent> seen;
+  master.onEvent([&](std::uint8_t, SlaveEvent e, TimeUs) { seen.push_back(e); });
+  net.startAll();
+  master.begin(net.bus.now());
+  net.bus.advanceTo(50'000);
+  EXPECT_TRUE(master.configured(2));
+  EXPECT_EQ(sensor.od().ref<std::uint16_t>(0x1017, 0).get(), 50);
+  EXPECT_EQ(sensor.nmtState(), NmtState::Operational);
+  EXPECT_EQ(master.counters().boots, 1u);
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.back(), SlaveEvent::Configured);
+  // The SDO traffic is the boot's: 0x1000 read, two writes, two read-backs.
+  EXPECT_EQ(net.recorder.matching("602#").size(), 5u);
+}
+
+TEST(NmtMasterBoot, AMismatchStopsTheSlaveAndNamesIt) {
+  Network net;
+  Node& ctrl = net.addEds(odPath("controller.eds"));
+  Node& sensor = net.addEds(odPath("sensor.eds"));
+  NmtMaster master(ctrl);
+  master.addSlave(2);
+  SlaveBoot b;
+  b.assignment = kAssignSlave | kAssignBoot;
+  b.product_code = 0x1234;
+  master.setBoot(2, b);
+  ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(b.assignment);
+  net.startAll();
+  master.begin(net.bus.now());
+  net.bus.advanceTo(50'000);
+  ASSERT_NE(master.bootError(2), nullptr);
+  EXPECT_EQ(master.bootError(2)->text, "0x1018:02 product code is 0x00000002, expected 0x00001234");
+  EXPECT_EQ(sensor.nmtState(), NmtState::Stopped);
+  // Its next boot-up boots it again (and fails again: same device).
+  net.send("000#8202");
+  net.bus.advanceTo(100'000);
+  EXPECT_EQ(master.counters().boot_failures, 2u);
+}
+
+TEST(ConciseDcf, RoundTripAndMalformedStrings) {
+  const ConciseDcf d = {dcfValue(0x1800, 1, 0x80000182u, 4), DcfEntry{0x2000, 3, {1, 2, 3}}};
+  const auto bytes = encodeConciseDcf(d);
+  EXPECT_EQ(bytes.size(), 4u + 7 + 4 + 7 + 3);
+  ConciseDcf back;
+  std::string why;
+  ASSERT_TRUE(decodeConciseDcf(bytes.data(), bytes.size(), back, &why));
+  EXPECT_EQ(back, d);
+  auto extra = bytes;
+  extra.push_back(0);
+  EXPECT_FALSE(decodeConciseDcf(extra.data(), extra.size(), back, &why));
+  EXPECT_EQ(why, "1 bytes after the last entry");
+  EXPECT_FALSE(decodeConciseDcf(bytes.data(), 2, back, &why));
+}
+
+TEST(Ini, SectionsKeysAndLines) {
+  const auto f = parseIni("; c\n[Bus]\ninterface = can0 ; inline\n\n[sensor]\nnode_id=2\n", "r.ini");
+  ASSERT_EQ(f.sections.size(), 2u);
+  EXPECT_EQ(f.sections[0].line, 2);
+  ASSERT_NE(f.find("bus"), nullptr);
+  const IniKey* k = f.find("bus")->find("INTERFACE");
+  ASSERT_NE(k, nullptr);
+  EXPECT_EQ(k->value, "can0");
+  EXPECT_EQ(k->line, 3);
+  EXPECT_EQ(f.find("sensor")->find("node_id")->line, 6);
+  auto error = [](const std::string& text) {
+    try {
+      parseIni(text, "r.ini");
+    } catch (const IniError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(error("[a]\nx=1\n[b]\n[a]\n"), "r.ini:4: section [a] again (first at line 1)");
+  EXPECT_EQ(error("[a]\nx=1\nx=2\n"), "r.ini:3: key 'x' again in [a] (first at line 2)");
+  EXPECT_EQ(error("x=1\n"), "r.ini:1: key 'x' outside of any section");
+  EXPECT_EQ(error("[a]\njunk\n"), "r.ini:2: not a section header, a 'key = value' line or a comment");
+  std::uint64_t u = 0;
+  double d = 0;
+  EXPECT_TRUE(parseIniUnsigned("0x1F", u) && u == 31);
+  EXPECT_FALSE(parseIniUnsigned("-1", u));
+  EXPECT_FALSE(parseIniUnsigned("12ab", u));
+  EXPECT_TRUE(parseIniDouble("2.5e-3", d) && d == 2.5e-3);
+  EXPECT_FALSE(parseIniDouble("nan", d));
 }
 
 }  // namespace

@@ -274,3 +274,37 @@ TEST(RigBoot, ASlaveThatRebootsIsConfiguredAgain) {
   EXPECT_GE(fc.recoveries, 1u);
   EXPECT_EQ(rig.controller().fault(), nodes::Fault::None);
 }
+
+// 0x1F80 bit 2 clear (the shipped rig): a reset of the controller brings the whole rig back - the
+// controller enters Operational by itself, boots both slaves again and the loop runs. Bit 2 set: it
+// waits in Pre-operational until an NMT start.
+TEST(RigBoot, AResetControllerBringsTheRigBackUnlessToldToWait) {
+  for (bool wait : {false, true}) {
+    const auto path = writeTemp("rig.ini", wait ? rigText({{"startup = 0x00000001", "startup = 0x00000005"}}) : rigText());
+    nodes::VirtualRig rig(controllerFromRig(path, nullptr), emulator());
+    Tool tool(rig);
+    rig.start();
+    rig.runFor(wait ? 0.5 : 3.0);
+    if (wait) {
+      EXPECT_EQ(rig.controller().node().nmtState(), canopen::NmtState::PreOperational);
+      EXPECT_EQ(rig.controller().faultCounters().slave_boots, 0u) << "a waiting master boots nothing";
+      const std::uint8_t start[2] = {0x01, 0x01};
+      tool.port.send(canopen::makeFrame(0x000, 2, start));
+      rig.runFor(3.0);
+    }
+    ASSERT_TRUE(rig.controller().running()) << "wait=" << wait;
+    ASSERT_EQ(rig.controller().faultCounters().slave_boots, 2u);
+    const std::uint8_t reset[2] = {0x81, 0x01};  // reset node: the controller
+    tool.port.send(canopen::makeFrame(0x000, 2, reset));
+    rig.runFor(1.0);
+    if (wait) {
+      EXPECT_EQ(rig.controller().node().nmtState(), canopen::NmtState::PreOperational);
+      const std::uint8_t start[2] = {0x01, 0x01};
+      tool.port.send(canopen::makeFrame(0x000, 2, start));
+    }
+    rig.runFor(3.0);
+    EXPECT_EQ(rig.controller().node().nmtState(), canopen::NmtState::Operational) << "wait=" << wait;
+    EXPECT_EQ(rig.controller().faultCounters().slave_boots, 4u) << "both slaves booted again";
+    EXPECT_TRUE(rig.controller().running()) << "wait=" << wait;
+  }
+}
