@@ -88,6 +88,21 @@ echo "controller log: $n_log frames, replayed by canplayer: $n_rep"
 check "canplayer replays the node's log frame for frame" test "$n_rep" -eq "$n_log"
 check "the live monitor decoded the bus" grep -q "sensor.position_value" "$W/monitor.txt"
 
+# Rig files: each run must have configured both slaves (read back) and tracked the sine from them.
+rig_checks() {
+  local name=$1 what=$2 rmse
+  echo "--- controller with a rig file: $what"; cat "$W/${name}_controller.txt" 2>/dev/null
+  check "rig ($what): both slaves configured and read back" \
+    test "$(grep -c 'configuration written and read back' "$W/${name}_controller.txt" 2>/dev/null)" = 2
+  check "rig ($what): the controller exited 0" test "$(cat "$W/${name}_rc.txt" 2>/dev/null)" = 0
+  rmse=$(awk -F, 'NR > 1 && $1 >= 1 && $8 == 0 { s += ($2 - $3) ^ 2; n++ } END { if (n > 100) printf "%d\n", sqrt(s / n) * 1000; else print 999999 }' \
+    "$W/${name}_controller.csv" 2>/dev/null)
+  echo "rig ($what): tracking RMSE ${rmse:-?} um after the first second"
+  check "rig ($what): in control, tracking within 2 mm RMSE" test "${rmse:-999999}" -lt 2000
+}
+rig_checks scrambled "pamc's devices scrambled by cansend"
+if [ -f "$SRC/od/rigs/profile.ini" ]; then rig_checks profile "CiA 406/401 devices with their own defaults"; fi
+
 # Kernel-level faults (inside_vm.sh): ENOBUFS under a flood, error frames bus off / restarted. The
 # timeline there waits for each recovery, so the checks look for each fault and its recovery in
 # order on the bus, wherever the emulated VM's slowness put them.
