@@ -40,6 +40,7 @@ class ControllerCommand final : public Command {
     const std::string& csv = run_.csv;
     const double duration = run_.duration;
     auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, consume_sync, &rig_);
+    c.build_off_cycle = true;  // an SDO commit must not hold up the cycles of this thread
     if (rig_.given() && cmd_->count("--iface") == 0) iface = nodes::readRigFile(rig_.path).interface;
     realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
     auto canp = openCan(iface);

@@ -106,8 +106,6 @@ int amcHorizon(const ControllerConfig& c) {
   return std::min(2000, c.delay_cycles + modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1));
 }
 
-namespace {
-
 void validate(const ControllerConfig& c) {
   auto bad = [](const std::string& what) { throw std::invalid_argument("controller configuration: " + what); };
   if (!(c.Ts > 0 && std::isfinite(c.Ts))) bad("Ts must be positive");
@@ -121,6 +119,8 @@ void validate(const ControllerConfig& c) {
   if (c.amc_inverse > 0.0 && c.amc_horizon > 0 && c.amc_horizon <= c.delay_cycles)
     bad("the predictive AMC needs amc_horizon above delay_cycles (the command must act within the horizon)");
 }
+
+namespace {
 
 // The commands of the last few cycles, to tell the estimators which one was in effect when a
 // measurement was taken.

@@ -113,6 +113,9 @@ int amcHorizon(const ControllerConfig& c);
 
 // Throws std::invalid_argument on a bad configuration.
 std::unique_ptr<Controller> makeController(Kind kind, const ControllerConfig& cfg);
+// The checks makeController makes before it builds anything (throws std::invalid_argument): cheap, so a
+// caller can refuse a configuration at once and build it elsewhere.
+void validate(const ControllerConfig& cfg);
 
 // Inverse of a model's static characteristic: the centre line between the ascending and
 // descending branches of a slow full-range sweep, made monotonic and inverted by table.

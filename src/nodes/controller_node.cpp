@@ -50,7 +50,7 @@ ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transpo
     master_->setBoot(cfg.sensor_id, std::move(b));
   }
   if (cfg.layout.valve_boot) master_->setBoot(cfg.valve_id, *cfg.layout.valve_boot);
-  params_ = std::make_unique<ControllerParameters>(*node_, cfg_.ctrl);
+  params_ = std::make_unique<ControllerParameters>(*node_, cfg_.ctrl, cfg_.build_off_cycle);
   applyOverrides();
   position_ = node_->od().ref<std::int32_t>(0x3000, 0);
   valve_cmd_ = node_->od().ref<std::int16_t>(0x3002, 0);

@@ -73,6 +73,9 @@ struct ControllerNodeConfig {
   double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast
   double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
   SlaveLayout layout;
+  // The controller of an SDO commit built on a worker thread instead of in the SDO server (on a rig; in
+  // virtual time the inline build keeps runs deterministic). docs/PERFORMANCE.md has what it saves.
+  bool build_off_cycle = false;
   // Boot reports of the slaves (configured, or why not); called on the node's thread, outside the cycle.
   std::function<void(const std::string&)> log;
 };

@@ -77,8 +77,9 @@ bool trajectoryToOd(canopen::ObjectDictionary& od, const control::Trajectory& t)
   return true;
 }
 
-ControllerParameters::ControllerParameters(canopen::Node& node, const control::ControllerConfig& base)
-    : node_(node) {
+ControllerParameters::ControllerParameters(canopen::Node& node, const control::ControllerConfig& base,
+                                           bool build_off_cycle)
+    : node_(node), off_cycle_(build_off_cycle) {
   running_.ctrl = base;
   staged_flag_ = node_.od().ref<std::uint8_t>(0x2003, 2);
   sets_applied_ = node_.od().ref<std::uint8_t>(0x2003, 3);
@@ -190,6 +191,10 @@ void ControllerParameters::countApplied() noexcept {
 }
 
 void ControllerParameters::adopt(ParameterSet p, control::Kind kind) {
+  // A commit still being built belongs to the set this one replaces.
+  if (worker_.joinable()) worker_.join();
+  built_.reset();
+  build_state_.store(kIdle, std::memory_order_relaxed);
   running_ = std::move(p);
   kind_ = kind;
   safe_u_ = std::clamp(running_.safe_u, pd::kCommandMin, pd::kCommandMax);
@@ -199,10 +204,55 @@ void ControllerParameters::adopt(ParameterSet p, control::Kind kind) {
   countApplied();
 }
 
+ControllerParameters::~ControllerParameters() {
+  if (worker_.joinable()) worker_.join();
+}
+
+bool ControllerParameters::committed() noexcept {
+  if (ready_) return true;
+  const int st = build_state_.load(std::memory_order_acquire);
+  if (st == kBuilt) {
+    next_ctrl_ = std::move(built_);  // the previous next_ctrl_ is empty: nothing freed here
+    build_state_.store(kIdle, std::memory_order_relaxed);
+    ready_ = true;
+  } else if (st == kFailed) {
+    ++refused_;
+    last_refusal_ = canopen::kAbortParameterIncompatible;
+    build_state_.store(kIdle, std::memory_order_relaxed);
+  }
+  return ready_;
+}
+
 std::uint32_t ControllerParameters::commit() {
+  if (build_state_.load(std::memory_order_acquire) == kBuilding) return canopen::kAbortDeviceState;
+  if (worker_.joinable()) worker_.join();  // finished: its result was taken or is waiting
   ParameterSet p = read();
   std::string why;
   std::uint32_t code = check(p, &why);
+  if (code == canopen::kSdoOk && off_cycle_) {
+    // The checks that make a build fail are the ones above and validate(); the worker only builds.
+    try {
+      control::validate(p.ctrl);
+    } catch (const std::exception&) {
+      code = canopen::kAbortParameterIncompatible;
+    }
+    if (code == canopen::kSdoOk) {
+      retired_.reset();
+      next_ = p;
+      ready_ = false;
+      staged_flag_.set(0);
+      build_state_.store(kBuilding, std::memory_order_relaxed);
+      worker_ = std::thread([this, kind = kind_, ctrl = std::move(p.ctrl)] {
+        try {
+          built_ = control::makeController(kind, ctrl);
+          build_state_.store(kBuilt, std::memory_order_release);
+        } catch (const std::exception&) {
+          build_state_.store(kFailed, std::memory_order_release);
+        }
+      });
+      return canopen::kSdoOk;
+    }
+  }
   std::unique_ptr<control::Controller> c;
   if (code == canopen::kSdoOk) {
     try {

@@ -12,9 +12,11 @@
 // then taken by the cycle at its next boundary with pointer swaps only (take()).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <thread>
 
 #include "canopen/node.hpp"
 #include "control/controller.hpp"
@@ -38,8 +40,13 @@ bool trajectoryToOd(canopen::ObjectDictionary& od, const control::Trajectory& t)
 
 class ControllerParameters {
  public:
-  // base: what the dictionary does not hold (model effects, the AMC's form, ...).
-  ControllerParameters(canopen::Node& node, const control::ControllerConfig& base);
+  // base: what the dictionary does not hold (model effects, the AMC's form, ...). build_off_cycle: the
+  // controller of a commit is built on a worker thread (on a rig: the open loop's inverse takes
+  // milliseconds, several cycles of the thread that runs the node), not in the SDO server.
+  ControllerParameters(canopen::Node& node, const control::ControllerConfig& base, bool build_off_cycle = false);
+  ~ControllerParameters();
+  ControllerParameters(const ControllerParameters&) = delete;
+  ControllerParameters& operator=(const ControllerParameters&) = delete;
 
   // Dictionary <-> set. read() takes what the dictionary does not hold from the running set.
   ParameterSet read() const;
@@ -55,11 +62,14 @@ class ControllerParameters {
 
   // The set taken into use when the node enters Operational (built by the caller).
   void adopt(ParameterSet p, control::Kind kind);
-  // 0x2003:01 = 1 (SDO server, between cycles): check, build a controller of the running kind, stage.
+  // 0x2003:01 = 1 (SDO server, between cycles): check, build a controller of the running kind (here or
+  // on the worker), stage. Refused with kAbortDeviceState while the last commit is still being built.
   std::uint32_t commit();
   // 0x2003:01 = 0: the dictionary shows the running set again.
   void discard();
-  bool committed() const noexcept { return ready_; }
+  // The cycle asks at its boundary: a committed set whose controller is built. Takes a finished
+  // build from the worker (a pointer move; a failed build is counted as refused).
+  bool committed() noexcept;
   // At a cycle boundary: the committed set and controller become the running ones (swaps only; the
   // replaced controller is freed at the next commit). Returns true if the safe value changed.
   bool take(std::unique_ptr<control::Controller>& ctrl) noexcept;
@@ -83,6 +93,12 @@ class ControllerParameters {
   std::unique_ptr<control::Controller> next_ctrl_;
   std::unique_ptr<control::Controller> retired_;
   bool ready_ = false;
+  // The worker's hand-over: it writes built_, then build_state_ (release); the cycle reads it (acquire).
+  enum : int { kIdle, kBuilding, kBuilt, kFailed };
+  bool off_cycle_ = false;
+  std::thread worker_;
+  std::atomic<int> build_state_{kIdle};
+  std::unique_ptr<control::Controller> built_;
   std::uint64_t applied_ = 0, refused_ = 0;
   std::uint32_t last_refusal_ = 0;
 };

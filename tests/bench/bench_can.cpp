@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <thread>
 #include <vector>
 
 #include "nodes/controller_node.hpp"
@@ -72,6 +73,43 @@ void BM_SyncToSetpoint_PI(benchmark::State& s) { syncToSetpoint(s, control::Kind
 void BM_SyncToSetpoint_AMC(benchmark::State& s) { syncToSetpoint(s, control::Kind::PiAmc, 0); }
 void BM_SyncToSetpoint_AMC_Traffic(benchmark::State& s) { syncToSetpoint(s, control::Kind::PiAmc, 50); }
 
+// What an SDO commit (0x2003:01 = 1) costs the thread that runs the node: the request frame handled -
+// values checked and, inline, the new controller built - in the time between two cycles. With the
+// build off the cycle (pamc controller) only the checks remain; the worker builds, the next cycle
+// boundary after it takes the set.
+void sdoCommit(benchmark::State& state, control::Kind kind, bool off_cycle) {
+  auto c = ctrlConfig(kind);
+  c.build_off_cycle = off_cycle;
+  nodes::VirtualRig rig(c, emuConfig());
+  rig.setRecordSink([](const nodes::CycleRecord&) {});
+  auto& ctrl = rig.controller();
+  rig.start();
+  rig.runFor(1.0);
+  const std::uint8_t d[8] = {0x2F, 0x03, 0x20, 0x01, 1, 0, 0, 0};
+  const canopen::Frame commit = canopen::makeFrame(0x601, 8, d);
+  std::vector<double> ms;
+  for (auto _ : state) {
+    const std::uint64_t applied = ctrl.faultCounters().sets_applied;
+    const auto t0 = std::chrono::steady_clock::now();
+    ctrl.node().onFrame(commit, rig.bus().now());
+    const auto t1 = std::chrono::steady_clock::now();
+    const double t = std::chrono::duration<double>(t1 - t0).count();
+    state.SetIterationTime(t);
+    ms.push_back(t * 1e3);
+    while (ctrl.faultCounters().sets_applied == applied) {  // until the set is taken (not timed)
+      if (off_cycle) std::this_thread::sleep_for(std::chrono::microseconds(200));
+      rig.step();
+    }
+  }
+  std::sort(ms.begin(), ms.end());
+  state.counters["median_ms"] = ms[ms.size() / 2];
+  state.counters["max_ms"] = ms.back();
+}
+void BM_SdoCommit_OpenLoop_Inline(benchmark::State& s) { sdoCommit(s, control::Kind::OpenLoop, false); }
+void BM_SdoCommit_OpenLoop_OffCycle(benchmark::State& s) { sdoCommit(s, control::Kind::OpenLoop, true); }
+void BM_SdoCommit_AMC_Inline(benchmark::State& s) { sdoCommit(s, control::Kind::PiAmc, false); }
+void BM_SdoCommit_AMC_OffCycle(benchmark::State& s) { sdoCommit(s, control::Kind::PiAmc, true); }
+
 // A whole 1 ms cycle of the rig on the in-process bus (SYNC, 3 PDOs, heartbeats, both node sides,
 // emulator physics, AMC): how much faster than real time the CAN-level simulation runs.
 void BM_RigCycle(benchmark::State& state) {
@@ -114,6 +152,10 @@ BENCHMARK(BM_SyncToSetpoint_PI)->Iterations(20000);
 BENCHMARK(BM_SyncToSetpoint_AMC)->Iterations(20000);
 BENCHMARK(BM_SyncToSetpoint_AMC_Traffic)->Iterations(20000);
 BENCHMARK(BM_RigCycle);
+BENCHMARK(BM_SdoCommit_OpenLoop_Inline)->UseManualTime()->Iterations(30)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SdoCommit_OpenLoop_OffCycle)->UseManualTime()->Iterations(30)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SdoCommit_AMC_Inline)->UseManualTime()->Iterations(30)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SdoCommit_AMC_OffCycle)->UseManualTime()->Iterations(30)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BusLoadPerCycle)->Iterations(10000);
 
 BENCHMARK_MAIN();

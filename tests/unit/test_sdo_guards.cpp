@@ -10,10 +10,13 @@
 #include <cstring>
 #include <memory>
 #include <stdexcept>
+#include <chrono>
+#include <thread>
 
 #include "canopen/bus.hpp"
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
+#include "nodes/process_data.hpp"
 #include "rig/virtual_rig.hpp"
 #include "rig/fault_rig.hpp"
 #include "plant/plant.hpp"
@@ -44,6 +47,11 @@ nodes::EmulatorConfig emulatorConfig() {
   e.valve_eds = kOd + "valve.eds";
   return e;
 }
+nodes::ControllerNodeConfig withOffCycle(nodes::ControllerNodeConfig c, bool off_cycle) {
+  c.build_off_cycle = off_cycle;
+  return c;
+}
+
 nodes::ControllerNodeConfig controllerConfig(control::Kind kind) {
   auto c = controllerConfig();
   c.kind = static_cast<int>(kind);
@@ -51,8 +59,8 @@ nodes::ControllerNodeConfig controllerConfig(control::Kind kind) {
 }
 
 struct Rig {
-  explicit Rig(control::Kind kind = control::Kind::PiAmc)
-      : rig(controllerConfig(kind), emulatorConfig()), bus(rig.bus()), tool(rig.addPort()), ctrl(&rig.controller()),
+  explicit Rig(control::Kind kind = control::Kind::PiAmc, bool off_cycle = false)
+      : rig(withOffCycle(controllerConfig(kind), off_cycle), emulatorConfig()), bus(rig.bus()), tool(rig.addPort()), ctrl(&rig.controller()),
         emu(&rig.emulator()), recs(rig.records()) {
     rig.addTap([this](const Frame& f, canopen::TimeUs) {
       if (f.id == 0x581) last = f, answered = true;
@@ -205,6 +213,35 @@ TEST(SdoGuards, TheCycleThatTakesACommitAllocatesAndFreesNothing) {
   r.bus.advanceBy(1000);
   EXPECT_EQ(mallinfo2().uordblks, before2);
   EXPECT_EQ(r.ctrl->activeParameters().kp, 0.25);
+}
+
+// On a rig the controller of a commit is built on a worker thread: the SDO answer does not wait for
+// it, and the cycle that takes it (at a boundary, once built) still allocates and frees nothing. The
+// open loop's inverse characteristic is the slow build.
+TEST(SdoGuards, AControllerBuiltOffTheCycleIsTakenAtACycleBoundary) {
+  for (auto kind : {control::Kind::PiAmc, control::Kind::OpenLoop}) {
+    Rig r(kind, true);
+    r.runTo(2.0);
+    const std::uint64_t applied = r.ctrl->faultCounters().sets_applied;
+    EXPECT_EQ(r.writeDouble(0x2020, 0, 1.5), 0u);  // the safe value: used by every controller
+    EXPECT_EQ(r.writeU8(0x2003, 1, 1), 0u);        // answered at once; the worker builds
+    // Virtual time stands still while the worker runs; give it up to 5 s of wall time.
+    for (int i = 0; i < 500 && r.ctrl->faultCounters().sets_applied == applied; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      const auto before = mallinfo2().uordblks;
+      r.bus.advanceBy(1000);
+      if (r.ctrl->faultCounters().sets_applied != applied) {
+        EXPECT_EQ(mallinfo2().uordblks, before) << "the cycle that took the set allocated";
+      }
+    }
+    EXPECT_EQ(r.ctrl->faultCounters().sets_applied, applied + 1) << control::toString(kind);
+    EXPECT_DOUBLE_EQ(r.ctrl->safeCommand(), nodes::pd::commandFromVolts(1.5));
+    // A bad set is still refused in the SDO answer, before any build.
+    EXPECT_EQ(r.writeDouble(0x2001, 6, -0.5), 0u);  // gamma: with it the model is unstable
+    EXPECT_EQ(r.writeU8(0x2003, 1, 1), canopen::kAbortParameterIncompatible);
+    r.runTo(r.ctrl->runTime() + 0.5);
+    EXPECT_EQ(r.ctrl->fault(), nodes::Fault::None);
+  }
 }
 
 TEST(SdoGuards, ACommittedSafeValueBecomesTheValvesErrorValue) {
