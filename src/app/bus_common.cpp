@@ -31,13 +31,6 @@ void installSignals() {
 
 void realtimeSetup(bool enable, int cpu, int priority) {
   if (!enable) return;
-  if (::mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
-    std::fprintf(stderr, "warning: mlockall failed (%s): pages may fault in the cycle\n", std::strerror(errno));
-  sched_param sp{};
-  sp.sched_priority = priority;
-  if (::sched_setscheduler(0, SCHED_FIFO, &sp) != 0)
-    std::fprintf(stderr, "warning: SCHED_FIFO %d not permitted (%s): running with normal priority\n", priority,
-                 std::strerror(errno));
   if (cpu >= 0) {
     cpu_set_t set;
     CPU_ZERO(&set);
@@ -45,6 +38,14 @@ void realtimeSetup(bool enable, int cpu, int priority) {
     if (::sched_setaffinity(0, sizeof set, &set) != 0)
       std::fprintf(stderr, "warning: cannot pin to CPU %d (%s)\n", cpu, std::strerror(errno));
   }
+  if (priority <= 0) return;  // paced only: normal scheduling, pages not locked
+  if (::mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
+    std::fprintf(stderr, "warning: mlockall failed (%s): pages may fault in the cycle\n", std::strerror(errno));
+  sched_param sp{};
+  sp.sched_priority = priority;
+  if (::sched_setscheduler(0, SCHED_FIFO, &sp) != 0)
+    std::fprintf(stderr, "warning: SCHED_FIFO %d not permitted (%s): running with normal priority\n", priority,
+                 std::strerror(errno));
 }
 
 void printStats(const nodes::CycleStats& s, const TrackingSummary& t) {
@@ -106,7 +107,9 @@ nodes::EmulatorConfig EmulatorOptions::config(const std::string& od_dir, unsigne
 void RealtimeOptions::add(CLI::App* a) {
   a->add_flag("--rt", rt, "real time: mlockall, SCHED_FIFO, CPU affinity (warns when not permitted)");
   a->add_option("--cpu", cpu, "pin to this CPU with --rt");
-  a->add_option("--priority", priority, "SCHED_FIFO priority with --rt")->capture_default_str()->check(CLI::Range(1, 99));
+  a->add_option("--priority", priority, "SCHED_FIFO priority with --rt (0: normal scheduling, no mlockall)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 99));
 }
 
 }  // namespace pamc::app

@@ -76,6 +76,12 @@ VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConf
       if (pace.tv_nsec >= 1'000'000'000) pace.tv_nsec -= 1'000'000'000, ++pace.tv_sec;
       while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &pace, nullptr) == EINTR) {
       }
+      timespec woke{};
+      ::clock_gettime(CLOCK_MONOTONIC, &woke);
+      const double late_us = static_cast<double>(woke.tv_sec - pace.tv_sec) * 1e6 +
+                             static_cast<double>(woke.tv_nsec - pace.tv_nsec) * 1e-3;
+      r.wake_late_us.add(late_us);
+      if (late_us >= 1000.0) ++r.wake_overruns;
     }
   }
   rig.step(0);  // the records of the last cycle

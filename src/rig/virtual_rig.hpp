@@ -83,6 +83,9 @@ struct VirtualRigResult {
   Fault final_fault = Fault::None;
   canopen::Counters counters;  // the controller node's
   canopen::TimeUs bus_busy_us = 0;  // with a bitrate: time the bus carried frames
+  // Paced in real time: how late each wake-up came, and how many came a whole period late or more.
+  Histogram wake_late_us;
+  std::uint64_t wake_overruns = 0;
 };
 
 // Optional: a live rig (paced to the wall clock) whose frames and records go elsewhere.
