@@ -1,5 +1,7 @@
 #include "app/bus_common.hpp"
 
+#include <unistd.h>
+
 #include <sched.h>
 #include <signal.h>
 #include <sys/mman.h>
@@ -70,6 +72,21 @@ std::unique_ptr<canopen::SocketCanTransport> openCan(const std::string& iface) {
                                  : " (bring it up first, e.g. sudo ./vcan_setup.sh up " + iface + ")";
     throw std::runtime_error(std::string(e.what()) + hint);
   }
+}
+
+std::string defaultOdDir() {
+  auto has = [](const std::string& d) { return ::access((d + "/controller.eds").c_str(), R_OK) == 0; };
+  if (has("od")) return "od";
+  char exe[4096];
+  const ssize_t n = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
+  if (n > 0) {
+    exe[n] = '\0';
+    std::string dir(exe);
+    dir.erase(dir.find_last_of('/'));  // .../bin
+    for (const char* rel : {"/../share/pamc/od", "/../../od"})
+      if (has(dir + rel)) return dir + rel;
+  }
+  return "od";
 }
 
 void OdOption::add(CLI::App* a) {

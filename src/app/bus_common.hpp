@@ -129,8 +129,12 @@ void printStats(const nodes::CycleStats& s, const TrackingSummary& t);
 std::unique_ptr<canopen::SocketCanTransport> openCan(const std::string& iface);
 
 // --od: the folder with controller.eds, sensor.eds and valve.eds.
+// The EDS folder: ./od when it is there (the source tree), else the one installed with pamc
+// (<prefix>/share/pamc/od next to <prefix>/bin/pamc), else the source tree's seen from the build tree.
+std::string defaultOdDir();
+
 struct OdOption {
-  std::string dir = "od";
+  std::string dir = defaultOdDir();
   void add(CLI::App* a);
 };
 

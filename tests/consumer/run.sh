@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Installs pamc from the build tree into a temporary prefix, builds tests/consumer against it with
+# find_package(pamc), runs it, and checks the Debian package cpack makes holds the same files.
+# Arguments: BUILD_DIR SOURCE_DIR.
+set -eu
+BUILD=$1; SRC=$2
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+cmake --install "$BUILD" --prefix "$T/prefix" > "$T/install.txt"
+for f in bin/pamc share/pamc/od/controller.eds share/pamc/od/rigs/default.ini include/pamc/control/controller.hpp \
+         include/pamc/canopen/node.hpp lib/cmake/pamc/pamcConfig.cmake lib/systemd/system/pamc-controller@.service; do
+  [ -e "$T/prefix/$f" ] || { echo "FAIL: not installed: $f"; exit 1; }
+done
+# The installed pamc finds its EDS files next to itself, from any working directory.
+(cd "$T" && "$T/prefix/bin/pamc" rig --duration 1 --preroll 0.2 > "$T/rig.txt") || { cat "$T/rig.txt"; echo "FAIL: installed pamc rig"; exit 1; }
+cmake -S "$SRC/tests/consumer" -B "$T/consumer" -DCMAKE_PREFIX_PATH="$T/prefix" -DCMAKE_BUILD_TYPE=Release > "$T/configure.txt" \
+  || { cat "$T/configure.txt"; exit 1; }
+cmake --build "$T/consumer" -j2 > "$T/build.txt" 2>&1 || { cat "$T/build.txt"; exit 1; }
+"$T/consumer/consumer"
+if command -v cpack > /dev/null && command -v dpkg-deb > /dev/null; then
+  (cd "$T" && cpack -G DEB --config "$BUILD/CPackConfig.cmake" > "$T/cpack.txt" 2>&1) || { cat "$T/cpack.txt"; exit 1; }
+  deb=$(ls "$T"/*.deb | head -n 1)
+  dpkg-deb -c "$deb" > "$T/deb.txt"
+  for f in ./usr/bin/pamc ./usr/share/pamc/od/rigs/default.ini ./usr/lib/systemd/system/pamc-controller@.service; do
+    grep -q " $f\$" "$T/deb.txt" || { echo "FAIL: $f not in $(basename "$deb")"; exit 1; }
+  done
+  echo "ok: $(basename "$deb") holds pamc, the rig files and the service unit"
+fi
+echo "ok: installed, found by find_package(pamc), consumer built and ran"
