@@ -1,5 +1,7 @@
 #include "nodes/rig_file.hpp"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <set>
@@ -90,11 +92,9 @@ class Reader {
     const IniKey* k = s.find(key);
     if (k == nullptr || k->value.empty()) fail(s.line, std::string("[") + s.name + "] needs " + key);
     const std::string p = k->value[0] == '/' ? k->value : dir_ + k->value;
-    if (FILE* f = std::fopen(p.c_str(), "r")) {
-      std::fclose(f);
-    } else {
-      fail(k->line, std::string(key) + " " + p + ": cannot open file");
-    }
+    struct stat st {};
+    if (::stat(p.c_str(), &st) != 0) fail(k->line, std::string(key) + " " + p + ": cannot open file");
+    if (!S_ISREG(st.st_mode)) fail(k->line, std::string(key) + " " + p + ": not a regular file");
     return p;
   }
   // "0x6004:00" (index and sub-index in hex).
@@ -240,13 +240,29 @@ void slaveTail(const Reader& r, const canopen::IniFile& ini, SlaveBuild& s, std:
 
 }  // namespace
 
+namespace {
+RigFile fromIni(const canopen::IniFile& ini);
+}
+
 RigFile readRigFile(const std::string& path) {
-  canopen::IniFile ini;
   try {
-    ini = canopen::readIni(path);
+    return fromIni(canopen::readIni(path));
   } catch (const canopen::IniError& e) {
     throw RigError(e.what());
   }
+}
+
+RigFile parseRigFile(const std::string& text, const std::string& path) {
+  try {
+    return fromIni(canopen::parseIni(text, path));
+  } catch (const canopen::IniError& e) {
+    throw RigError(e.what());
+  }
+}
+
+namespace {
+RigFile fromIni(const canopen::IniFile& ini) {
+  const std::string& path = ini.path;
   const Reader r(ini);
   for (const auto& s : ini.sections) {
     static const std::set<std::string> known = {"bus", "controller", "sensor", "valve", "sensor.sdo", "valve.sdo"};
@@ -354,6 +370,7 @@ RigFile readRigFile(const std::string& path) {
   rig.layout.startup = rig.startup;
   return rig;
 }
+}  // namespace
 
 void applyRig(const RigFile& rig, ControllerNodeConfig& cfg) {
   cfg.eds_path = rig.controller_eds;

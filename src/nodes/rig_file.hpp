@@ -36,6 +36,8 @@ struct RigFile {
 
 // Reads and checks a rig file; throws RigError (or EdsError for a bad slave EDS) naming file and line.
 RigFile readRigFile(const std::string& path);
+// The same for text already in memory; path names it in errors and EDS paths are relative to its folder.
+RigFile parseRigFile(const std::string& text, const std::string& path);
 
 // The node settings the rig file makes: node-IDs, EDS, period, layout. The rest of cfg is kept.
 void applyRig(const RigFile& rig, ControllerNodeConfig& cfg);
