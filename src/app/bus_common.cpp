@@ -100,14 +100,22 @@ void EmulatorOptions::add(CLI::App* a) {
   a->add_option("--drop-pdo", ec.drop_pdo_prob, "probability of dropping each position PDO")->check(CLI::Range(0.0, 1.0));
   a->add_option("--late-pdo", ec.late_pdo_cycles, "position PDOs this many cycles late")->check(CLI::Range(0, 255));
   a->add_option("--payload", payload, "payload step TIME:NEWTONS, e.g. 10:40");
+  a->add_flag("--profile-defaults", profile_defaults,
+              "play off-the-shelf devices with their makers' defaults instead of pamc's own (od/profile/: a CiA 406 "
+              "encoder, node 16, 5 um steps, asynchronous PDO; a CiA 401 analog I/O module, node 32, valve on output 2, "
+              "no heartbeats): only a controller that configures them (--rig od/rigs/profile.ini) can use them");
 }
 
 nodes::EmulatorConfig EmulatorOptions::config(const std::string& od_dir, unsigned period_us) const {
   nodes::EmulatorConfig e = ec;
+  if (profile_defaults) {
+    e.useProfileDevices(od_dir);
+  } else {
+    e.sensor_eds = od_dir + "/sensor.eds";
+    e.valve_eds = od_dir + "/valve.eds";
+  }
   if (!plant_file.empty()) e.plant = plant::PlantConfig::fromFile(plant_file);
   if (period_us) e.plant.Ts = period_us * 1e-6;  // the emulator steps one SYNC period per SYNC
-  e.sensor_eds = od_dir + "/sensor.eds";
-  e.valve_eds = od_dir + "/valve.eds";
   if (!payload.empty()) {
     const auto c = payload.find(':');
     if (c == std::string::npos) throw std::invalid_argument("--payload: expected TIME:NEWTONS, got '" + payload + "'");

@@ -141,6 +141,7 @@ struct OdOption {
 // The emulator nodes: plant, fault injection, payload (rig, emulator).
 struct EmulatorOptions {
   std::string plant_file, payload;
+  bool profile_defaults = false;
   nodes::EmulatorConfig ec;
   void add(CLI::App* a);
   // The emulator's configuration for the EDS folder and the SYNC period (0: 1 ms).

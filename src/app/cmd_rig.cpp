@@ -194,8 +194,8 @@ class RigCommand final : public Command {
     installSignals();
     realtimeSetup(true, rt_cpu, rt_priority);
     logger.start();
-    std::fprintf(stderr, "in-process bus paced in real time: controller (node 1) + sensor (2) + valve (3), %g s pre-roll + %s\n",
-                 run_.preroll, run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
+    std::fprintf(stderr, "in-process bus paced in real time: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
+                 c.node_id ? c.node_id : 1u, c.sensor_id, c.valve_id, run_.preroll, run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
     const auto r = nodes::runVirtualRig(c, ec, run_.duration, "", epoch, 0, hooks);
     logger.stop();
     if (progress_fd >= 0) ::close(progress_fd);
@@ -230,8 +230,9 @@ class RigCommand final : public Command {
       t.add(x);
       if (!run_.csv.empty()) kept.push_back(x);
     };
-    std::fprintf(stderr, "in-process bus: controller (node 1) + sensor (2) + valve (3), %g s pre-roll + %s\n",
-                 run_.preroll, forever ? "until Ctrl-C" : (std::to_string(run_.duration) + " s run").c_str());
+    std::fprintf(stderr, "in-process bus: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
+                 c.node_id ? c.node_id : 1u, c.sensor_id, c.valve_id, run_.preroll,
+                 forever ? "until Ctrl-C" : (std::to_string(run_.duration) + " s run").c_str());
     const auto r = nodes::runVirtualRig(c, ec, run_.duration, candump, 1700000000000000, 0, hooks);
     if (!run_.csv.empty()) {
       std::vector<double> tt, yd, y, u, un, uc, yh, f;
@@ -247,6 +248,10 @@ class RigCommand final : public Command {
                 r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
     printStats(r.stats, t);
     if (!candump.empty()) std::printf("candump log: %s\n", candump.c_str());
+    if (t.n == 0 && !forever)
+      throw std::runtime_error("the loop never started: no usable position from the sensor (node " +
+                               std::to_string(c.sensor_id) + "); devices that differ from pamc's own need a rig "
+                               "file that describes them (--rig, docs/RIG.md)");
     return 0;
   }
 

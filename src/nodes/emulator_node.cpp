@@ -18,16 +18,16 @@ EmulatorNodes::EmulatorNodes(const EmulatorConfig& cfg, canopen::Transport& tran
       valve_link_(*this, transport, false),
       plant_(cfg.plant),
       rng_(cfg.seed) {
-  sensor_ = canopen::Node::fromEds(cfg.sensor_eds, sensor_link_);
-  valve_ = canopen::Node::fromEds(cfg.valve_eds, valve_link_);
-  position_ = sensor_->od().ref<std::int32_t>(0x6004, 0);
-  pressure_ = valve_->od().ref<std::int16_t>(0x6401, 1);
-  command_ = valve_->od().ref<std::int16_t>(0x6411, 1);
-  error_mode_ = valve_->od().ref<std::uint8_t>(0x6443, 1);
-  error_value_ = valve_->od().ref<std::int32_t>(0x6444, 1);
+  sensor_ = canopen::Node::fromEds(cfg.sensor_eds, sensor_link_, cfg.sensor_id);
+  valve_ = canopen::Node::fromEds(cfg.valve_eds, valve_link_, cfg.valve_id);
+  position_ = sensor_->od().ref<std::int32_t>(cfg.position_index, cfg.position_sub);
+  pressure_ = valve_->od().ref<std::int16_t>(cfg.pressure_index, cfg.pressure_sub);
+  command_ = valve_->od().ref<std::int16_t>(cfg.command_index, cfg.command_sub);
+  error_mode_ = valve_->od().ref<std::uint8_t>(0x6443, cfg.command_sub);
+  error_value_ = valve_->od().ref<std::int32_t>(0x6444, cfg.command_sub);
   sync_cob_ = sensor_->od().ref<std::uint32_t>(0x1005, 0).get() & 0x7FFu;
   pdo_cob_ = sensor_->od().ref<std::uint32_t>(0x1800, 1).get() & 0x7FFu;
-  if (const auto* hb = valve_->od().find(0x1016, 1)) master_id_ = static_cast<std::uint8_t>((hb->asUnsigned() >> 16) & 0x7F);
+  master_hb_ = valve_->od().find(0x1016, 1);
   // The valve monitors the SYNC with the emulator's period (1.5 periods without one: error value).
   const auto period_us = static_cast<std::uint32_t>(std::lround(cfg_.plant.Ts * 1e6));
   auto monitor_sync = [this, period_us] {
@@ -38,11 +38,35 @@ EmulatorNodes::EmulatorNodes(const EmulatorConfig& cfg, canopen::Transport& tran
   valve_->onStateChange([this](NmtState, NmtState, TimeUs now) { updateValve(now); });
   valve_->onSyncTimeout([this](TimeUs now) { updateValve(now); });
   valve_->onHeartbeat([this](std::uint8_t id, canopen::HeartbeatEvent ev, NmtState, TimeUs now) {
-    if (id == master_id_ && ev == canopen::HeartbeatEvent::Timeout) updateValve(now);
+    if (id == masterId() && ev == canopen::HeartbeatEvent::Timeout) updateValve(now);
   });
   // The valve holds its command at 0 V (vented) until the controller sends one.
   plant_.reset(pd::kCommandMin, 0.0);  // vented: 0 V at the valve
-  position_.set(pd::mmToCounts(plant_.position()));
+  position_.set(cfg_.scaling.positionCounts(plant_.position()));
+}
+
+void EmulatorConfig::useProfileDevices(const std::string& od_dir) {
+  sensor_eds = od_dir + "/profile/encoder406.eds";
+  valve_eds = od_dir + "/profile/analog401.eds";
+  sensor_id = valve_id = 0;  // theirs: 16 and 32
+  position_index = 0x6004, position_sub = 0;
+  command_index = 0x6411, command_sub = 2;    // the valve on output 2
+  pressure_index = 0x6401, pressure_sub = 2;  // the pressure sensor on input 2
+  scaling = pd::Scaling{};
+  scaling.position_step_mm = 0.005;  // 0x6005:01 = 5000 nm
+  scaling.command_full_counts = 20000;
+  scaling.pressure_full_counts = 20000;
+}
+
+EmulatorConfig EmulatorConfig::profileDevices(const std::string& od_dir) {
+  EmulatorConfig e;
+  e.useProfileDevices(od_dir);
+  return e;
+}
+
+// The master whose heartbeat the valve watches: 0x1016:01, as a master may have written it.
+std::uint8_t EmulatorNodes::masterId() const {
+  return master_hb_ ? static_cast<std::uint8_t>((master_hb_->asUnsigned() >> 16) & 0x7F) : 0;
 }
 
 void EmulatorNodes::start(TimeUs now) {
@@ -111,7 +135,8 @@ void EmulatorNodes::releaseDelayed(TimeUs now) {
 
 void EmulatorNodes::updateValve(TimeUs now) {
   const bool sync_lost = valve_->sync().timedOut();
-  const bool master_lost = master_id_ != 0 && valve_->heartbeatConsumer().timedOut(master_id_);
+  const std::uint8_t master = masterId();
+  const bool master_lost = master != 0 && valve_->heartbeatConsumer().timedOut(master);
   const bool ok = valve_->nmtState() == NmtState::Operational && !sync_lost && !master_lost;
   // The output goes to its error value (CiA 401: 0x6443/0x6444) and says so: an EMCY with the cause
   // and the communication bit of the error register 0x1001, until a fresh synchronous command (RPDO1
@@ -133,7 +158,10 @@ void EmulatorNodes::updateValve(TimeUs now) {
     valve_error_code_ = 0;
   }
   const bool error_out = valve_error_ && error_mode_.get() != 0;
-  const double u = pd::countsToCommand(error_out ? static_cast<double>(std::clamp(error_value_.get(), 0, 32767)) : command_.get());
+  const auto& sc = cfg_.scaling;
+  const double lo = sc.command_zero_counts, hi = sc.command_zero_counts + sc.command_full_counts;
+  const double u = sc.commandFromCounts(error_out ? std::clamp(static_cast<double>(error_value_.get()), lo, hi)
+                                                  : static_cast<double>(command_.get()));
   if (u != u_held_) {
     u_held_ = u;
     valve_changed_us_ = now;
@@ -150,11 +178,11 @@ void EmulatorNodes::onFrame(const Frame& f, TimeUs now) {
     const double F = cfg_.payload_at_s >= 0 && time() >= cfg_.payload_at_s ? cfg_.payload_N : 0.0;
     plant_.step(u_held_, F);
     const double y = plant_.measure();
-    const auto counts = pd::mmToCounts(y);
+    const auto counts = cfg_.scaling.positionCounts(y);
     late_[syncs_ % late_.size()] = counts;
     const int lag = std::clamp(cfg_.late_pdo_cycles, 0, static_cast<int>(late_.size()) - 1);
     position_.set(syncs_ > static_cast<std::uint64_t>(lag) ? late_[(syncs_ - static_cast<std::uint64_t>(lag)) % late_.size()] : counts);
-    pressure_.set(pd::barToCounts(plant_.pressure_bar()));
+    pressure_.set(cfg_.scaling.pressureCounts(plant_.pressure_bar()));
   }
   if (!sensorSilent()) sensor_->onFrame(f, now);
   valve_->onFrame(f, now);

@@ -29,6 +29,21 @@ namespace pamc::nodes {
 struct EmulatorConfig {
   std::string sensor_eds = "od/sensor.eds";
   std::string valve_eds = "od/valve.eds";
+  // The devices: node-IDs (0: the EDS's), which objects carry the numbers and how they count. The
+  // defaults are od/sensor.eds and od/valve.eds; profileDevices() the off-the-shelf kind.
+  std::uint8_t sensor_id = 0, valve_id = 0;
+  std::uint16_t position_index = 0x6004;
+  std::uint8_t position_sub = 0;
+  std::uint16_t command_index = 0x6411;
+  std::uint8_t command_sub = 1;  // CiA 401: its error mode 0x6443 and error value 0x6444 have the same sub-index
+  std::uint16_t pressure_index = 0x6401;
+  std::uint8_t pressure_sub = 1;
+  pd::Scaling scaling;
+  // A CiA 406 encoder (node 16, 5 um steps, asynchronous TPDO) and a CiA 401 analog I/O module (node 32,
+  // valve on output 2, pressure on input 2, 0..20000 = full scale, no heartbeat) with their makers'
+  // defaults (od/profile/): nothing fits pamc's controller until it configures them (od/rigs/profile.ini).
+  static EmulatorConfig profileDevices(const std::string& od_dir);
+  void useProfileDevices(const std::string& od_dir);  // the same on this configuration's devices
   plant::PlantConfig plant = plant::PlantConfig::defaults();
   double sensor_silent_at_s = -1;   // < 0: never
   double sensor_silent_for_s = 1e9;
@@ -119,7 +134,8 @@ class EmulatorNodes : public canopen::BusClient {
   };
   std::array<Delayed, 64> delayed_{};  // FIFO (one delay for all)
   std::size_t delayed_head_ = 0, delayed_count_ = 0;
-  std::uint8_t master_id_ = 0;         // the node whose heartbeat the valve consumes (0x1016:01)
+  const canopen::Entry* master_hb_ = nullptr;  // 0x1016:01: whose heartbeat the valve consumes
+  std::uint8_t masterId() const;
   canopen::Ref<std::uint8_t> error_mode_{nullptr};
   canopen::Ref<std::int32_t> error_value_{nullptr};
   bool valve_error_ = false;

@@ -48,6 +48,7 @@ struct Scaling {
   double position_step_mm = kPositionStep_mm;                                  // mm per position count
   double command_full_counts = kAnalogFullScaleCounts;  // valve counts at full scale (10 V) above the zero
   double command_zero_counts = 0.0;                     // counts for 0 V
+  double pressure_full_counts = kAnalogFullScaleCounts; // pressure feedback counts at full scale (10 bar)
 
   double mm(double counts) const noexcept { return counts * position_step_mm; }
   // Command u [V relative to mid-range] -> the valve's counts (clamped to 0..10 V and to 16 bits).
@@ -55,6 +56,18 @@ struct Scaling {
     const double v = std::clamp(valveVolts(u), 0.0, kValveFullScale_V);
     const long c = std::lround(command_zero_counts + v * command_full_counts / kValveFullScale_V);
     return static_cast<std::int16_t>(std::clamp(c, -32768L, 32767L));
+  }
+  // The inverse: the valve's counts -> command u (what a valve that counts so outputs).
+  double commandFromCounts(double counts) const noexcept {
+    return commandFromVolts((counts - command_zero_counts) * kValveFullScale_V / command_full_counts);
+  }
+  // The sensor's counts for a position, the valve's feedback counts for a pressure (clamped as above).
+  std::int32_t positionCounts(double y_mm) const noexcept {
+    return static_cast<std::int32_t>(std::lround(std::clamp(y_mm, -2.0e6, 2.0e6) / position_step_mm));
+  }
+  std::int16_t pressureCounts(double bar) const noexcept {
+    return static_cast<std::int16_t>(
+        std::lround(std::clamp(bar, 0.0, kPressureFullScale_bar) * pressure_full_counts / kPressureFullScale_bar));
   }
   bool isDefault() const noexcept {
     return position_step_mm == kPositionStep_mm && command_full_counts == kAnalogFullScaleCounts && command_zero_counts == 0.0;

@@ -308,3 +308,63 @@ TEST(RigBoot, AResetControllerBringsTheRigBackUnlessToldToWait) {
     EXPECT_TRUE(rig.controller().running()) << "wait=" << wait;
   }
 }
+
+// Devices pamc did not make (emulator --profile-defaults): a CiA 406 encoder and a CiA 401 I/O module
+// with their makers' defaults. Started by any master they talk asynchronously on their own COB-IDs and
+// send no heartbeat; pamc's controller without a rig file never gets a position from them; with
+// od/rigs/profile.ini it configures both (the 5 um step read from the encoder) and tracks as well as
+// with its own devices.
+TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
+  const auto profile = nodes::EmulatorConfig::profileDevices(kOd.substr(0, kOd.size() - 1));
+  {
+    nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
+    c.layout = nodes::SlaveLayout{};
+    nodes::VirtualRig rig(c, profile);
+    Tool tool(rig);
+    std::vector<std::pair<canopen::TimeUs, Frame>> frames;
+    rig.addTap([&](const Frame& f, canopen::TimeUs t) { frames.push_back({t, f}); });
+    rig.startEmulator();
+    const std::uint8_t all[2] = {0x01, 0x00};  // another master starts every node
+    tool.port.send(canopen::makeFrame(0x000, 2, all));
+    rig.bus().flush();
+    rig.runFor(0.1);
+    int enc = 0, io = 0, hb = 0;
+    for (const auto& [t, f] : frames) {
+      if (f.id == 0x190) {
+        ++enc;
+        EXPECT_EQ(f.len, 6) << "position and alarms";
+      }
+      if (f.id == 0x1A0) {
+        ++io;
+        EXPECT_EQ(f.len, 8) << "four inputs";
+      }
+      if (f.id == 0x710 || f.id == 0x720) ++hb;
+    }
+    EXPECT_NEAR(enc, 10, 2) << "every 10 ms";
+    EXPECT_NEAR(io, 5, 1) << "every 20 ms";
+    EXPECT_EQ(hb, 2) << "their boot-ups only, no heartbeat";
+    rig.startController();
+    rig.runFor(3.0);
+    EXPECT_FALSE(rig.controller().running()) << "pamc's layout on devices that differ";
+  }
+  std::vector<std::string> log;
+  auto c = controllerFromRig(writeTemp("profile.ini", [] {
+    std::ifstream in(kOd + "rigs/profile.ini");
+    std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (const char* eds : {"controller.eds", "profile/encoder406.eds", "profile/analog401.eds"}) {
+      const std::string from = std::string("../") + eds;
+      t.replace(t.find(from), from.size(), kOd + eds);
+    }
+    return t;
+  }()), &log);
+  nodes::VirtualRig rig(c, profile);
+  rig.start();
+  rig.runFor(4.0);
+  ASSERT_EQ(log.size(), 2u);
+  EXPECT_EQ(rig.controller().faultCounters().slave_boots, 2u);
+  EXPECT_DOUBLE_EQ(rig.controller().scaling().position_step_mm, 0.005) << "read from the encoder's 0x6005:01";
+  EXPECT_TRUE(rig.controller().running());
+  EXPECT_LT(trackingRmse(rig.records(), 1.0), 1.0);
+  // The module watches the controller now: without its heartbeat the valve output goes to its error value.
+  EXPECT_FALSE(rig.emulator().valveInError());
+}
