@@ -1,6 +1,6 @@
 #include "canopen/eds.hpp"
 
-#include <ini.h>
+#include "canopen/ini.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -49,115 +49,25 @@ bool parseUnsigned(std::string_view text, std::uint64_t& out, int base = 0) {
 
 std::string quoted(std::string_view s) { return "'" + std::string(s) + "'"; }
 
-struct Key {
-  std::string name;  // as written
-  std::string value;
-  int line = 0;
-};
-
-struct Section {
-  std::string name;  // as written
-  int line = 0;
-  std::map<std::string, Key> keys;  // lower-case key name
-
-  const Key* get(const char* key) const {
-    auto it = keys.find(key);
-    return it == keys.end() ? nullptr : &it->second;
-  }
-};
-
-struct ParseState {
-  std::string file;
-  std::vector<std::string> lines;
-  std::size_t next = 0;
-  int lineno = 0;
-  std::map<std::string, Section> sections;  // lower-case section name
-  int err_line = 0;
-  std::string err_section;
-  std::string err_problem;
-
-  void fail(int line, std::string section, std::string problem) {
-    if (err_line != 0 && err_line <= line) return;  // keep the first problem in file order
-    err_line = line;
-    err_section = std::move(section);
-    err_problem = std::move(problem);
-  }
-};
-
-// fgets-style reader for ini_parse_stream: counting lines here gives semantic errors a line number too.
-char* readLine(char* str, int num, void* stream) {
-  auto* st = static_cast<ParseState*>(stream);
-  if (st->next >= st->lines.size()) return nullptr;
-  std::string line = st->lines[st->next++];
-  st->lineno = static_cast<int>(st->next);
-  if (st->lineno == 1 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);
-  if (!line.empty() && line.back() == '\r') line.pop_back();
-  std::string_view t = trim(line);
-  std::size_t max_len = static_cast<std::size_t>(num) - 3;  // inih needs room for "\r\n\0"
-  if (line.size() > max_len) {
-    st->fail(st->lineno, "", "line longer than " + std::to_string(max_len) + " characters");
-    line.resize(max_len);
-  }
-  if (!t.empty() && t.front() == '[') {
-    std::size_t close = t.find(']');
-    if (close != std::string_view::npos) {
-      std::string name(trim(t.substr(1, close - 1)));
-      std::string key = lower(name);
-      auto it = st->sections.find(key);
-      if (it != st->sections.end()) {
-        st->fail(st->lineno, name, "duplicate section (first at line " + std::to_string(it->second.line) + ")");
-      } else {
-        Section s;
-        s.name = name;
-        s.line = st->lineno;
-        st->sections.emplace(key, std::move(s));
-      }
-    }
-  }
-  std::memcpy(str, line.data(), line.size());
-  str[line.size()] = '\n';
-  str[line.size() + 1] = '\0';
-  return str;
-}
-
-int onKey(void* user, const char* section, const char* name, const char* value) {
-  auto* st = static_cast<ParseState*>(user);
-  if (section[0] == '\0') {
-    st->fail(st->lineno, "", std::string("key ") + quoted(name) + " outside of any section");
-    return 0;
-  }
-  auto it = st->sections.find(lower(section));
-  if (it == st->sections.end()) return 1;  // a section whose header was already reported as a problem
-  std::string key = lower(name);
-  auto k = it->second.keys.find(key);
-  if (k != it->second.keys.end()) {
-    st->fail(st->lineno, it->second.name,
-             "duplicate key " + quoted(name) + " (first at line " + std::to_string(k->second.line) + ")");
-    return 0;
-  }
-  it->second.keys.emplace(key, Key{name, value, st->lineno});
-  return 1;
-}
-
 class Checker {
  public:
-  explicit Checker(ParseState& st) : st_(st) {}
+  explicit Checker(std::string file) : file_(std::move(file)) {}
 
   [[noreturn]] void fail(int line, const std::string& section, const std::string& problem) const {
-    throw EdsError(st_.file, line, section, problem);
+    throw EdsError(file_, line, section, problem);
   }
-  [[noreturn]] void fail(const Section& s, const std::string& problem) const { fail(s.line, s.name, problem); }
-  [[noreturn]] void fail(const Section& s, const Key& k, const std::string& problem) const {
+  [[noreturn]] void fail(const IniSection& s, const std::string& problem) const { fail(s.line, s.name, problem); }
+  [[noreturn]] void fail(const IniSection& s, const IniKey& k, const std::string& problem) const {
     fail(k.line, s.name, k.name + ": " + problem);
   }
 
-  const Key& require(const Section& s, const char* key, const char* written) const {
-    const Key* k = s.get(key);
+  const IniKey& require(const IniSection& s, const char* key, const char* written) const {
+    const IniKey* k = s.find(key);
     if (k == nullptr) fail(s, std::string("missing key ") + written);
     return *k;
   }
 
-  std::uint64_t number(const Section& s, const Key& k, std::uint64_t max) const {
+  std::uint64_t number(const IniSection& s, const IniKey& k, std::uint64_t max) const {
     std::uint64_t v = 0;
     if (!parseUnsigned(k.value, v)) fail(s, k, quoted(k.value) + " is not a number");
     if (v > max) fail(s, k, quoted(k.value) + " is out of range (max " + std::to_string(max) + ")");
@@ -165,17 +75,17 @@ class Checker {
   }
 
   // Reads the entry keys shared by VAR sections, sub-object sections and CompactSubObj objects.
-  void readEntry(const Section& s, EdsSubObject& e) const {
+  void readEntry(const IniSection& s, EdsSubObject& e) const {
     e.section = s.name;
     e.line = s.line;
     e.name = require(s, "parametername", "ParameterName").value;
-    const Key& dt = require(s, "datatype", "DataType");
+    const IniKey& dt = require(s, "datatype", "DataType");
     std::uint64_t code = number(s, dt, 0xFFFF);
     if (!isSupportedDataType(static_cast<std::uint16_t>(code))) {
       fail(s, dt, quoted(dt.value) + " is not a supported CiA 301 basic data type");
     }
     e.data_type = static_cast<DataType>(code);
-    const Key& at = require(s, "accesstype", "AccessType");
+    const IniKey& at = require(s, "accesstype", "AccessType");
     std::string a = lower(trim(at.value));
     if (a == "ro") e.access = Access::ReadOnly;
     else if (a == "wo") e.access = Access::WriteOnly;
@@ -184,11 +94,11 @@ class Checker {
     else if (a == "rww") e.access = Access::ReadWriteWrite;
     else if (a == "const") e.access = Access::Const;
     else fail(s, at, quoted(at.value) + " is not one of ro, wo, rw, rwr, rww, const");
-    if (const Key* k = s.get("pdomapping")) e.pdo_mapping = number(s, *k, 1) != 0;
+    if (const IniKey* k = s.find("pdomapping")) e.pdo_mapping = number(s, *k, 1) != 0;
 
     // DCF files carry the configured value in ParameterValue; it wins over DefaultValue.
-    const Key* dv = s.get("parametervalue");
-    if (dv == nullptr) dv = s.get("defaultvalue");
+    const IniKey* dv = s.find("parametervalue");
+    if (dv == nullptr) dv = s.find("defaultvalue");
     std::vector<std::uint8_t> def, low, high;
     if (dv != nullptr) {
       e.default_value = std::string(trim(dv->value));
@@ -198,13 +108,13 @@ class Checker {
       e.default_line = s.line;
       encodeEdsValue("", e.data_type, 1, def);
     }
-    if (const Key* k = s.get("lowlimit"); k != nullptr && !trim(k->value).empty()) {
+    if (const IniKey* k = s.find("lowlimit"); k != nullptr && !trim(k->value).empty()) {
       if (!isNumeric(e.data_type)) fail(s, *k, "limits need a numeric data type");
       e.low_limit = std::string(trim(k->value));
       e.low_line = k->line;
       check(s, *k, e.data_type, low);
     }
-    if (const Key* k = s.get("highlimit"); k != nullptr && !trim(k->value).empty()) {
+    if (const IniKey* k = s.find("highlimit"); k != nullptr && !trim(k->value).empty()) {
       if (!isNumeric(e.data_type)) fail(s, *k, "limits need a numeric data type");
       e.high_limit = std::string(trim(k->value));
       e.high_line = k->line;
@@ -212,7 +122,7 @@ class Checker {
     }
     bool unordered = false;
     if (!low.empty() && !high.empty() && compareValues(e.data_type, low.data(), high.data(), unordered) > 0) {
-      fail(s, *s.get("highlimit"), "HighLimit is below LowLimit");
+      fail(s, *s.find("highlimit"), "HighLimit is below LowLimit");
     }
     // $NODEID values depend on the node-ID, so only literal defaults are range-checked here.
     if (e.default_value.find('$') == std::string::npos && isNumeric(e.data_type)) {
@@ -226,36 +136,31 @@ class Checker {
     }
   }
 
-  void check(const Section& s, const Key& k, DataType type, std::vector<std::uint8_t>& out) const {
+  void check(const IniSection& s, const IniKey& k, DataType type, std::vector<std::uint8_t>& out) const {
     std::string err = encodeEdsValue(k.value, type, 1, out);
     if (!err.empty()) fail(s, k, err);
   }
 
  private:
-  ParseState& st_;
+  std::string file_;
 };
 
 bool startsWithHex4(const std::string& lname) { return lname.size() >= 4 && isHex(std::string_view(lname).substr(0, 4)); }
 
-void buildFile(ParseState& st, EdsFile& eds) {
-  Checker c(st);
-  // Walk sections in file order so the first problem reported is the first one in the file.
-  std::vector<const Section*> order;
-  for (const auto& kv : st.sections) order.push_back(&kv.second);
-  std::sort(order.begin(), order.end(), [](const Section* a, const Section* b) { return a->line < b->line; });
-
-  auto section = [&](const char* lname) -> const Section* {
-    auto it = st.sections.find(lname);
-    return it == st.sections.end() ? nullptr : &it->second;
-  };
-  const Section* fi = section("fileinfo");
+void buildFile(const IniFile& ini, EdsFile& eds) {
+  Checker c(ini.path);
+  // Sections in file order, so the first problem reported is the first one in the file.
+  std::vector<const IniSection*> order;
+  for (const auto& sec : ini.sections) order.push_back(&sec);
+  auto section = [&](const char* name) { return ini.find(name); };
+  const IniSection* fi = section("fileinfo");
   if (fi == nullptr) c.fail(0, "FileInfo", "missing section [FileInfo]");
-  const Section* di = section("deviceinfo");
+  const IniSection* di = section("deviceinfo");
   if (di == nullptr) c.fail(0, "DeviceInfo", "missing section [DeviceInfo]");
-  for (const auto& kv : fi->keys) eds.file_info[kv.first] = kv.second.value;
-  for (const auto& kv : di->keys) eds.device_info[kv.first] = kv.second.value;
-  if (const Section* dc = section("devicecomissioning")) {
-    if (const Key* k = dc->get("nodeid")) {
+  for (const auto& k : fi->keys) eds.file_info[lower(k.name)] = k.value;
+  for (const auto& k : di->keys) eds.device_info[lower(k.name)] = k.value;
+  if (const IniSection* dc = section("devicecomissioning")) {
+    if (const IniKey* k = dc->find("nodeid")) {
       std::uint64_t id = c.number(*dc, *k, 127);
       if (id == 0) c.fail(*dc, *k, "node-ID must be 1..127");
       eds.node_id = static_cast<std::uint8_t>(id);
@@ -263,9 +168,9 @@ void buildFile(ParseState& st, EdsFile& eds) {
   }
 
   // Object sections.
-  std::map<std::uint16_t, const Section*> object_sections;
-  std::map<std::uint16_t, std::map<std::uint8_t, const Section*>> sub_sections;
-  for (const Section* s : order) {
+  std::map<std::uint16_t, const IniSection*> object_sections;
+  std::map<std::uint16_t, std::map<std::uint8_t, const IniSection*>> sub_sections;
+  for (const IniSection* s : order) {
     std::string ln = lower(s->name);
     if (!startsWithHex4(ln)) continue;
     auto index = static_cast<std::uint16_t>(std::strtoul(ln.substr(0, 4).c_str(), nullptr, 16));
@@ -288,13 +193,13 @@ void buildFile(ParseState& st, EdsFile& eds) {
   }
 
   for (const auto& kv : object_sections) {
-    const Section& s = *kv.second;
+    const IniSection& s = *kv.second;
     EdsObject obj;
     obj.index = kv.first;
     obj.line = s.line;
     obj.name = c.require(s, "parametername", "ParameterName").value;
     std::uint64_t ot = 0x7;
-    if (const Key* k = s.get("objecttype")) ot = c.number(s, *k, 0xFF);
+    if (const IniKey* k = s.find("objecttype")) ot = c.number(s, *k, 0xFF);
     if (ot == 0x5 || ot == 0x6) continue;  // DEFTYPE/DEFSTRUCT only describe types, they hold no data
     bool has_subs = sub_sections.count(obj.index) != 0;
     if (ot == 0x7 || ot == 0x2) {
@@ -306,7 +211,7 @@ void buildFile(ParseState& st, EdsFile& eds) {
       obj.subs.push_back(std::move(e));
     } else if (ot == 0x8 || ot == 0x9) {
       obj.object_type = ot == 0x8 ? ObjectType::Array : ObjectType::Record;
-      const Key* compact = s.get("compactsubobj");
+      const IniKey* compact = s.find("compactsubobj");
       if (compact != nullptr && c.number(s, *compact, 254) != 0) {
         if (has_subs) c.fail(s, "CompactSubObj and sub-object sections exclude each other");
         auto n = static_cast<std::uint8_t>(c.number(s, *compact, 254));
@@ -328,7 +233,7 @@ void buildFile(ParseState& st, EdsFile& eds) {
           obj.subs.push_back(e);
         }
       } else {
-        const Key& sn = c.require(s, "subnumber", "SubNumber");
+        const IniKey& sn = c.require(s, "subnumber", "SubNumber");
         std::uint64_t count = c.number(s, sn, 255);
         auto it = sub_sections.find(obj.index);
         std::size_t present = it == sub_sections.end() ? 0 : it->second.size();
@@ -349,7 +254,7 @@ void buildFile(ParseState& st, EdsFile& eds) {
         }
       }
     } else {
-      c.fail(s, *s.get("objecttype"), quoted(s.get("objecttype")->value) +
+      c.fail(s, *s.find("objecttype"), quoted(s.find("objecttype")->value) +
                                          " is not a supported ObjectType (0x7 VAR, 0x8 ARRAY, 0x9 RECORD)");
     }
     eds.objects.push_back(std::move(obj));
@@ -359,14 +264,14 @@ void buildFile(ParseState& st, EdsFile& eds) {
   std::set<std::uint16_t> listed;
   bool any_list = false;
   for (const char* list : {"mandatoryobjects", "optionalobjects", "manufacturerobjects"}) {
-    const Section* s = section(list);
+    const IniSection* s = section(list);
     if (s == nullptr) continue;
     any_list = true;
-    const Key& so = c.require(*s, "supportedobjects", "SupportedObjects");
+    const IniKey& so = c.require(*s, "supportedobjects", "SupportedObjects");
     std::uint64_t n = c.number(*s, so, 0xFFFF);
     for (std::uint64_t i = 1; i <= n; ++i) {
       std::string key = std::to_string(i);
-      const Key* k = s->get(key.c_str());
+      const IniKey* k = s->find(key.c_str());
       if (k == nullptr) c.fail(*s, "SupportedObjects is " + std::to_string(n) + " but key " + key + " is missing");
       auto idx = static_cast<std::uint16_t>(c.number(*s, *k, 0xFFFF));
       if (!listed.insert(idx).second) c.fail(*s, *k, "object listed twice");
@@ -416,25 +321,15 @@ EdsFile EdsFile::load(const std::string& path) {
 }
 
 EdsFile EdsFile::parse(const std::string& text, const std::string& name) {
-  ParseState st;
-  st.file = name;
-  std::size_t pos = 0;
-  while (pos < text.size()) {
-    std::size_t nl = text.find('\n', pos);
-    if (nl == std::string::npos) nl = text.size();
-    st.lines.emplace_back(text, pos, nl - pos);
-    pos = nl + 1;
+  IniFile ini;
+  try {
+    ini = parseIni(text, name);
+  } catch (const IniError& e) {
+    throw EdsError(name, e.line(), "", e.problem());
   }
-  int rc = ini_parse_stream(readLine, &st, onKey, &st);
-  if (rc < 0) throw EdsError(name, 0, "", "cannot read file");
-  if (rc > 0 && (st.err_line == 0 || rc < st.err_line)) {
-    throw EdsError(name, rc, "", "syntax error: expected [section], key=value or a ; comment");
-  }
-  if (st.err_line != 0) throw EdsError(name, st.err_line, st.err_section, st.err_problem);
-
   EdsFile eds;
   eds.file = name;
-  buildFile(st, eds);
+  buildFile(ini, eds);
   return eds;
 }
 

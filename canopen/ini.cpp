@@ -59,7 +59,7 @@ char* readLine(char* str, int num, void* stream) {
       name.erase(name.find_last_not_of(" \t") + 1);
       for (const auto& s : st->file->sections)
         if (sameName(s.name, name))
-          st->fail(st->lineno, "section [" + name + "] again (first at line " + std::to_string(s.line) + ")");
+          st->fail(st->lineno, "duplicate section [" + name + "] (first at line " + std::to_string(s.line) + ")");
       st->file->sections.push_back(IniSection{name, st->lineno, {}});
     }
   }
@@ -82,7 +82,7 @@ int onKey(void* user, const char* section, const char* name, const char* value) 
   }
   IniSection& s = secs.back();
   if (s.find(name) != nullptr) {
-    st->fail(st->lineno, std::string("key '") + name + "' again in [" + section + "] (first at line " +
+    st->fail(st->lineno, std::string("duplicate key '") + name + "' in [" + section + "] (first at line " +
                              std::to_string(s.find(name)->line) + ")");
     return 0;
   }
@@ -95,7 +95,8 @@ int onKey(void* user, const char* section, const char* name, const char* value) 
 IniError::IniError(const std::string& file, int line, const std::string& problem)
     : std::runtime_error(file + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + problem),
       file_(file),
-      line_(line) {}
+      line_(line),
+      problem_(problem) {}
 
 const IniKey* IniSection::find(const std::string& key) const {
   for (const auto& k : keys)
@@ -117,8 +118,10 @@ IniFile parseIni(const std::string& text, const std::string& path) {
   std::istringstream in(text);
   for (std::string l; std::getline(in, l);) st.lines.push_back(l);
   const int rc = ini_parse_stream(readLine, &st, onKey, &st);
+  // The first problem in file order: inih reports the first line it cannot parse, the hooks theirs.
+  if (rc > 0 && (st.err_line == 0 || rc < st.err_line))
+    throw IniError(path, rc, "syntax error: expected [section], key = value or a ; comment");
   if (st.err_line != 0) throw IniError(path, st.err_line, st.err);
-  if (rc > 0) throw IniError(path, rc, "not a section header, a 'key = value' line or a comment");
   if (rc < 0) throw IniError(path, 0, "cannot be parsed");
   return f;
 }

@@ -15,10 +15,12 @@ class IniError : public std::runtime_error {
   IniError(const std::string& file, int line, const std::string& problem);
   const std::string& file() const { return file_; }
   int line() const { return line_; }
+  const std::string& problem() const { return problem_; }  // without "file:line: "
 
  private:
   std::string file_;
   int line_;
+  std::string problem_;
 };
 
 struct IniKey {

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "canopen/eds.hpp"
+#include "canopen/eds_dictionary.hpp"
 
 namespace pamc::canopen {
 
@@ -66,8 +66,8 @@ Node::Node(ObjectDictionary od, std::uint8_t node_id, Transport& transport, Node
 std::unique_ptr<Node> Node::fromEds(const std::string& eds_path, Transport& transport, std::uint8_t node_id,
                                     NodeOptions options) {
   const EdsFile eds = EdsFile::load(eds_path);
-  node_id = ObjectDictionary::resolveNodeId(eds, eds_path, node_id);  // the same check as ObjectDictionary::load
-  return std::make_unique<Node>(ObjectDictionary::fromEds(eds, node_id), node_id, transport, options);
+  node_id = resolveNodeId(eds, eds_path, node_id);  // the same check as loadDictionary
+  return std::make_unique<Node>(dictionaryFromEds(eds, node_id), node_id, transport, options);
 }
 
 void Node::onRpdoTimeout(Rpdo::TimeoutHook cb) {

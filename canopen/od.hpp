@@ -19,8 +19,6 @@ static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__,
 
 namespace pamc::canopen {
 
-class EdsFile;
-
 // Basic data types (CiA 301, 7.4.7.1); the numeric values are the EDS DataType codes.
 enum class DataType : std::uint16_t {
   Boolean = 0x0001,
@@ -183,13 +181,6 @@ struct EntrySpec {
 
 class ObjectDictionary {
  public:
-  // Builds the dictionary of an EDS file; $NODEID in values becomes node_id.
-  static ObjectDictionary fromEds(const EdsFile& eds, std::uint8_t node_id);
-  // Loads and parses an EDS file; node_id 0 takes [DeviceComissioning] NodeID from the file. Throws EdsError.
-  static ObjectDictionary load(const std::string& eds_path, std::uint8_t node_id = 0);
-  // The node-ID to use: the given one, else the EDS's [DeviceComissioning] NodeID; 1..127 or EdsError.
-  static std::uint8_t resolveNodeId(const EdsFile& eds, const std::string& eds_path, std::uint8_t node_id);
-
   ObjectDictionary(std::vector<ObjectInfo> objects, std::vector<EntrySpec> specs);
   ObjectDictionary(ObjectDictionary&&) noexcept = default;
   ObjectDictionary& operator=(ObjectDictionary&&) noexcept = default;

@@ -95,15 +95,35 @@ void installHooks(NodeContext& ctx, Pdo* pdo, std::uint16_t comm, std::uint16_t 
 
 }  // namespace
 
+// ---- Parameters ----
+
+std::uint32_t readPdoMapping(const ObjectDictionary& od, std::uint16_t map_index, PdoMapping& out) {
+  out = PdoMapping{};
+  const Entry* count = od.find(map_index, 0);
+  if (count == nullptr) return kAbortNoObject;
+  out.count = count->asUnsigned();
+  if (out.count > 8) return kAbortValueRange;
+  for (std::uint8_t i = 1; i <= out.count; ++i) {
+    const Entry* m = od.find(map_index, i);
+    if (m == nullptr) return kAbortNoSubIndex;
+    out.entries[out.read++].value = static_cast<std::uint32_t>(m->asUnsigned());
+  }
+  return kSdoOk;
+}
+
+std::uint32_t readPdoCobId(const ObjectDictionary& od, std::uint16_t comm_index) {
+  return static_cast<std::uint32_t>(readOr(od, comm_index, kCobIdSub, kPdoInvalidBit));
+}
+
 // ---- PdoMap ----
 
 std::uint32_t PdoMap::check(const ObjectDictionary& od, std::uint32_t value, bool receive, std::uint8_t* bytes) {
-  auto index = static_cast<std::uint16_t>(value >> 16);
-  auto sub = static_cast<std::uint8_t>(value >> 8);
-  std::uint8_t bits = value & 0xFF;
+  const PdoMappingEntry m{value};
+  const std::uint16_t index = m.index();
+  const std::uint8_t sub = m.sub(), bits = m.bits();
   if (bits == 0 || bits % 8 != 0) return kAbortNotMappable;  // bit-level mapping is not supported
   std::size_t size = 0;
-  if (index >= 0x0002 && index <= 0x0007) {
+  if (m.dummy()) {
     // Dummy entry: an RPDO may skip bytes of a basic type it does not need.
     if (!receive) return kAbortNotMappable;
     size = dataTypeSize(static_cast<DataType>(index));
@@ -121,30 +141,27 @@ std::uint32_t PdoMap::check(const ObjectDictionary& od, std::uint32_t value, boo
 
 std::uint32_t PdoMap::build(ObjectDictionary& od, std::uint16_t map_index, bool receive, std::uint32_t* bad_value) {
   clear();
-  const Entry* count = od.find(map_index, 0);
-  if (count == nullptr) return kAbortNoObject;
-  std::uint64_t n = count->asUnsigned();
-  if (n > 8) return kAbortValueRange;
+  PdoMapping mapping;
+  const std::uint32_t read = readPdoMapping(od, map_index, mapping);
+  if (read == kAbortNoObject || read == kAbortValueRange) return read;
   unsigned total = 0;
   std::array<Field, 8> fields{};
-  for (std::uint8_t i = 1; i <= n; ++i) {
-    const Entry* m = od.find(map_index, i);
-    if (m == nullptr) return kAbortNoSubIndex;
-    auto v = static_cast<std::uint32_t>(m->asUnsigned());
+  for (std::uint8_t i = 0; i < mapping.read; ++i) {
+    const PdoMappingEntry m = mapping.entries[i];
     std::uint8_t bytes = 0;
-    std::uint32_t code = check(od, v, receive, &bytes);
+    std::uint32_t code = check(od, m.value, receive, &bytes);
     if (code == kSdoOk && total + bytes > 8) code = kAbortPdoLength;
     if (code != kSdoOk) {
-      if (bad_value != nullptr) *bad_value = v;
+      if (bad_value != nullptr) *bad_value = m.value;
       return code;
     }
-    auto index = static_cast<std::uint16_t>(v >> 16);
-    Entry* target = index >= 0x0002 && index <= 0x0007 ? nullptr : od.find(index, static_cast<std::uint8_t>(v >> 8));
-    fields[i - 1] = Field{target != nullptr ? const_cast<std::uint8_t*>(target->data()) : nullptr, bytes};
+    Entry* target = m.dummy() ? nullptr : od.find(m.index(), m.sub());
+    fields[i] = Field{target != nullptr ? const_cast<std::uint8_t*>(target->data()) : nullptr, bytes};
     total += bytes;
   }
+  if (read != kSdoOk) return read;  // an entry missing after those that passed
   fields_ = fields;
-  count_ = static_cast<std::uint8_t>(n);
+  count_ = mapping.read;
   size_ = static_cast<std::uint8_t>(total);
   return kSdoOk;
 }
@@ -173,7 +190,7 @@ void Rpdo::registerHooks() { installHooks(ctx_, this, comm_, map_index_, true); 
 std::uint32_t Rpdo::reconfigure() {
   if (subscribed_) ctx_.dispatcher.unsubscribe(cob_id_, this);
   subscribed_ = false;
-  auto v = static_cast<std::uint32_t>(readOr(ctx_.od, comm_, kCobIdSub, kPdoInvalidBit));
+  const std::uint32_t v = readPdoCobId(ctx_.od, comm_);
   cob_id_ = v & kStandardIdMask;
   type_ = static_cast<std::uint8_t>(readOr(ctx_.od, comm_, kTypeSub, kPdoEventManufacturer));
   event_timer_us_ = static_cast<TimeUs>(readOr(ctx_.od, comm_, kEventTimerSub, 0)) * 1000;
@@ -295,7 +312,7 @@ TimeUs Rpdo::nextDeadline() const {
 void Tpdo::registerHooks() { installHooks(ctx_, this, comm_, map_index_, false); }
 
 std::uint32_t Tpdo::reconfigure() {
-  auto v = static_cast<std::uint32_t>(readOr(ctx_.od, comm_, kCobIdSub, kPdoInvalidBit));
+  const std::uint32_t v = readPdoCobId(ctx_.od, comm_);
   cob_id_ = v & kStandardIdMask;
   type_ = static_cast<std::uint8_t>(readOr(ctx_.od, comm_, kTypeSub, kPdoEventManufacturer));
   inhibit_us_ = static_cast<TimeUs>(readOr(ctx_.od, comm_, kInhibitSub, 0)) * 100;

@@ -18,6 +18,31 @@ inline constexpr std::uint8_t kPdoSyncMax = 240;              // types 1..240: e
 inline constexpr std::uint8_t kPdoEventManufacturer = 254;
 inline constexpr std::uint8_t kPdoEventProfile = 255;
 
+// A PDO's parameters as the dictionary stores them, read but not judged: the node's own PDOs (PdoMap,
+// Rpdo, Tpdo) and tools reading other nodes' EDS files (the candump decoder) parse them here alike.
+
+// One entry of a mapping object (0x1600/0x1A00 + n, sub-index 1..8).
+struct PdoMappingEntry {
+  std::uint32_t value = 0;  // index << 16 | sub-index << 8 | length in bits
+  std::uint16_t index() const { return static_cast<std::uint16_t>(value >> 16); }
+  std::uint8_t sub() const { return static_cast<std::uint8_t>(value >> 8); }
+  std::uint8_t bits() const { return static_cast<std::uint8_t>(value); }
+  bool dummy() const { return index() >= 0x0002 && index() <= 0x0007; }  // a basic data type: bytes skipped
+};
+
+struct PdoMapping {
+  std::uint64_t count = 0;                   // sub-index 0, as stored
+  std::uint8_t read = 0;                     // entries read: count, or those before the first missing one
+  std::array<PdoMappingEntry, 8> entries{};  // sub-indices 1..read
+};
+
+// Reads mapping object map_index. Returns kSdoOk, kAbortNoObject (no sub-index 0), kAbortValueRange
+// (a count above 8) or kAbortNoSubIndex (sub-index read + 1 is missing; the entries before it are
+// read, so that a caller checking them in order reports the first problem first).
+std::uint32_t readPdoMapping(const ObjectDictionary& od, std::uint16_t map_index, PdoMapping& out);
+// The COB-ID of communication object comm_index (sub-index 1); kPdoInvalidBit if it has none.
+std::uint32_t readPdoCobId(const ObjectDictionary& od, std::uint16_t comm_index);
+
 // Copy table between a PDO payload and OD storage, compiled from a mapping object.
 // Only byte-aligned mappings of numeric entries are supported (and dummy entries 0x0002-0x0007 in RPDOs).
 class PdoMap {

@@ -11,7 +11,8 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "canopen/eds.hpp"
+#include "canopen/eds_dictionary.hpp"
+#include "canopen/pdo.hpp"
 
 namespace pamc::nodes {
 
@@ -78,7 +79,7 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
     const std::uint8_t id = eds.node_id;
     if (id == 0)
       throw std::runtime_error(file + ": no NodeID in [DeviceComissioning]; the COB-IDs ($NODEID) cannot be resolved");
-    auto od = canopen::ObjectDictionary::fromEds(eds, id);
+    auto od = canopen::dictionaryFromEds(eds, id);
     const std::string dev = stem(file);
     bd.nodes[id] = dev;
     // Communication parameters are read as the node reads them (any integer type, absent = unused), and
@@ -96,30 +97,28 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
       const std::uint16_t comm0 = dir == 0 ? 0x1800 : 0x1400, map0 = dir == 0 ? 0x1A00 : 0x1600;
       for (std::uint16_t n = 0; n < 512; ++n) {
         const auto map = static_cast<std::uint16_t>(map0 + n);
-        const auto* cob_entry = od.find(static_cast<std::uint16_t>(comm0 + n), 1);
-        const auto* count_entry = od.find(map, 0);
-        if (cob_entry == nullptr || count_entry == nullptr) continue;  // no COB-ID or no mapping: no PDO
-        const auto cob = static_cast<std::uint32_t>(cob_entry->asUnsigned());
-        if (cob & 0x80000000u) continue;  // not valid
+        canopen::PdoMapping mapping;
+        const std::uint32_t read = canopen::readPdoMapping(od, map, mapping);
+        if (read == canopen::kAbortNoObject) continue;  // no mapping: no PDO
+        const std::uint32_t cob = canopen::readPdoCobId(od, static_cast<std::uint16_t>(comm0 + n));
+        if (cob & canopen::kPdoInvalidBit) continue;  // not valid, or no COB-ID
         PdoLayout l;
-        l.cob_id = cob & 0x7FFu;
+        l.cob_id = cob & canopen::kStandardIdMask;
         l.device = dev;
         l.node_id = id;
-        const std::uint64_t count = count_entry->asUnsigned();
-        if (count > 8) fail(canopen::entryName(map, 0) + " maps " + std::to_string(count) + " objects; a PDO has at most 8");
+        if (read == canopen::kAbortValueRange)
+          fail(canopen::entryName(map, 0) + " maps " + std::to_string(mapping.count) + " objects; a PDO has at most 8");
         unsigned total = 0;
-        for (std::uint8_t s = 1; s <= count; ++s) {
-          const auto* me = od.find(map, s);
-          if (me == nullptr) fail(canopen::entryName(map, s) + " is missing; " + canopen::entryName(map, 0) + " says " +
-                                  std::to_string(count) + " objects are mapped");
-          const auto m = static_cast<std::uint32_t>(me->asUnsigned());
+        for (std::uint8_t i = 0; i < mapping.read; ++i) {
+          const canopen::PdoMappingEntry m = mapping.entries[i];
+          const auto s = static_cast<std::uint8_t>(i + 1);
           PdoField f;
-          f.index = static_cast<std::uint16_t>(m >> 16);
-          f.sub = static_cast<std::uint8_t>((m >> 8) & 0xFF);
+          f.index = m.index();
+          f.sub = m.sub();
           const std::string what = canopen::entryName(map, s) + " maps " + canopen::entryName(f.index, f.sub) + " with " +
-                                   std::to_string(m & 0xFF) + " bits";
-          if ((m & 0xFF) == 0 || (m & 0xFF) % 8 != 0) fail(what + "; only whole bytes are decoded");
-          f.bytes = static_cast<std::uint8_t>((m & 0xFF) / 8);
+                                   std::to_string(m.bits()) + " bits";
+          if (m.bits() == 0 || m.bits() % 8 != 0) fail(what + "; only whole bytes are decoded");
+          f.bytes = static_cast<std::uint8_t>(m.bits() / 8);
           if (od.hasObject(f.index)) {
             const auto* e = od.find(f.index, f.sub);
             if (e == nullptr) fail(what + ", but the dictionary has no such entry");
@@ -137,6 +136,9 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
           if (total > 8) fail(canopen::entryName(map, 0) + " maps more than the 8 bytes of a CAN frame");
           l.length = static_cast<std::uint8_t>(total);
         }
+        if (read == canopen::kAbortNoSubIndex)
+          fail(canopen::entryName(map, static_cast<std::uint8_t>(mapping.read + 1)) + " is missing; " +
+               canopen::entryName(map, 0) + " says " + std::to_string(mapping.count) + " objects are mapped");
         // A COB-ID described twice (sender's TPDO and receiver's RPDO): keep the one with roles.
         auto it = bd.pdos.find(l.cob_id);
         const bool has_role = std::any_of(l.fields.begin(), l.fields.end(), [](const PdoField& f) { return !f.role.empty(); });

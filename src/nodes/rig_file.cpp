@@ -7,7 +7,7 @@
 #include <set>
 #include <vector>
 
-#include "canopen/eds.hpp"
+#include "canopen/eds_dictionary.hpp"
 #include "canopen/ini.hpp"
 #include "canopen/od.hpp"
 
@@ -197,7 +197,7 @@ SlaveBuild slaveCommon(const Reader& r, const IniSection& sec, std::uint8_t cont
   s.id = static_cast<std::uint8_t>(r.unsignedKey(sec, "node_id", 0, 1, 127));
   if (sec.find("node_id") == nullptr) r.fail(sec.line, "[" + sec.name + "] needs node_id");
   s.eds = r.pathKey(sec, "eds");
-  s.od = ObjectDictionary::load(s.eds, s.id);
+  s.od = canopen::loadDictionary(s.eds, s.id);
   s.boot.device_type = r.optionalU32(sec, "device_type");
   s.boot.vendor_id = r.optionalU32(sec, "vendor_id");
   s.boot.product_code = r.optionalU32(sec, "product_code");

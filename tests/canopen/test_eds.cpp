@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "test_util.hpp"
+#include "canopen/eds_dictionary.hpp"
 #include "canopen/bus.hpp"
 #include "canopen/node.hpp"
 
@@ -31,7 +32,7 @@ int lineOf(const std::string& text, const std::string& needle) {
 }
 
 TEST(Eds, ProjectFilesLoadWithTheirValues) {
-  ObjectDictionary sensor = ObjectDictionary::load(odPath("sensor.eds"));
+  ObjectDictionary sensor = loadDictionary(odPath("sensor.eds"));
   EXPECT_EQ(sensor.entry(0x1000, 0).get<std::uint32_t>(), 0x00080196u);
   EXPECT_EQ(sensor.entry(0x1800, 1).get<std::uint32_t>(), 0x182u);  // $NODEID+0x180 with node-ID 2
   EXPECT_EQ(sensor.entry(0x1800, 2).get<std::uint8_t>(), 1);
@@ -40,7 +41,7 @@ TEST(Eds, ProjectFilesLoadWithTheirValues) {
   EXPECT_TRUE(sensor.entry(0x6004, 0).pdoMappable());
   EXPECT_EQ(sensor.entry(0x1008, 0).str(), "pamc linear position sensor");
 
-  ObjectDictionary valve = ObjectDictionary::load(odPath("valve.eds"));
+  ObjectDictionary valve = loadDictionary(odPath("valve.eds"));
   EXPECT_EQ(valve.entry(0x1400, 1).get<std::uint32_t>(), 0x203u);
   EXPECT_EQ(valve.entry(0x1600, 1).get<std::uint32_t>(), 0x64110110u);
   EXPECT_EQ(valve.entry(0x1800, 1).get<std::uint32_t>(), 0x183u);
@@ -50,7 +51,7 @@ TEST(Eds, ProjectFilesLoadWithTheirValues) {
   EdsFile ctrl_eds = EdsFile::load(odPath("controller.eds"));
   EXPECT_EQ(ctrl_eds.node_id, 1);
   EXPECT_EQ(ctrl_eds.file_info.at("edsversion"), "4.0");
-  ObjectDictionary ctrl = ObjectDictionary::fromEds(ctrl_eds, 1);
+  ObjectDictionary ctrl = dictionaryFromEds(ctrl_eds, 1);
   EXPECT_EQ(ctrl.entry(0x1005, 0).get<std::uint32_t>(), 0x40000080u);
   EXPECT_EQ(ctrl.entry(0x1006, 0).get<std::uint32_t>(), 1000u);
   EXPECT_EQ(ctrl.entry(0x1016, 1).get<std::uint32_t>(), 0x000200FAu);
@@ -71,7 +72,7 @@ TEST(Eds, ProjectFilesLoadWithTheirValues) {
 }
 
 TEST(Eds, NodeIdOverrideChangesNodeIdValues) {
-  ObjectDictionary sensor = ObjectDictionary::load(odPath("sensor.eds"), 5);
+  ObjectDictionary sensor = loadDictionary(odPath("sensor.eds"), 5);
   EXPECT_EQ(sensor.entry(0x1800, 1).get<std::uint32_t>(), 0x185u);
   EXPECT_EQ(sensor.entry(0x1014, 0).get<std::uint32_t>(), 0x85u);
   EXPECT_EQ(sensor.entry(0x1200, 1).get<std::uint32_t>(), 0x605u);
@@ -142,8 +143,8 @@ TEST(Eds, SemanticErrorsNameSectionAndLine) {
        "[2000sub0]\nParameterName=n\nDataType=0x0006\nAccessType=ro\nDefaultValue=1\n\n",
        "[2000sub0]", "2000sub0", "must be UNSIGNED8"},
       {"[2001sub1]\nParameterName=a\nDataType=0x0005\nAccessType=rw\n\n", "[2001sub1]", "2001sub1", "no section"},
-      {var(0x2000, "Gain", "0x0011", "rw", "1.0\nDataType=0x0011"), "DataType=0x0011\nPDOMapping", "2000",
-       "duplicate key"},
+      {var(0x2000, "Gain", "0x0011", "rw", "1.0\nDataType=0x0011"), "DataType=0x0011\nPDOMapping", "",
+       "duplicate key 'DataType' in [2000]"},  // an INI-level problem: the section is named in the text
   };
   for (const Case& c : cases) {
     std::string text = makeEds(c.objects);
@@ -195,7 +196,7 @@ TEST(Eds, CorruptFileOnDiskNamesFileAndLine) {
     out << text;
   }
   try {
-    ObjectDictionary::load(path);
+    loadDictionary(path);
     FAIL() << "corrupt EDS accepted";
   } catch (const EdsError& e) {
     std::string expect = path + ":" + std::to_string(lineOf(text, "DataType=INT16")) + ": [";
@@ -205,7 +206,7 @@ TEST(Eds, CorruptFileOnDiskNamesFileAndLine) {
   std::remove(path.c_str());
 
   try {
-    ObjectDictionary::load("/nonexistent/none.eds");
+    loadDictionary("/nonexistent/none.eds");
     FAIL() << "missing file accepted";
   } catch (const EdsError& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/none.eds: cannot open file"), std::string::npos) << e.what();
@@ -227,7 +228,7 @@ TEST(Eds, CompactSubObjAndDefaults) {
 }
 
 TEST(ObjectDictionary, TypedAccessResolvedOnce) {
-  ObjectDictionary od = ObjectDictionary::load(odPath("sensor.eds"));
+  ObjectDictionary od = loadDictionary(odPath("sensor.eds"));
   Ref<std::int32_t> pos = od.ref<std::int32_t>(0x6004, 0);
   pos.set(-1234);
   EXPECT_EQ(od.entry(0x6004, 0).get<std::int32_t>(), -1234);
@@ -240,7 +241,7 @@ TEST(ObjectDictionary, TypedAccessResolvedOnce) {
 }
 
 TEST(ObjectDictionary, RemoteWriteChecksAccessLengthLimitsAndValidators) {
-  ObjectDictionary od = ObjectDictionary::load(odPath("controller.eds"));
+  ObjectDictionary od = loadDictionary(odPath("controller.eds"));
   Entry& kp = od.entry(0x2000, 1);
   int observed = 0;
   od.validate<double>(0x2000, 1, [](double v) { return v > 5.0 ? kAbortValueRange : kSdoOk; });
@@ -268,7 +269,7 @@ TEST(ObjectDictionary, RemoteWriteChecksAccessLengthLimitsAndValidators) {
 TEST(ObjectDictionary, NodeFromEdsChecksTheNodeIdLikeLoad) {
   VirtualBus bus;
   auto& port = bus.addPort();
-  EXPECT_THROW(ObjectDictionary::load(odPath("sensor.eds"), 200), EdsError);
+  EXPECT_THROW(loadDictionary(odPath("sensor.eds"), 200), EdsError);
   EXPECT_THROW(Node::fromEds(odPath("sensor.eds"), port, 200), EdsError);
   EXPECT_EQ(Node::fromEds(odPath("sensor.eds"), port, 0)->nodeId(), 2);  // [DeviceComissioning] NodeID
 }

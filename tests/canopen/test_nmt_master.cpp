@@ -223,10 +223,10 @@ TEST(Ini, SectionsKeysAndLines) {
     }
     return std::string("accepted");
   };
-  EXPECT_EQ(error("[a]\nx=1\n[b]\n[a]\n"), "r.ini:4: section [a] again (first at line 1)");
-  EXPECT_EQ(error("[a]\nx=1\nx=2\n"), "r.ini:3: key 'x' again in [a] (first at line 2)");
+  EXPECT_EQ(error("[a]\nx=1\n[b]\n[a]\n"), "r.ini:4: duplicate section [a] (first at line 1)");
+  EXPECT_EQ(error("[a]\nx=1\nx=2\n"), "r.ini:3: duplicate key 'x' in [a] (first at line 2)");
   EXPECT_EQ(error("x=1\n"), "r.ini:1: key 'x' outside of any section");
-  EXPECT_EQ(error("[a]\njunk\n"), "r.ini:2: not a section header, a 'key = value' line or a comment");
+  EXPECT_EQ(error("[a]\njunk\n"), "r.ini:2: syntax error: expected [section], key = value or a ; comment");
   std::uint64_t u = 0;
   double d = 0;
   EXPECT_TRUE(parseIniUnsigned("0x1F", u) && u == 31);

@@ -11,6 +11,7 @@
 #include <system_error>
 #include <thread>
 
+#include "canopen/eds_dictionary.hpp"
 #include "canopen/event_loop.hpp"
 #include "canopen/socketcan.hpp"
 #include "test_util.hpp"
@@ -177,7 +178,7 @@ TEST(SocketCan, ExpiredFramesBehindARefusedHeadAreRemovedWhenRoomIsNeeded) {
 TEST(SocketCan, EventLoopRunsANodeInRealTime) {
   SocketPair pair;
   auto can = SocketCanTransport::adopt(pair.fds[0], "pair0");
-  Node node(ObjectDictionary::load(odPath("controller.eds")), 1, *can);
+  Node node(loadDictionary(odPath("controller.eds")), 1, *can);
   std::vector<Frame> error_frames;
   node.onErrorFrame([&](const Frame& f, TimeUs) { error_frames.push_back(f); });
   int tapped_rx = 0;
@@ -208,7 +209,7 @@ TEST(SocketCan, EventLoopRunsANodeInRealTime) {
 TEST(SocketCan, EventLoopStopsFromAnotherThread) {
   SocketPair pair;
   auto can = SocketCanTransport::adopt(pair.fds[0], "pair0");
-  Node node(ObjectDictionary::load(odPath("sensor.eds")), 2, *can);
+  Node node(loadDictionary(odPath("sensor.eds")), 2, *can);
   node.start(monotonicNowUs());
   EventLoop loop(*can, node);
   auto t0 = std::chrono::steady_clock::now();

@@ -49,7 +49,7 @@ TEST(Sync, NoDriftOverTenThousandOddPeriodsOnTheVirtualBus) {
 TEST(Sync, NoDriftWhenTheDriverWakesLate) {
   // A real event loop wakes up after the deadline; the grid must not move with it.
   CaptureTransport tx;
-  Node ctrl(ObjectDictionary::load(odPath("controller.eds")), 1, tx);
+  Node ctrl(loadDictionary(odPath("controller.eds")), 1, tx);
   ctrl.start(0);
   std::uint8_t d[8] = {0x23, 0x06, 0x10, 0x00, 0xEB, 0x03, 0x00, 0x00};  // 0x1006 = 1003 us
   ctrl.onFrame(makeFrame(0x601, 8, d), 0);
@@ -69,7 +69,7 @@ TEST(Sync, NoDriftWhenTheDriverWakesLate) {
 
 TEST(Sync, LateWakeUpSkipsMissedSyncsAndCountsThem) {
   CaptureTransport tx;
-  Node ctrl(ObjectDictionary::load(odPath("controller.eds")), 1, tx);
+  Node ctrl(loadDictionary(odPath("controller.eds")), 1, tx);
   ctrl.start(0);
   tx.frames.clear();
   ctrl.advance(3'500);  // deadlines 1000, 2000, 3000 passed: one SYNC, two missed

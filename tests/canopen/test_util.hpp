@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "canopen/candump_log.hpp"
-#include "canopen/eds.hpp"
+#include "canopen/eds_dictionary.hpp"
 #include "canopen/node.hpp"
 
 namespace pamc::canopen::test {
@@ -66,7 +66,7 @@ inline std::string var(unsigned index, const std::string& name, const char* type
 }
 
 inline ObjectDictionary odFromText(const std::string& text, std::uint8_t node_id) {
-  return ObjectDictionary::fromEds(EdsFile::parse(text, "test.eds"), node_id);
+  return dictionaryFromEds(EdsFile::parse(text, "test.eds"), node_id);
 }
 
 inline Frame frame(const std::string& token) {

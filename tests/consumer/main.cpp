@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "canopen/eds_dictionary.hpp"
 #include "canopen/od.hpp"
 #include "control/controller.hpp"
 #include "control/trajectory.hpp"
@@ -32,7 +33,7 @@ int main() {
     if (t > 5.0) se += (y - ref.at(t)) * (y - ref.at(t)), ++n;
   }
   const double rmse = std::sqrt(se / n);
-  auto od = canopen::ObjectDictionary::load(std::string(PAMC_DATA_DIR) + "/od/controller.eds");
+  auto od = canopen::loadDictionary(std::string(PAMC_DATA_DIR) + "/od/controller.eds");
   const auto type = od.ref<std::uint32_t>(0x1000, 0).get();
   std::printf("tracking RMSE %.3f mm, controller device type 0x%08X\n", rmse, type);
   return rmse < 1.0 && type == 0x00100194 ? 0 : 1;

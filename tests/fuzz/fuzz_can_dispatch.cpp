@@ -16,7 +16,7 @@
 #include <memory>
 #include <vector>
 
-#include "canopen/eds.hpp"
+#include "canopen/eds_dictionary.hpp"
 #include "canopen/node.hpp"
 #include "fuzz_util.hpp"
 
@@ -48,7 +48,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   options.auto_operational = (setup & 0x01) != 0;
   for (const EdsFile& eds : rigEds()) {
     VirtualBus::Port& port = bus.addPort();
-    nodes.push_back(std::make_unique<Node>(ObjectDictionary::fromEds(eds, eds.node_id), eds.node_id, port, options));
+    nodes.push_back(std::make_unique<Node>(dictionaryFromEds(eds, eds.node_id), eds.node_id, port, options));
     Node& n = *nodes.back();
     port.setClient(&n);
     // Hooks like an application's, so every consumer path runs to its end.

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <string>
 
-#include "canopen/eds.hpp"
+#include "canopen/eds_dictionary.hpp"
 #include "canopen/node.hpp"
 #include "fuzz_util.hpp"
 #include "nodes/decoder.hpp"
@@ -27,7 +27,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
   const std::uint8_t id = eds.node_id != 0 ? eds.node_id : 1;
   try {
-    ObjectDictionary od = ObjectDictionary::fromEds(eds, id);
+    ObjectDictionary od = dictionaryFromEds(eds, id);
     VirtualBus bus(0, 256);
     VirtualBus::Port& tool = bus.addPort();
     VirtualBus::Port& port = bus.addPort();

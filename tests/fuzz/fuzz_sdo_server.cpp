@@ -33,7 +33,7 @@
 #include <string>
 #include <vector>
 
-#include "canopen/eds.hpp"
+#include "canopen/eds_dictionary.hpp"
 #include "canopen/node.hpp"
 #include "fuzz_util.hpp"
 
@@ -198,7 +198,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   Recorder bus;
   NodeOptions options;
   options.auto_operational = (setup & 0x04) != 0;
-  Node node(ObjectDictionary::fromEds(eds, eds.node_id), eds.node_id, bus, options);
+  Node node(dictionaryFromEds(eds, eds.node_id), eds.node_id, bus, options);
   const std::vector<Entry>& entries = node.od().entries();
   const std::uint32_t rx = node.sdoServer().requestCobId();
   const std::uint32_t tx = node.sdoServer().responseCobId();

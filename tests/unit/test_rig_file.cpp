@@ -156,7 +156,7 @@ TEST(RigFile, ABadFileGetsOneLineNamingTheLine) {
       {{{"node_id = 3", "node_id = 2"}}, "node-IDs of controller, sensor and valve must differ"},
       {{{"startup = 0x00000001", "startup = 0x00000010"}}, "only bits 0-3 of 0x1F80"},
       {{{"tpdo = 1 ", "tpdo = 7 "}}, "has no predefined COB-ID"},
-      {{{"mandatory = yes          ; 0x1F81", "mandatory = yes\nmandatory = no ; 0x1F81"}}, "key 'mandatory' again in [sensor]"},
+      {{{"mandatory = yes          ; 0x1F81", "mandatory = yes\nmandatory = no ; 0x1F81"}}, "duplicate key 'mandatory' in [sensor]"},
   };
   for (const auto& c : cases) {
     const std::string path = writeTemp("rig.ini", rigText(c.edits));
@@ -169,7 +169,9 @@ TEST(RigFile, ABadFileGetsOneLineNamingTheLine) {
       EXPECT_EQ(m.rfind(path + ":", 0), 0u) << m;
       EXPECT_NE(m.find(c.expect), std::string::npos) << m;
       // A problem with a key names its line: "path:N: ..." with N > 0.
-      if (c.expect.find("must differ") == std::string::npos) EXPECT_GT(std::atoi(m.c_str() + path.size() + 1), 0) << m;
+      if (c.expect.find("must differ") == std::string::npos) {
+        EXPECT_GT(std::atoi(m.c_str() + path.size() + 1), 0) << m;
+      }
     }
   }
   EXPECT_THROW(nodes::readRigFile(::testing::TempDir() + "no-such.ini"), nodes::RigError);
