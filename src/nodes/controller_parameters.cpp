@@ -81,6 +81,9 @@ ControllerParameters::ControllerParameters(canopen::Node& node, const control::C
                                            bool build_off_cycle)
     : node_(node), off_cycle_(build_off_cycle) {
   running_.ctrl = base;
+  // The command range is the valve's process-data range (process_data.hpp), whatever the base says.
+  running_.ctrl.u_min = pd::kCommandMin;
+  running_.ctrl.u_max = pd::kCommandMax;
   staged_flag_ = node_.od().ref<std::uint8_t>(0x2003, 2);
   sets_applied_ = node_.od().ref<std::uint8_t>(0x2003, 3);
 }
