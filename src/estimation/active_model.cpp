@@ -98,16 +98,21 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   cp.u_eff = ue_prev_;
   const int nf = nf_;
   ActiveModelStep out;
+  const model::BoucWenStep bw(p, du);  // the same increment for every sigma point
   UkfStatus s1 = ukf.predict(
       [&](const Vec& x) {
-        Vec n = x;
-        n(0) = model::boucWenNext(p, x(0), du, x(1), Ts);
-        if constexpr (Vec::RowsAtCompileTime > kCore) {
+        if constexpr (Vec::RowsAtCompileTime == kCore) {
+          // Built from its two values: a copy of x with one entry overwritten is stored and reloaded
+          // whole (a store-forwarding stall per sigma point).
+          return Vec(bw(x(0), x(1), Ts), x(1));
+        } else {
+          Vec n = x;
+          n(0) = bw(x(0), x(1), Ts);
           double next[model::kMaxFilterStates];
           mdl.outputWith(st_prev_, x.data() + kCore, next, mdl.coreOutput(ue_prev_, x(0)), cp);
           for (int i = 0; i < nf; ++i) n(kCore + i) = next[i];
+          return n;
         }
-        return n;
       },
       Q<F>());
 
@@ -116,23 +121,34 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   // Eq. (9): H(X) = k rho u + b + k (1 - rho) h, then the output effects (not advanced), their
   // filter states taken from X.
   const auto& st = st_;
+  const bool output_effects = mdl.hasOutputEffects();
   auto H = [&](const Vec& x) {
     if constexpr (Vec::RowsAtCompileTime > kCore)
       return Eigen::Matrix<double, 1, 1>(mdl.outputWith(st, x.data() + kCore, nullptr, mdl.coreOutput(ue, x(0)), c));
-    else
+    else if (output_effects)
       return Eigen::Matrix<double, 1, 1>(mdl.outputPeek(st, mdl.coreOutput(ue, x(0)), c));
+    else  // the paper's model: what outputPeek returns, without the call per sigma point
+      return Eigen::Matrix<double, 1, 1>(mdl.coreOutput(ue, x(0)));
   };
-  Eigen::Matrix<double, 1, 1> R;
-  R << settings_.R;
+  // The paper's model alone measures y = (k rho u + b) + k (1 - rho) h, linear in X: the Kalman update
+  // without sigma points (Ukf::updateLinear).
+  auto correct = [&](double gate, double widen) {
+    if constexpr (Vec::RowsAtCompileTime == kCore) {
+      if (!output_effects) {
+        const Eigen::Matrix<double, 1, kCore> Hm(p.k * (1.0 - p.rho), 0.0);
+        return ukf.updateLinear(Hm, p.k * p.rho * ue + p.b, y, settings_.R, gate, widen);
+      }
+    }
+    return ukf.update(H, Eigen::Matrix<double, 1, 1>(y), Eigen::Matrix<double, 1, 1>(settings_.R), gate,
+                      Eigen::Matrix<double, 1, 1>(widen));
+  };
   // The gate acts only while the filter is consistent (see ActiveModelSettings::gate_nis), and it is
   // widened by the model's own predicted change of the output over this sample: after a command step
   // the model moves at once and the muscle with its lag, a miss that is the model's, not the sensor's.
   const bool consistent = nis_count_ >= kNisWindow && nis_level_ <= 1.0;
   const double gate = settings_.gate_nis > 0.0 && consistent ? settings_.gate_nis : 0.0;
   const double dy_model = H(ukf.x())(0) - y_post_;
-  Eigen::Matrix<double, 1, 1> widen;
-  widen << (std::isfinite(dy_model) ? dy_model * dy_model : 0.0);
-  UkfStatus s2 = ukf.update(H, Eigen::Matrix<double, 1, 1>(y), R, gate, widen);
+  UkfStatus s2 = correct(gate, std::isfinite(dy_model) ? dy_model * dy_model : 0.0);
   out.nis_gate = std::isfinite(y) ? ukf.gateStatistic() : 0.0;
   // One outlier more than gate_max_rejects in a row is the truth after all (the sensor moved, or the
   // filter is lost): start over from P0 at the prediction and take the position without the gate. The
@@ -140,7 +156,7 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   bool restart = false;
   if (s2 == UkfStatus::OutlierRejected && settings_.gate_max_rejects > 0 && outlier_run_ >= settings_.gate_max_rejects) {
     ukf.reset(ukf.x(), P0<F>());  // x is the prediction: a rejected update leaves it there
-    s2 = worstOf(ukf.update(H, Eigen::Matrix<double, 1, 1>(y), R), UkfStatus::Reset);
+    s2 = worstOf(correct(0.0, 0.0), UkfStatus::Reset);
     restart = true;
     outlier_run_ = 0;
     nis_count_ = 0;

@@ -11,12 +11,17 @@
 // update() can gate the measurement on its normalised innovation squared (NIS = nu' S^-1 nu, chi-square
 // with M degrees of freedom for a consistent filter): beyond the gate it is not used.
 // predict() and update() are noexcept and allocation-free; they return a status, never throw.
+// Cost: the step runs at 1 kHz beside the controller, so the small factorisations are written out
+// (cholesky(), the scalar measurement's solves) instead of Eigen's LLT/LDLT, whose dynamic-size
+// blocks cost more than the arithmetic at these sizes; each does Eigen's operations in Eigen's order,
+// so the results are the same to the bit. The factor guard() computes is kept for the next sigma points.
 #pragma once
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <limits>
 
 namespace pamc::estimation {
 
@@ -84,7 +89,7 @@ class Ukf {
 
   void reset(const Vec& x0, const Mat& P0) noexcept {
     x_ = x0;
-    P_ = P0;
+    setP(P0);
     P0_ = P0;
     P_last_ = P0;
     nis_ = gate_stat_ = 0.0;
@@ -98,17 +103,30 @@ class Ukf {
     P_last_ = P_;  // as used for the sigma points (repaired if it had to be)
     if (!drawn) return UkfStatus::Reset;
     for (int i = 0; i < kSigma; ++i) Xp_.col(i) = f(static_cast<const Vec&>(X_.col(i)));
-    x_ = weightedMean(Xp_);
     // About the central point: P = sum_i Wi d_i d_i' + (b - a^2) m m', d_i = X_i - X_0, m = x - X_0 -
-    // algebraically the weighted sum about the mean, without the ~1e6 weights cancelling.
-    Mat P = Mat::Zero();
-    for (int i = 1; i < kSigma; ++i) {
-      const Vec d = Xp_.col(i) - Xp_.col(0);
-      P.noalias() += wi_ * d * d.transpose();
+    // algebraically the weighted sum about the mean, without the ~1e6 weights cancelling. Element by
+    // element: Eigen's 2-vector packets here cost more in shuffles than they save.
+    double d[kSigma][N], wd[kSigma][N];
+    for (int i = 1; i < kSigma; ++i)
+      for (int r = 0; r < N; ++r) {
+        d[i][r] = Xp_(r, i) - Xp_(r, 0);
+        wd[i][r] = wi_ * d[i][r];
+      }
+    double m[N];
+    for (int r = 0; r < N; ++r) {
+      double sum = 0.0;
+      for (int i = 1; i < kSigma; ++i) sum += d[i][r];
+      x_(r) = Xp_(r, 0) + wi_ * sum;
+      m[r] = x_(r) - Xp_(r, 0);
     }
-    const Vec m = x_ - Xp_.col(0);
-    P.noalias() += central_ * m * m.transpose();
-    P_ = P + Q;
+    Mat P;
+    for (int c = 0; c < N; ++c)
+      for (int r = 0; r < N; ++r) {
+        double sum = 0.0;
+        for (int i = 1; i < kSigma; ++i) sum += wd[i][r] * d[i][c];
+        P(r, c) = (sum + (central_ * m[r]) * m[c]) + Q(r, c);
+      }
+    setP(P);
     return worst(st, guard());
   }
 
@@ -141,18 +159,72 @@ class Ukf {
     S.noalias() += central_ * mz * mz.transpose();
     C.noalias() += central_ * mx * mz.transpose();
     S += R;
-    Eigen::LLT<MMat> llt(S);
-    if (llt.info() != Eigen::Success) return worst(st, hardReset());
     innovation_ = z - z_pred_;
-    nis_ = innovation_.dot(llt.solve(innovation_));
-    gate_stat_ = innovation_.dot(MMat(S + widen).ldlt().solve(innovation_));
-    if (gate > 0.0 && !(gate_stat_ <= gate)) {
-      P_ = P_last_;
-      return worst(st, UkfStatus::OutlierRejected);
+    Eigen::Matrix<double, N, M> K;
+    if constexpr (M == 1) {
+      // Eigen's LLT, LDLT and their solves written out for 1 x 1: LLT fails only on S <= 0 (NaN
+      // passes), a vector is solved by dividing by l twice, a matrix by multiplying with 1 / l twice;
+      // LDLT's pseudo-inverse zeroes a pivot not above the smallest normal number.
+      const double s = S(0, 0);
+      if (s <= 0.0) return worst(st, hardReset());
+      const double l = std::sqrt(s);
+      const double nu = innovation_(0);
+      nis_ = nu * ((nu / l) / l);
+      const double d = s + widen(0, 0);
+      gate_stat_ = nu * (std::fabs(d) > std::numeric_limits<double>::min() ? nu / d : 0.0);
+      if (gate > 0.0 && !(gate_stat_ <= gate)) return worst(st, holdOutlier());
+      const double r = 1.0 / l;
+      K = (C * r) * r;
+    } else {
+      Eigen::LLT<MMat> llt(S);
+      if (llt.info() != Eigen::Success) return worst(st, hardReset());
+      nis_ = innovation_.dot(llt.solve(innovation_));
+      gate_stat_ = innovation_.dot(MMat(S + widen).ldlt().solve(innovation_));
+      if (gate > 0.0 && !(gate_stat_ <= gate)) return worst(st, holdOutlier());
+      K = llt.solve(C.transpose()).transpose();
     }
-    const Eigen::Matrix<double, N, M> K = llt.solve(C.transpose()).transpose();
     x_ += K * innovation_;
-    P_ -= K * S * K.transpose();
+    setP(P_ - K * S * K.transpose());
+    return worst(st, guard());
+  }
+
+  // update() for one linear measurement z = z0 + Hm x + v. The unscented transform of a linear map is
+  // exact, so this is the Kalman update that update() computes with sigma points (equal to rounding),
+  // without them: the posterior does not wait for a factor of the predicted P. Statuses, gate and
+  // nis() as update().
+  UkfStatus updateLinear(const Eigen::Matrix<double, 1, N>& Hm, double z0, double z, double R, double gate = 0.0,
+                         double widen = 0.0) noexcept {
+    static_assert(M == 1, "one measurement");
+    UkfStatus st = UkfStatus::Ok;
+    if (!factorOrRepair(st)) return UkfStatus::Reset;  // P positive definite, as for sigma points
+    double hx = Hm(0) * x_(0);
+    for (int j = 1; j < N; ++j) hx += Hm(j) * x_(j);
+    z_pred_(0) = z0 + hx;
+    if (!std::isfinite(z)) return worst(st, UkfStatus::MeasurementRejected);
+    Vec C;
+    for (int r = 0; r < N; ++r) {
+      C(r) = P_(r, 0) * Hm(0);
+      for (int j = 1; j < N; ++j) C(r) += P_(r, j) * Hm(j);
+    }
+    double s = Hm(0) * C(0);
+    for (int j = 1; j < N; ++j) s += Hm(j) * C(j);
+    s += R;
+    if (s <= 0.0) return worst(st, hardReset());
+    const double nu = z - z_pred_(0);
+    innovation_(0) = nu;
+    nis_ = nu * (nu / s);
+    const double d = s + widen;
+    gate_stat_ = nu * (std::fabs(d) > std::numeric_limits<double>::min() ? nu / d : 0.0);
+    if (gate > 0.0 && !(gate_stat_ <= gate)) return worst(st, holdOutlier());
+    double K[N], KS[N];
+    for (int r = 0; r < N; ++r) {
+      K[r] = C(r) / s;
+      KS[r] = K[r] * s;
+      x_(r) += K[r] * nu;
+    }
+    for (int c = 0; c < N; ++c)
+      for (int r = 0; r < N; ++r) P_(r, c) -= KS[r] * K[c];
+    factored_ = false;
     return worst(st, guard());
   }
 
@@ -184,33 +256,88 @@ class Ukf {
     return (X.col(0) + wi_ * m).eval();
   }
 
-  bool sigmaPoints(UkfStatus& st) noexcept {
-    Eigen::LLT<Mat> llt(P_);
-    if (llt.info() != Eigen::Success) {
-      st = worst(st, repair());
-      llt.compute(P_);
-      if (llt.info() != Eigen::Success) {
-        st = worst(st, hardReset());
-        llt.compute(P_);
-        if (llt.info() != Eigen::Success) return false;
+  // Factors P into spread_ = gamma L, L its lower Cholesky factor, with the operations and order of
+  // Eigen's unblocked LLT; false where LLT fails (a pivot <= 0; NaN passes). L is built in a local
+  // array and stored once: stored piecewise, spread_ was read back as packets that could not be
+  // forwarded from the stores.
+  bool factor() noexcept {
+    double L[N][N] = {};
+    for (int k = 0; k < N; ++k) {
+      double x = P_(k, k);
+      if (k > 0) {
+        double s = L[k][0] * L[k][0];
+        for (int j = 1; j < k; ++j) s += L[k][j] * L[k][j];
+        x -= s;
+      }
+      if (x <= 0.0) return false;
+      x = std::sqrt(x);
+      L[k][k] = x;
+      for (int i = k + 1; i < N; ++i) {
+        double a = P_(i, k);
+        if (k > 0) {
+          double s = L[i][0] * L[k][0];
+          for (int j = 1; j < k; ++j) s += L[i][j] * L[k][j];
+          a -= s;
+        }
+        L[i][k] = a / x;
       }
     }
-    const Mat L = gamma_ * llt.matrixL().toDenseMatrix();
-    X_.col(0) = x_;
-    for (int i = 0; i < N; ++i) {
-      X_.col(1 + i) = x_ + L.col(i);
-      X_.col(1 + N + i) = x_ - L.col(i);
+    for (int c = 0; c < N; ++c)
+      for (int r = 0; r < N; ++r) spread_(r, c) = gamma_ * L[r][c];
+    factored_ = true;
+    return true;
+  }
+
+  // Every change of P goes through here: the kept factor no longer applies.
+  void setP(const Mat& P) noexcept {
+    P_ = P;
+    factored_ = false;
+  }
+
+  // P factored, repaired or reset if it has to be; false if even P0 is not positive definite.
+  bool factorOrRepair(UkfStatus& st) noexcept {
+    if (!factored_ && !factor()) {
+      st = worst(st, repair());
+      if (!factor()) {
+        st = worst(st, hardReset());
+        if (!factor()) return false;
+      }
+    }
+    return true;
+  }
+
+  bool sigmaPoints(UkfStatus& st) noexcept {
+    if (!factorOrRepair(st)) return false;
+    for (int r = 0; r < N; ++r) {
+      X_(r, 0) = x_(r);
+      for (int i = 0; i < N; ++i) {
+        X_(r, 1 + i) = x_(r) + spread_(r, i);
+        X_(r, 1 + N + i) = x_(r) - spread_(r, i);
+      }
     }
     return true;
   }
 
   // Symmetric, finite, positive definite - or repaired.
   UkfStatus guard() noexcept {
-    if (!x_.allFinite() || !P_.allFinite()) return hardReset();
-    P_ = 0.5 * (P_ + P_.transpose()).eval();
-    Eigen::LLT<Mat> llt(P_);
-    if (llt.info() == Eigen::Success) return UkfStatus::Ok;
+    // v - v is 0 for a finite v and NaN otherwise: one test for all (as Eigen's allFinite()).
+    double zero = 0.0;
+    for (int r = 0; r < N; ++r) {
+      zero += x_(r) - x_(r);
+      for (int c = 0; c < N; ++c) zero += P_(r, c) - P_(r, c);
+    }
+    if (!(zero == 0.0)) return hardReset();
+    for (int c = 0; c < N; ++c)
+      for (int r = c + 1; r < N; ++r) P_(r, c) = P_(c, r) = 0.5 * (P_(r, c) + P_(c, r));
+    factored_ = false;
+    if (factor()) return UkfStatus::Ok;
     return repair();
+  }
+
+  // An outlier: P goes back to before the last predict() (see update()).
+  UkfStatus holdOutlier() noexcept {
+    setP(P_last_);
+    return UkfStatus::OutlierRejected;
   }
 
   // Floors the eigenvalues of P at a small fraction of its scale.
@@ -221,14 +348,14 @@ class Ukf {
     const double scale = std::max(ev.cwiseAbs().maxCoeff(), 1e-12);
     for (int i = 0; i < N; ++i) ev(i) = std::max(ev(i), 1e-9 * scale);
     P_ = es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
-    P_ = 0.5 * (P_ + P_.transpose()).eval();
+    setP(0.5 * (P_ + P_.transpose()).eval());
     if (!P_.allFinite()) return hardReset();
     return UkfStatus::CovarianceRepaired;
   }
 
   UkfStatus hardReset() noexcept {
     if (!x_.allFinite()) x_.setZero();
-    P_ = P0_;
+    setP(P0_);
     return UkfStatus::Reset;
   }
 
@@ -238,6 +365,8 @@ class Ukf {
   Mat P_ = Mat::Identity();
   Mat P0_ = Mat::Identity();
   Mat P_last_ = Mat::Identity();  // P before the last predict (held on an outlier)
+  Mat spread_ = Mat::Zero();      // gamma L, L P's Cholesky factor, while factored_
+  bool factored_ = false;
   double nis_ = 0.0, gate_stat_ = 0.0;
   Sigmas X_ = Sigmas::Zero();
   Sigmas Xp_ = Sigmas::Zero();

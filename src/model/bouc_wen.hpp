@@ -43,6 +43,33 @@ inline double boucWenTravel(double c, double v) noexcept {
   const double y = c * v;
   return std::fabs(y) < 1e-2 ? v * (1.0 - y * (1.0 / 2 - y * (1.0 / 6 - y * (1.0 / 24)))) : -std::expm1(-y) / c;
 }
+
+// Side of h = 0 whose equation applies; at h = 0 the side that the flow (a) enters.
+inline double boucWenSide(double h, double a) noexcept { return h > 0.0 ? 1.0 : h < 0.0 ? -1.0 : a > 0.0 ? 1.0 : -1.0; }
+
+// The exact step from h over the input travel v in direction s (a = s alpha) on the given side, whose
+// c and travel factor boucWenTravel(c, v) the caller has computed.
+inline double boucWenAdvance(const BoucWenParams& p, double h, double s, double v, double a, double side, double c,
+                             double travel) noexcept {
+  const double rate = a - c * h;  // dh/dv at the start
+  if (rate == 0.0) return h;      // at a fixed point h stays (also keeps 0 * inf from a diverging c away)
+  const double h1 = h + rate * travel;
+  if (!(side * h1 < 0.0)) return h1;
+  // Crossed h = 0: at the input travel v0 = log(1 + x) / c, x = -c h / a (> -1 here; -h / a for c = 0);
+  // the rest of the increment follows the other side's equation from h = 0.
+  const double x = -c * h / a;
+  const double v0 = x == 0.0 ? -h / a : std::log1p(x) / c;
+  const double c2 = p.gamma - s * side * p.beta;
+  return a * boucWenTravel(c2, std::max(v - v0, 0.0));
+}
+
+// f_h Ts added; a diverging parameter set (beta + gamma < 0) kept finite so a fitness can reject it,
+// NaN passed through so the caller's health checks see it.
+inline double boucWenFinish(double h, double f_h, double Ts) noexcept {
+  h += f_h * Ts;
+  if (std::fabs(h) > 1e9) h = std::copysign(1e9, h);
+  return h;
+}
 }  // namespace detail
 
 // h_{k+1} for the input increment du = u_k - u_{k-1} and the modelling error f_h: eq. (6), but with
@@ -62,30 +89,44 @@ inline double boucWenNext(const BoucWenParams& p, double h, double du, double f_
     const double s = du > 0.0 ? 1.0 : -1.0;
     const double v = std::fabs(du);
     const double a = s * p.alpha;
-    // Side of h = 0 whose equation applies; at h = 0 the side that the flow (a) enters.
-    const double side = h > 0.0 ? 1.0 : h < 0.0 ? -1.0 : a > 0.0 ? 1.0 : -1.0;
+    const double side = detail::boucWenSide(h, a);
     const double c = p.gamma + s * side * p.beta;
-    const double rate = a - c * h;  // dh/dv at the start
-    if (rate != 0.0) {  // at a fixed point h stays (also keeps 0 * inf from a diverging c away)
-      const double h1 = h + rate * detail::boucWenTravel(c, v);
-      if (side * h1 < 0.0) {
-        // Crossed h = 0: at the input travel v0 = log(1 + x) / c, x = -c h / a (> -1 here; -h / a
-        // for c = 0); the rest of the increment follows the other side's equation from h = 0.
-        const double x = -c * h / a;
-        const double v0 = x == 0.0 ? -h / a : std::log1p(x) / c;
-        const double c2 = p.gamma - s * side * p.beta;
-        h = a * detail::boucWenTravel(c2, std::max(v - v0, 0.0));
-      } else {
-        h = h1;
-      }
+    h = detail::boucWenAdvance(p, h, s, v, a, side, c, detail::boucWenTravel(c, v));
+  }
+  return detail::boucWenFinish(h, f_h, Ts);
+}
+
+// boucWenNext for one increment du applied to several states (the estimator's sigma points), to the
+// bit: the travel factors of both sides of h = 0 depend on du alone and are computed once, so a state
+// costs a few multiplications and its h no longer waits on the series.
+class BoucWenStep {
+ public:
+  BoucWenStep(const BoucWenParams& p, double du) noexcept : p_(&p), moving_(du != 0.0) {
+    if (!moving_) return;
+    s_ = du > 0.0 ? 1.0 : -1.0;
+    v_ = std::fabs(du);
+    a_ = s_ * p.alpha;
+    for (int i = 0; i < 2; ++i) {
+      const double side = i == 0 ? -1.0 : 1.0;
+      c_[i] = p.gamma + s_ * side * p.beta;
+      travel_[i] = detail::boucWenTravel(c_[i], v_);
     }
   }
-  h += f_h * Ts;
-  // Keep a diverging parameter set (beta + gamma < 0) finite so a fitness can reject it;
-  // NaN passes through so the caller's health checks see it.
-  if (std::fabs(h) > 1e9) h = std::copysign(1e9, h);
-  return h;
-}
+  double operator()(double h, double f_h, double Ts) const noexcept {
+    if (moving_) {
+      const double side = detail::boucWenSide(h, a_);
+      const int i = side > 0.0 ? 1 : 0;
+      h = detail::boucWenAdvance(*p_, h, s_, v_, a_, side, c_[i], travel_[i]);
+    }
+    return detail::boucWenFinish(h, f_h, Ts);
+  }
+
+ private:
+  const BoucWenParams* p_;
+  bool moving_;
+  double s_ = 0.0, v_ = 0.0, a_ = 0.0;
+  double c_[2] = {0.0, 0.0}, travel_[2] = {0.0, 0.0};  // side -1, +1
+};
 
 // The continuous model's condition for h to stay bounded for every input (Ikhouane and Rodellar,
 // classes I-III from h = 0): beta sign(alpha) + gamma > 0 (any beta, gamma when alpha = 0).

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "estimation/ukf.hpp"
 
@@ -92,4 +93,32 @@ TEST(Ukf, NonFiniteStateResetsAndNonFiniteMeasurementIsRejected) {
                 Ukf<2, 1>::MMat(1e-3));
   EXPECT_EQ(st, UkfStatus::MeasurementRejected);
   EXPECT_TRUE(f.x().allFinite());
+}
+
+// updateLinear is update() for a linear measurement without sigma points: on a random walk of
+// states, covariances and measurements both give the same posterior, NIS, gate decision and status.
+TEST(Ukf, LinearUpdateEqualsTheSigmaPointUpdate) {
+  using F = Ukf<2, 1>;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  for (int k = 0; k < 300; ++k) {
+    F a, b;
+    F::Vec x(U(rng), 2.0 * U(rng));
+    const double c = 0.9 * U(rng), s0 = 0.1 + std::fabs(U(rng)), s1 = 0.1 + 5.0 * std::fabs(U(rng));
+    F::Mat P;
+    P << s0 * s0, c * s0 * s1, c * s0 * s1, s1 * s1;
+    a.reset(x, P);
+    b.reset(x, P);
+    const Eigen::Matrix<double, 1, 2> H(5.0 * U(rng), (k % 2) * U(rng));  // half with a zero: the paper's form
+    const double z0 = U(rng), R = 1e-3 + std::fabs(U(rng)) * 0.1;
+    const double z = z0 + H * x + 3.0 * U(rng), gate = k % 4 == 0 ? 4.0 : 0.0, widen = k % 5 == 0 ? 0.5 : 0.0;
+    const auto sa = a.update([&](const F::Vec& v) { return F::MVec(z0 + H * v); }, F::MVec(z), F::MMat(R), gate,
+                             F::MMat(widen));
+    const auto sb = b.updateLinear(H, z0, z, R, gate, widen);
+    ASSERT_EQ(sa, sb) << k;
+    EXPECT_NEAR(a.nis(), b.nis(), 1e-6 * (1.0 + a.nis())) << k;
+    EXPECT_NEAR(a.predictedMeasurement()(0), b.predictedMeasurement()(0), 1e-9) << k;
+    EXPECT_LT((a.x() - b.x()).norm(), 1e-7 * (1.0 + a.x().norm())) << k;
+    EXPECT_LT((a.P() - b.P()).norm(), 1e-6 * (1.0 + a.P().norm())) << k;
+  }
 }
