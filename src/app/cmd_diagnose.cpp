@@ -26,6 +26,10 @@ class DiagnoseCommand final : public Command {
     cmd_->add_option("--report", dg_report, "folder for figures, CSVs and the final model");
     cmd_->add_option("--json", dg_json, "write the result as JSON to this file");
     cmd_->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
+    cmd_->add_option("--method", dg_method,
+                     "how each fit searches: lm (Levenberg-Marquardt from spread starts) or ga (the paper's GA first)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"lm", "ga"}));
     cmd_->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
   }
   int run() override {
@@ -37,6 +41,7 @@ class DiagnoseCommand final : public Command {
     }
     printWarnings(warnings);
     ds.candidates = splitList(dg_cands);
+    ds.method = ident::fitMethodFromString(dg_method);
     for (const auto& c : ds.candidates) (void)model::makeEffect(c);
     ds.log = progressLine;
     const auto r = diagnose::diagnose(d, dg_val.empty() ? nullptr : &v, ds);
@@ -64,7 +69,7 @@ class DiagnoseCommand final : public Command {
   }
 
  private:
-  std::string dg_data, dg_val, dg_report, dg_json, dg_cands;
+  std::string dg_data, dg_val, dg_report, dg_json, dg_cands, dg_method = "lm";
   diagnose::DiagnoseSettings ds;
 };
 

@@ -15,14 +15,20 @@ namespace {
 class FitCommand final : public Command {
  public:
   explicit FitCommand(CLI::App& app)
-      : Command(app.add_subcommand("fit", "identify a model from a measurement CSV (t,u,y[,load,...]) by GA, "
-                                          "Levenberg-Marquardt and Nelder-Mead")) {
+      : Command(app.add_subcommand("fit", "identify a model from a measurement CSV (t,u,y[,load,...]) by "
+                                          "Levenberg-Marquardt from spread starts (or the paper's GA) and Nelder-Mead")) {
     cmd_->add_option("data", data_, "measurement CSV with header t,u,y")->required();
     cmd_->add_option("--out", out_, "model file (JSON) to write");
     cmd_->add_option("--effects", effects_, "comma list of effects to add to the Bouc-Wen core (see `pamc effects`)");
-    cmd_->add_option("--seed", fs_.ga.seed, "GA seed (same seed, same result)")->capture_default_str();
-    cmd_->add_option("--population", fs_.ga.population, "GA population")->capture_default_str()->check(CLI::Range(4, 10000));
-    cmd_->add_option("--generations", fs_.ga.max_generations, "GA generation limit")
+    cmd_->add_option("--method", method_,
+                     "lm: Levenberg-Marquardt from spread starts (fast); ga: the paper's genetic algorithm first "
+                     "(see docs/PERFORMANCE.md)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"lm", "ga"}));
+    cmd_->add_option("--seed", fs_.ga.seed, "seed of the GA and of the spread starts (same seed, same result)")
+        ->capture_default_str();
+    cmd_->add_option("--population", fs_.ga.population, "GA population (--method ga)")->capture_default_str()->check(CLI::Range(4, 10000));
+    cmd_->add_option("--generations", fs_.ga.max_generations, "GA generation limit (--method ga)")
         ->capture_default_str()
         ->check(CLI::Range(1, 100000));
     cmd_->add_option("--threads", fs_.ga.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
@@ -32,7 +38,8 @@ class FitCommand final : public Command {
     const std::string& data = data_;
     const std::string& out = out_;
     const std::string& effects = effects_;
-    const ident::FitSettings& fs = fs_;
+    ident::FitSettings fs = ident::FitSettings::forMethod(ident::fitMethodFromString(method_));
+    fs.ga = fs_.ga;
     const bool quiet = quiet_;
   std::vector<std::string> warnings;
   io::Measurement m = io::readMeasurementCsv(data, &warnings);
@@ -49,7 +56,7 @@ class FitCommand final : public Command {
       last = it;
       std::fprintf(stderr, "  GA generation %4d  best RMSE %.6g\n", it, rmse);
     } else if (std::string(stage) == "refine") {
-      std::fprintf(stderr, "  refined (Nelder-Mead)  RMSE %.6g\n", rmse);
+      std::fprintf(stderr, "  refined  RMSE %.6g\n", rmse);
     }
   });
   const auto specs = r.model.paramSpecs();
@@ -61,19 +68,22 @@ class FitCommand final : public Command {
   const auto& c = r.model.core();
   std::printf("  (gain of u: k rho = %.6g; gain of h: k (1 - rho) = %.6g)\n", c.k * c.rho, c.k * (1 - c.rho));
   std::printf("RMSE %.6g (MSE %.6g) over %zu samples\n", r.rmse, r.mse, m.size());
-  std::printf("%d generations, %d evaluations, %.2f s wall time\n", r.generations, r.evaluations, r.seconds);
+  if (fs.method == ident::FitMethod::Ga)
+    std::printf("%d generations, %d evaluations, %.2f s wall time\n", r.generations, r.evaluations, r.seconds);
+  else
+    std::printf("method lm, %d evaluations, %.2f s wall time\n", r.evaluations, r.seconds);
   if (!out.empty()) {
     io::writeModelFile(out, r.model,
                              {{"data", data}, {"samples", m.size()}, {"Ts", m.Ts}, {"rmse", r.rmse},
                               {"generations", r.generations}, {"evaluations", r.evaluations},
-                              {"seconds", r.seconds}, {"seed", fs.ga.seed}});
+                              {"seconds", r.seconds}, {"seed", fs.ga.seed}, {"method", ident::toString(fs.method)}});
     std::printf("wrote %s\n", out.c_str());
   }
   return 0;
 }
 
  private:
-  std::string data_, out_, effects_;
+  std::string data_, out_, effects_, method_ = "lm";
   ident::FitSettings fs_;
   bool quiet_ = false;
 };

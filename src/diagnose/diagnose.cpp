@@ -83,13 +83,13 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
 
   // Baseline: the reference model, full GA.
   log("fitting the reference model (Bouc-Wen) on " + std::to_string(train.size()) + " samples ...");
-  ident::FitSettings base;
+  ident::FitSettings base = ident::FitSettings::forMethod(s.method);
   base.ga.seed = s.seed;
   base.ga.threads = threads;
   base.ga.population = 40;
   base.ga.max_generations = 100;
   base.ga.stall_generations = 20;
-  base.refine_evals = 300;
+  if (s.method == ident::FitMethod::Ga) base.refine_evals = 300;
   auto bt = std::chrono::steady_clock::now();
   const auto b = ident::fit(model::Model{}, train, base);
   Rung rung{{}, b.rmse, v.rmse(b.model), b.model};
@@ -133,14 +133,14 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         const auto ct = std::chrono::steady_clock::now();
         model::Model structure = cur.model;
         structure.addEffect(todo[i]);
-        ident::FitSettings fs;
+        ident::FitSettings fs = ident::FitSettings::forMethod(s.method);
         fs.ga.population = 32;
         fs.ga.max_generations = 30;
         fs.ga.stall_generations = 10;
         fs.ga.threads = 1;
         fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
         fs.lm_iterations = 30;
-        fs.refine_evals = 200;
+        if (s.method == ident::FitMethod::Ga) fs.refine_evals = 200;
         const auto f = ident::fit(structure, screen, fs, {}, &cur.model);
         CandidateResult& c = results[i];
         c.effect = todo[i];
@@ -175,14 +175,14 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     Rung next_rung{cur.effects, best.rmse_train, best.rmse_val, best.model};
     {
       // Refit the winner properly on the whole training record (the screening fit was short).
-      ident::FitSettings ps;
+      ident::FitSettings ps = ident::FitSettings::forMethod(s.method);
       ps.ga.population = 32;
       ps.ga.max_generations = 40;
       ps.ga.stall_generations = 12;
       ps.ga.threads = threads;
       ps.ga.seed = s.seed + static_cast<std::uint64_t>(round);
       ps.lm_iterations = 40;
-      ps.refine_evals = 200;
+      if (s.method == ident::FitMethod::Ga) ps.refine_evals = 200;
       const auto f = ident::fit(best.model, train, ps, {}, &best.model);
       const double rv = v.rmse(f.model);
       if (rv <= best.rmse_val) next_rung = Rung{cur.effects, f.rmse, rv, f.model};

@@ -23,6 +23,8 @@ struct DiagnoseSettings {
   std::vector<std::string> candidates;  // empty: the whole catalogue
   std::uint64_t seed = 1;
   int threads = 0;           // 0: all cores
+  // How every fit is searched: Levenberg-Marquardt from spread starts (fast) or the paper's GA first.
+  ident::FitMethod method = ident::FitMethod::MultiStart;
   std::function<void(const std::string&)> log;
 };
 

@@ -1,11 +1,13 @@
 #include "ident/identify.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <thread>
 
 namespace pamc::ident {
 
@@ -89,6 +91,14 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   }
   return b;
 }
+
+FitMethod fitMethodFromString(const std::string& s) {
+  if (s == "ga") return FitMethod::Ga;
+  if (s == "lm") return FitMethod::MultiStart;
+  throw std::invalid_argument("unknown fit method '" + s + "' (ga, lm)");
+}
+
+const char* toString(FitMethod m) { return m == FitMethod::Ga ? "ga" : "lm"; }
 
 void searchToModel(const std::vector<double>& x, std::vector<double>& p) {
   p = x;
@@ -180,12 +190,22 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
       gs.explore[i] = !start->hasEffect(eff);
     }
   }
-  OptResult r = geneticAlgorithm(cost, b.lo, b.hi, gs, [&](int g, double c) {
-    if (progress) progress("ga", g, std::sqrt(c));
-  });
   FitResult out;
-  out.generations = r.iterations;
-  out.evaluations = r.evaluations;
+  OptResult r;
+  const bool use_ga = s.method == FitMethod::Ga;
+  if (use_ga) {
+    r = geneticAlgorithm(cost, b.lo, b.hi, gs, [&](int g, double c) {
+      if (progress) progress("ga", g, std::sqrt(c));
+    });
+    out.generations = r.iterations;
+    out.evaluations = r.evaluations;
+  } else {
+    // Without a GA the first start is the start model (or the structure's defaults), in the box.
+    r.x = gs.start.empty() ? modelToSearch(structure.params()) : gs.start;
+    for (size_t i = 0; i < r.x.size(); ++i) r.x[i] = std::clamp(r.x[i], b.lo[i], b.hi[i]);
+    r.cost = cost(r.x, 0);
+    ++out.evaluations;
+  }
   if (s.refine && s.lm_iterations > 0) {
     std::vector<std::vector<double>> pb(static_cast<size_t>(threads));
     ResidualFn resid = [&](const std::vector<double>& x, std::vector<double>& e, int w) {
@@ -217,58 +237,83 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
       for (int k = 0; k < n; ++k) {
         std::vector<double> x(r.x.size());
         for (size_t i = 0; i < x.size(); ++i) x[i] = b.lo[i] + strata[i][static_cast<size_t>(k)] * (b.hi[i] - b.lo[i]);
-        // Fixed parameters (lo == hi) stay where the GA has them.
+        // Fixed parameters (lo == hi) stay where the first start has them.
         for (size_t i = 0; i < x.size(); ++i)
           if (!(b.hi[i] > b.lo[i])) x[i] = r.x[i];
         spread.push_back(x);
       }
     }
     if (!gs.start.empty()) {
-      // Warm start: also the start model with the new effects' parameters spread over their ranges,
-      // so an effect whose cost is flat where the GA left it still gets a chance.
+      // Warm start: also the start model with the new effects' parameters spread over their ranges
+      // (a Latin hypercube over them), so an effect whose cost is flat where the first start left it
+      // still gets a chance.
       std::mt19937_64 rng(gs.seed ^ 0x9e3779b97f4a7c15ull);
       std::uniform_real_distribution<double> U(0.0, 1.0);
-      for (int k = 0; k < s.lm_starts + 1; ++k) {
+      const int n = s.lm_warm_starts;
+      std::vector<std::vector<double>> strata(gs.start.size());
+      for (auto& v : strata) {
+        for (int k = 0; k < n; ++k) v.push_back((k + U(rng)) / n);
+        std::shuffle(v.begin(), v.end(), rng);
+      }
+      for (int k = 0; k < n; ++k) {
         std::vector<double> x = gs.start;
         bool any = false;
         for (size_t i = 0; i < x.size(); ++i)
           if (i < gs.explore.size() && gs.explore[i]) {
-            x[i] = b.lo[i] + (k + U(rng)) / (s.lm_starts + 1) * (b.hi[i] - b.lo[i]);
+            x[i] = b.lo[i] + strata[i][static_cast<size_t>(k)] * (b.hi[i] - b.lo[i]);
             any = true;
           }
         if (any) starts.push_back(x);
       }
     }
     // Short runs from every start, then the best few of each group to the end. A start spread over the
-    // box wins only by a clear margin: where the GA's basin already fits, another basin that fits the
-    // record as well may be a degenerate one that does not generalise (a slew limit that never binds).
+    // box wins only by a clear margin: where the first group's basin already fits, another basin that
+    // fits the record as well may be a degenerate one that does not generalise (a slew limit that never
+    // binds). The runs of a group go on at once, one per worker; each run is deterministic, so the
+    // result does not depend on the number of threads.
     const bool multi = starts.size() + spread.size() > 1;
-    auto group = [&](const std::vector<std::vector<double>>& xs, std::size_t keep) {
-      std::vector<OptResult> runs;
-      for (const auto& x0 : xs) {
-        OptResult l = levenbergMarquardt(resid, d.size(), x0, b.lo, b.hi, multi ? 8 : s.lm_iterations, threads);
-        out.evaluations += l.evaluations;
-        runs.push_back(l);
+    auto runAll = [&](const std::vector<std::vector<double>>& xs, int iterations) {
+      std::vector<OptResult> runs(xs.size());
+      std::atomic<size_t> next{0};
+      auto work = [&](int w) {
+        for (size_t k = next++; k < xs.size(); k = next++)
+          runs[k] = levenbergMarquardt(resid, d.size(), xs[k], b.lo, b.hi, iterations, 1, w);
+      };
+      const int nt = std::min<int>(threads, static_cast<int>(xs.size()));
+      if (nt <= 1) {
+        work(0);
+      } else {
+        std::vector<std::thread> ts;
+        for (int w = 0; w < nt; ++w) ts.emplace_back(work, w);
+        for (auto& t : ts) t.join();
       }
-      std::sort(runs.begin(), runs.end(), [](const OptResult& a, const OptResult& c) { return a.cost < c.cost; });
+      for (const auto& l : runs) out.evaluations += l.evaluations;
+      return runs;
+    };
+    auto group = [&](const std::vector<std::vector<double>>& xs, std::size_t keep) {
+      std::vector<OptResult> runs = runAll(xs, multi ? 8 : s.lm_iterations);
+      std::stable_sort(runs.begin(), runs.end(), [](const OptResult& a, const OptResult& c) { return a.cost < c.cost; });
       // The best few to the end: after eight iterations the eventual winner is not always ahead (a
       // hysteretic effect's width and the core's beta/gamma trade places before they settle).
+      runs.resize(std::min(keep, runs.size()));
+      if (multi) {
+        std::vector<std::vector<double>> xk;
+        for (const auto& l : runs) xk.push_back(l.x);
+        const std::vector<OptResult> fin = runAll(xk, s.lm_iterations);
+        for (size_t k = 0; k < runs.size(); ++k)
+          if (fin[k].cost < runs[k].cost) runs[k] = fin[k];
+      }
       OptResult best;
       best.cost = std::numeric_limits<double>::max();
-      for (std::size_t k = 0; k < std::min(keep, runs.size()); ++k) {
-        if (multi) {
-          OptResult l = levenbergMarquardt(resid, d.size(), runs[k].x, b.lo, b.hi, s.lm_iterations, threads);
-          out.evaluations += l.evaluations;
-          if (l.cost < runs[k].cost) runs[k] = l;
-        }
-        if (runs[k].cost < best.cost) best = runs[k];
-      }
+      for (const auto& l : runs)
+        if (l.cost < best.cost) best = l;
       return best;
     };
     OptResult best_l = group(starts, 2);
     if (!spread.empty()) {
       const OptResult far = group(spread, 2);
-      if (far.cost < 0.9 * best_l.cost) best_l = far;
+      // Without a GA the spread starts are the search itself, not a second opinion.
+      if (far.cost < (use_ga ? 0.9 : 1.0) * best_l.cost) best_l = far;
     }
     if (best_l.cost <= r.cost) r = best_l;
     if (progress) progress("refine", best_l.iterations, std::sqrt(r.cost));

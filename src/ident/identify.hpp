@@ -1,6 +1,8 @@
 // Identification of a model (Bouc-Wen core and any effects) from a measurement:
-// fitness = MSE of eq. (20) between the measured and the simulated output, minimised by the GA
-// over box bounds scaled to the data, then refined by Nelder-Mead.
+// fitness = MSE of eq. (20) between the measured and the simulated output, minimised over box bounds
+// scaled to the data - by the paper's GA followed by Levenberg-Marquardt (FitMethod::Ga), or by
+// Levenberg-Marquardt from starts spread over the box alone (FitMethod::MultiStart) - then polished
+// by Nelder-Mead.
 #pragma once
 
 #include <functional>
@@ -13,8 +15,17 @@
 
 namespace pamc::ident {
 
+enum class FitMethod {
+  Ga,          // the paper's genetic algorithm, then LM from its best points and spread starts
+  MultiStart,  // LM from the start model (or the defaults) and spread starts, no GA: much faster
+};
+// "ga" / "lm" (throws std::invalid_argument on anything else).
+FitMethod fitMethodFromString(const std::string& s);
+const char* toString(FitMethod m);
+
 struct FitSettings {
-  GaSettings ga{};
+  FitMethod method = FitMethod::Ga;
+  GaSettings ga{};  // also the seed and the threads of the multi-start method
   bool refine = true;
   int refine_evals = 300;      // Nelder-Mead polish after Levenberg-Marquardt (non-smooth effects)
   int lm_iterations = 40;      // Levenberg-Marquardt iterations after the GA (0: none)
@@ -22,6 +33,23 @@ struct FitSettings {
   // ... and from this many points spread over the search box (Latin hypercube, seeded): a
   // multimodal fit (a hysteretic effect that can mirror the core's loop) is not left to the GA alone.
   int lm_spread_starts = 16;
+  // With a start model: LM also from this many points that keep it and spread the parameters of the
+  // effects it lacks over their ranges (Latin hypercube).
+  int lm_warm_starts = 4;
+
+  // The defaults of a method: the GA's as above; the multi-start method with fewer spread starts
+  // (6), more starts around a start model (8) and a shorter Nelder-Mead polish (100), which on the benchmark records reach the GA's error
+  // (docs/PERFORMANCE.md).
+  static FitSettings forMethod(FitMethod m) {
+    FitSettings s;
+    s.method = m;
+    if (m == FitMethod::MultiStart) {
+      s.lm_spread_starts = 6;
+      s.lm_warm_starts = 8;
+      s.refine_evals = 100;
+    }
+    return s;
+  }
 };
 
 struct FitResult {

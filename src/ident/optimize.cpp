@@ -274,7 +274,7 @@ OptResult nelderMead(const CostFn& f, const std::vector<double>& x0, const std::
 
 OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<double>& x0,
                              const std::vector<double>& lo, const std::vector<double>& hi, int max_iterations,
-                             int threads) {
+                             int threads, int worker) {
   std::vector<size_t> freeIdx;
   for (size_t i = 0; i < x0.size(); ++i)
     if (hi[i] > lo[i]) freeIdx.push_back(i);
@@ -299,7 +299,9 @@ OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<do
     for (double e : v) s += e * e;
     return std::isfinite(s) ? s / static_cast<double>(m) : std::numeric_limits<double>::max();
   };
-  f(toX(g), r, 0);
+  threads = std::max(1, threads);
+  const int main_worker = threads == 1 ? worker : 0;
+  f(toX(g), r, main_worker);
   ++res.evaluations;
   double c = cost(r);
   if (n == 0) {
@@ -323,7 +325,7 @@ OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<do
       f(toX(gp), cols[static_cast<size_t>(k)], w);
     };
     if (threads == 1) {
-      for (int k = 0; k < n; ++k) column(k, 0);
+      for (int k = 0; k < n; ++k) column(k, main_worker);
     } else {
       std::vector<std::thread> ts;
       for (int w = 0; w < threads; ++w)
@@ -363,7 +365,7 @@ OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<do
         continue;
       }
       Eigen::VectorXd gn = (g + d).cwiseMax(0.0).cwiseMin(1.0);
-      f(toX(gn), rt, 0);
+      f(toX(gn), rt, main_worker);
       ++res.evaluations;
       const double cn = cost(rt);
       if (cn < c) {

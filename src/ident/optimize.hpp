@@ -47,10 +47,12 @@ OptResult nelderMead(const CostFn& f, const std::vector<double>& x0, const std::
 using ResidualFn = std::function<void(const std::vector<double>& x, std::vector<double>& r, int worker)>;
 
 // Bounded Levenberg-Marquardt on sum(r^2)/n, Jacobian by finite differences in the unit box, its
-// columns computed on `threads` workers. Fixed parameters (lo == hi) stay put.
+// columns computed on `threads` workers (0..threads-1). With threads = 1 every call of f is made as
+// `worker`, so that several runs can go on at once, each on its own worker's scratch space. Fixed
+// parameters (lo == hi) stay put.
 OptResult levenbergMarquardt(const ResidualFn& f, size_t n_residuals, const std::vector<double>& x0,
                              const std::vector<double>& lo, const std::vector<double>& hi, int max_iterations,
-                             int threads = 1);
+                             int threads = 1, int worker = 0);
 
 int defaultThreads();
 
