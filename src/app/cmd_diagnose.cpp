@@ -27,7 +27,8 @@ class DiagnoseCommand final : public Command {
     cmd_->add_option("--json", dg_json, "write the result as JSON to this file");
     cmd_->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
     cmd_->add_option("--method", dg_method,
-                     "how each fit searches: lm (Levenberg-Marquardt from spread starts) or ga (the paper's GA first)")
+                     "how each fit searches: ga (the paper's GA first) or lm (Levenberg-Marquardt from spread starts: faster, "
+                     "may miss an effect with several basins; docs/PERFORMANCE.md)")
         ->capture_default_str()
         ->check(CLI::IsMember({"lm", "ga"}));
     cmd_->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
@@ -69,7 +70,7 @@ class DiagnoseCommand final : public Command {
   }
 
  private:
-  std::string dg_data, dg_val, dg_report, dg_json, dg_cands, dg_method = "lm";
+  std::string dg_data, dg_val, dg_report, dg_json, dg_cands, dg_method = "ga";
   diagnose::DiagnoseSettings ds;
 };
 

@@ -21,10 +21,10 @@ class FitCommand final : public Command {
     cmd_->add_option("--out", out_, "model file (JSON) to write");
     cmd_->add_option("--effects", effects_, "comma list of effects to add to the Bouc-Wen core (see `pamc effects`)");
     cmd_->add_option("--method", method_,
-                     "lm: Levenberg-Marquardt from spread starts (fast); ga: the paper's genetic algorithm first "
-                     "(see docs/PERFORMANCE.md)")
+                     "lm: Levenberg-Marquardt from spread starts (fast); ga: the paper's genetic algorithm first; "
+                     "auto: lm for the plain Bouc-Wen model, ga when effects are added (see docs/PERFORMANCE.md)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"lm", "ga"}));
+        ->check(CLI::IsMember({"auto", "lm", "ga"}));
     cmd_->add_option("--seed", fs_.ga.seed, "seed of the GA and of the spread starts (same seed, same result)")
         ->capture_default_str();
     cmd_->add_option("--population", fs_.ga.population, "GA population (--method ga)")->capture_default_str()->check(CLI::Range(4, 10000));
@@ -38,7 +38,10 @@ class FitCommand final : public Command {
     const std::string& data = data_;
     const std::string& out = out_;
     const std::string& effects = effects_;
-    ident::FitSettings fs = ident::FitSettings::forMethod(ident::fitMethodFromString(method_));
+    // auto: the multi-start search reaches the GA's error on the Bouc-Wen core at a tenth of the time;
+    // an effect's parameters can have several basins (a saturation's knee) that the GA finds more surely.
+    const std::string method = method_ != "auto" ? method_ : splitList(effects).empty() ? "lm" : "ga";
+    ident::FitSettings fs = ident::FitSettings::forMethod(ident::fitMethodFromString(method));
     fs.ga = fs_.ga;
     const bool quiet = quiet_;
   std::vector<std::string> warnings;
@@ -83,7 +86,7 @@ class FitCommand final : public Command {
 }
 
  private:
-  std::string data_, out_, effects_, method_ = "lm";
+  std::string data_, out_, effects_, method_ = "auto";
   ident::FitSettings fs_;
   bool quiet_ = false;
 };

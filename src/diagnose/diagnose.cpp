@@ -140,6 +140,9 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         fs.ga.threads = 1;
         fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
         fs.lm_iterations = 30;
+        // The core is fitted already: the starts keep it and spread the new effect's parameters
+        // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
+        if (s.method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
         if (s.method == ident::FitMethod::Ga) fs.refine_evals = 200;
         const auto f = ident::fit(structure, screen, fs, {}, &cur.model);
         CandidateResult& c = results[i];
@@ -182,6 +185,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       ps.ga.threads = threads;
       ps.ga.seed = s.seed + static_cast<std::uint64_t>(round);
       ps.lm_iterations = 40;
+      if (s.method == ident::FitMethod::MultiStart) ps.lm_spread_starts = 0;
       if (s.method == ident::FitMethod::Ga) ps.refine_evals = 200;
       const auto f = ident::fit(best.model, train, ps, {}, &best.model);
       const double rv = v.rmse(f.model);
