@@ -6,13 +6,11 @@
 
 namespace pamc::model {
 
-// Bouc-Wen stability of the model core (eq. 6 with m = 1). With h' = h / alpha the h-equation has
-// alpha' = 1, beta' = beta sign(alpha), gamma' = gamma; it is bounded for every input when
-// beta' + gamma' > 0 (Ikhouane and Rodellar, classes I-III from h = 0) and unbounded otherwise. The
-// discrete form is then driven through sweeps and steps over the whole command range as a check.
+// Bouc-Wen stability of the model core (eq. 6 with m = 1): the sign conditions of boucWenBounded, then
+// the discrete form driven through sweeps and steps over the whole command range as a check.
 bool boucWenStable(const BoucWenParams& p, double u_min, double u_max, std::string* why) {
   if (!boucWenBounded(p)) {
-    if (why) *why = "Bouc-Wen parameters unstable: beta * sign(alpha) + gamma must be > 0";
+    if (why) *why = "Bouc-Wen parameters unstable: beta * sign(alpha) + gamma must be > 0 and gamma >= 0";
     return false;
   }
   double h = 0.0, u_prev = 0.0, h_max = 0.0;

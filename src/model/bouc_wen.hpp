@@ -128,10 +128,14 @@ class BoucWenStep {
   double c_[2] = {0.0, 0.0}, travel_[2] = {0.0, 0.0};  // side -1, +1
 };
 
-// The continuous model's condition for h to stay bounded for every input (Ikhouane and Rodellar,
-// classes I-III from h = 0): beta sign(alpha) + gamma > 0 (any beta, gamma when alpha = 0).
+// The continuous model's condition for h to stay bounded for every input from h = 0. On each side of
+// h = 0 the h-equation is dh/dv = a - c h over the input travel v (see boucWenNext). With h' = h / alpha
+// (alpha' = 1, beta' = beta sign(alpha), gamma' = gamma): loading away from 0 ends at |h'| = 1 / (beta' +
+// gamma'), which needs beta' + gamma' > 0; a reversal from there runs with c = gamma' - beta' and turns
+// back towards 0 only if 1 - (beta' - gamma') / (beta' + gamma') >= 0, i.e. gamma' >= 0. With gamma < 0 a
+// sine's first reversal from the loop's end diverges (tests/unit/test_model.cpp).
 inline bool boucWenBounded(const BoucWenParams& p) noexcept {
-  return p.alpha == 0.0 || std::copysign(1.0, p.alpha) * p.beta + p.gamma > 0.0;
+  return p.alpha == 0.0 || (std::copysign(1.0, p.alpha) * p.beta + p.gamma > 0.0 && p.gamma >= 0.0);
 }
 
 // Whether a parameter set is bounded (see bouc_wen.cpp): the sign condition of the continuous model,

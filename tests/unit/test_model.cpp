@@ -83,6 +83,26 @@ TEST(BoucWen, LargeCommandJumpStaysBounded) {
   EXPECT_LE(std::fabs(st.h), 1.0 / (0.9 + 0.8) + 1e-9);  // alpha / (beta + gamma)
 }
 
+// beta + gamma > 0 is not enough: with gamma < 0 the loop's end lies beyond the point from which a
+// reversal turns back, and the first reversal of a sine diverges. boucWenBounded and boucWenStable
+// refuse such a set (the fit never takes one); gamma = 0 is the edge and stays bounded.
+TEST(BoucWen, NegativeGammaDivergesAtTheFirstReversalAndIsRefused) {
+  const BoucWenParams bad{3.0, 0.7, -4.0, 1.0, 0.9, -0.3}, edge{3.0, 0.7, -4.0, 1.0, 0.9, 0.0};
+  std::vector<double> u(20000);
+  for (size_t i = 0; i < u.size(); ++i) u[i] = 1.5 * std::sin(2 * M_PI * 0.3 * i * 1e-3) + 0.2;
+  double worst_bad = 0, worst_edge = 0;
+  for (double v : Model(bad).simulate(u, 1e-3)) worst_bad = std::max(worst_bad, std::fabs(v));
+  for (double v : Model(edge).simulate(u, 1e-3)) worst_edge = std::max(worst_edge, std::fabs(v));
+  EXPECT_GT(worst_bad, 1e3);    // the model runs away
+  EXPECT_LT(worst_edge, 20.0);  // |y| <= |k rho u| + |b| + |k (1 - rho)| / beta
+  EXPECT_FALSE(boucWenBounded(bad));
+  EXPECT_TRUE(boucWenBounded(edge));
+  std::string why;
+  EXPECT_FALSE(boucWenStable(bad, -10, 10, &why));
+  EXPECT_NE(why.find("gamma >= 0"), std::string::npos) << why;
+  EXPECT_TRUE(boucWenStable(edge, -10, 10));
+}
+
 namespace {
 // The continuous Bouc-Wen model (m = 1) between two samples: dh/du = alpha - beta |h| - gamma sign(du) h
 // along the straight line from u_{k-1} to u_k, by classical RK4 with n steps. Independent of
