@@ -22,7 +22,7 @@ class DiagnoseCommand final : public Command {
     cmd_->add_option("--min-gain", ds.min_gain, "an effect must lower the validated RMSE by this fraction")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 0.99));
-    cmd_->add_option("--candidates", dg_cands, "comma list of effects to try (default: the whole catalogue)");
+    cmd_->add_option("--candidates", dg_cands, "comma list of effects to try, or of effects to leave out as -name (default: the whole catalogue)");
     cmd_->add_option("--report", dg_report, "folder for figures, CSVs and the final model");
     cmd_->add_option("--json", dg_json, "write the result as JSON to this file");
     cmd_->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
@@ -31,6 +31,7 @@ class DiagnoseCommand final : public Command {
                      "may miss an effect with several basins; docs/PERFORMANCE.md)")
         ->capture_default_str()
         ->check(CLI::IsMember({"lm", "ga"}));
+    cmd_->add_flag("--no-probes", dg_no_probes, "do not try the probes when the catalogue leaves the error above the noise");
     cmd_->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
   }
   int run() override {
@@ -43,8 +44,8 @@ class DiagnoseCommand final : public Command {
     printWarnings(warnings);
     ds.candidates = splitList(dg_cands);
     ds.method = ident::fitMethodFromString(dg_method);
-    for (const auto& c : ds.candidates) (void)model::makeEffect(c);
     ds.log = progressLine;
+    ds.probes = !dg_no_probes;
     const auto r = diagnose::diagnose(d, dg_val.empty() ? nullptr : &v, ds);
     std::printf("\nFirst round (on top of the reference model), best first:\n");
     if (!r.rounds.empty())
@@ -57,6 +58,18 @@ class DiagnoseCommand final : public Command {
       for (const auto& x : g.effects) e += (e.empty() ? "" : " + ") + x;
       std::printf("  %-50s train %-10.5g validation %-10.5g\n", e.empty() ? "reference model" : ("+ " + e).c_str(),
                   g.rmse_train, g.rmse_val);
+    }
+    if (r.probe_rung) {
+      std::string e;
+      for (const auto& x : r.ladder.back().effects) e += " + " + x;
+      std::printf("  %-50s train %-10.5g validation %-10.5g  (probe, not added)\n",
+                  (e + " + " + r.probes.front().probe).c_str(), r.probes.front().rmse_train, r.probes.front().rmse_val);
+    }
+    if (!r.probes.empty()) {
+      std::printf("\nProbes (on top of the final model), best first:\n");
+      for (const auto& p : r.probes)
+        std::printf("  %-14s validation RMSE %-10.5g explains %3.0f %%  at %s\n", p.probe.c_str(), p.rmse_val,
+                    100 * p.explains, p.regime.c_str());
     }
     std::printf("\n%s\n", r.verdict.c_str());
     std::printf("%.1f s\n", r.seconds);
@@ -71,6 +84,7 @@ class DiagnoseCommand final : public Command {
 
  private:
   std::string dg_data, dg_val, dg_report, dg_json, dg_cands, dg_method = "ga";
+  bool dg_no_probes = false;
   diagnose::DiagnoseSettings ds;
 };
 

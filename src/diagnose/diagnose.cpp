@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "io/model_file.hpp"
+#include "model/probe.hpp"
 #include "report/figures.hpp"
 
 #include "io/text.hpp"
@@ -45,6 +46,20 @@ std::string join(const std::vector<std::string>& v) {
   return s.empty() ? "(reference model)" : s;
 }
 
+// The bin of compare's breakdown where a change of model removes the most squared error.
+std::string mostImprovedRegime(const ResidualReport& before, const ResidualReport& after) {
+  const Bin* best = nullptr;
+  double gain = 0, rb = 0, ra = 0;
+  for (const auto& b : before.bins)
+    for (const auto& a : after.bins)
+      if (a.group == b.group && a.label == b.label) {
+        const double g = static_cast<double>(b.n) * (b.rmse * b.rmse - a.rmse * a.rmse);
+        if (g > gain) gain = g, best = &b, rb = b.rmse, ra = a.rmse;
+      }
+  if (!best) return "no regime in particular";
+  return best->group + " " + best->label + " (RMSE " + fmt("%.3g", rb) + " -> " + fmt("%.3g", ra) + ")";
+}
+
 }  // namespace
 
 DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val, const DiagnoseSettings& s) {
@@ -72,10 +87,19 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   res.val_samples = v.data->size() - v.from;
   const int threads = s.threads > 0 ? s.threads : ident::defaultThreads();
 
-  std::vector<std::string> pool = s.candidates;
+  // Candidates: the list given, or the whole catalogue without the names given with a leading '-'.
+  std::vector<std::string> pool, without;
+  for (const auto& c : s.candidates) (c.size() > 1 && c[0] == '-' ? without.push_back(c.substr(1)) : pool.push_back(c));
+  if (!pool.empty() && !without.empty())
+    throw std::invalid_argument("candidates: give either the effects to try or the ones to leave out ('-name'), not both");
+  for (const auto& c : pool.empty() ? without : pool) {
+    (void)model::makeEffect(c);  // unknown names fail here, listing the known ones
+    if (model::findProbe(c))
+      throw std::invalid_argument("candidates: '" + c + "' is a probe, not a physical effect (diagnose tries the probes itself)");
+  }
   if (pool.empty())
-    for (const auto& e : model::catalogue()) pool.emplace_back(e.name);
-  for (const auto& c : pool) (void)model::makeEffect(c);  // unknown names fail here, listing the known ones
+    for (const auto& e : model::catalogue())
+      if (std::find(without.begin(), without.end(), e.name) == without.end()) pool.emplace_back(e.name);
   const bool have_load = train.has("load") && v.data->has("load");
   pool.erase(std::remove_if(pool.begin(), pool.end(),
                             [&](const std::string& c) { return model::makeEffect(c)->needsLoad() && !have_load; }),
@@ -109,6 +133,48 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     io::Measurement vv = v.data->slice(v.from, v.data->size());
     noise = std::max(noise, analyze(vv, std::vector<double>(vv.size(), 0.0)).noise_floor);
   }
+  // Each name added to `base` and fitted on the screening data, starting from base's parameters; in
+  // parallel, one fit per worker.
+  auto fitOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
+                      const ResidualReport& rr, const std::string& tag) {
+    std::vector<CandidateResult> results(names.size());
+    std::atomic<size_t> next{0};
+    std::mutex log_mu;
+    auto worker = [&] {
+      for (size_t i = next++; i < names.size(); i = next++) {
+        const auto ct = std::chrono::steady_clock::now();
+        model::Model structure = base_model;
+        structure.addEffect(names[i]);
+        ident::FitSettings fs = ident::FitSettings::forMethod(s.method);
+        fs.ga.population = 32;
+        fs.ga.max_generations = 30;
+        fs.ga.stall_generations = 10;
+        fs.ga.threads = 1;
+        fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
+        fs.lm_iterations = 30;
+        // The core is fitted already: the starts keep it and spread the new effect's parameters
+        // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
+        if (s.method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
+        if (s.method == ident::FitMethod::Ga) fs.refine_evals = 200;
+        const auto f = ident::fit(structure, screen, fs, {}, &base_model);
+        CandidateResult& c = results[i];
+        c.effect = names[i];
+        c.model = f.model;
+        c.rmse_train = screen.size() == train.size() ? f.rmse : ident::rmseFrom(f.model, train);
+        c.rmse_val = v.rmse(f.model);
+        c.evidence = effectEvidence(names[i], rr);
+        c.seconds = seconds(ct);
+        std::lock_guard<std::mutex> lk(log_mu);
+        const std::string label = tag + names[i];
+        log("  " + label + std::string(label.size() < 20 ? 20 - label.size() : 0, ' ') + " train " +
+            fmt("%-10.5g", c.rmse_train) + " validation " + fmt("%-10.5g", c.rmse_val) + " (" + fmt("%.1f", c.seconds) + " s)");
+      }
+    };
+    std::vector<std::thread> ts;
+    for (int w = 0; w < std::min<int>(threads, static_cast<int>(names.size())); ++w) ts.emplace_back(worker);
+    for (auto& t : ts) t.join();
+    return results;
+  };
   for (int round = 1; round <= s.max_effects; ++round) {
     const Rung cur = res.ladder.back();  // a copy: the ladder grows below
     // At the noise level nothing is left to explain; the first round still runs, so the candidates
@@ -125,41 +191,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     const ResidualReport rr = round == 1 ? res.baseline_residual : analyze(train, simulate(cur.model, train));
     log("round " + std::to_string(round) + ": trying " + std::to_string(todo.size()) + " effects on top of " +
         join(cur.effects));
-    std::vector<CandidateResult> results(todo.size());
-    std::atomic<size_t> next{0};
-    std::mutex log_mu;
-    auto worker = [&] {
-      for (size_t i = next++; i < todo.size(); i = next++) {
-        const auto ct = std::chrono::steady_clock::now();
-        model::Model structure = cur.model;
-        structure.addEffect(todo[i]);
-        ident::FitSettings fs = ident::FitSettings::forMethod(s.method);
-        fs.ga.population = 32;
-        fs.ga.max_generations = 30;
-        fs.ga.stall_generations = 10;
-        fs.ga.threads = 1;
-        fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
-        fs.lm_iterations = 30;
-        // The core is fitted already: the starts keep it and spread the new effect's parameters
-        // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
-        if (s.method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
-        if (s.method == ident::FitMethod::Ga) fs.refine_evals = 200;
-        const auto f = ident::fit(structure, screen, fs, {}, &cur.model);
-        CandidateResult& c = results[i];
-        c.effect = todo[i];
-        c.model = f.model;
-        c.rmse_train = screen.size() == train.size() ? f.rmse : ident::rmseFrom(f.model, train);
-        c.rmse_val = v.rmse(f.model);
-        c.evidence = effectEvidence(todo[i], rr);
-        c.seconds = seconds(ct);
-        std::lock_guard<std::mutex> lk(log_mu);
-        log("  " + todo[i] + std::string(todo[i].size() < 20 ? 20 - todo[i].size() : 0, ' ') + " train " + fmt("%-10.5g", c.rmse_train) + " validation " +
-            fmt("%-10.5g", c.rmse_val) + " (" + fmt("%.1f", c.seconds) + " s)");
-      }
-    };
-    std::vector<std::thread> ts;
-    for (int w = 0; w < std::min<int>(threads, static_cast<int>(todo.size())); ++w) ts.emplace_back(worker);
-    for (auto& t : ts) t.join();
+    std::vector<CandidateResult> results = fitOnTop(cur.model, todo, round, rr, "");
     std::stable_sort(results.begin(), results.end(),
                      [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
     res.rounds.push_back(results);
@@ -199,6 +231,28 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   }
   const Rung& fin = res.ladder.back();
   res.final_residual = analyze(train, simulate(fin.model, train));
+  // Probes: when the catalogue leaves the validated error above the noise, which kind of structure
+  // explains what is left, and where.
+  if (s.probes && !(fin.rmse_val < 1.5 * noise)) {
+    std::vector<std::string> names;
+    for (const auto& p : model::probes()) names.emplace_back(p.name);
+    log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
+    const auto fits = fitOnTop(fin.model, names, s.max_effects + 1, res.final_residual, "probe ");
+    for (const auto& c : fits) {
+      ProbeResult p;
+      p.probe = c.effect;
+      p.rmse_train = c.rmse_train;
+      p.rmse_val = c.rmse_val;
+      p.explains = std::max(0.0, 1.0 - (c.rmse_val * c.rmse_val) / std::max(fin.rmse_val * fin.rmse_val, 1e-300));
+      p.regime = mostImprovedRegime(res.final_residual, analyze(train, simulate(c.model, train)));
+      p.meaning = model::findProbe(c.effect)->meaning;
+      p.model = c.model;
+      res.probes.push_back(std::move(p));
+    }
+    std::stable_sort(res.probes.begin(), res.probes.end(),
+                     [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
+    res.probe_rung = 1.0 - res.probes.front().rmse_val / fin.rmse_val >= s.min_gain;
+  }
   std::string v_text;
   if (res.ladder.size() == 1) {
     v_text = "No effect in the catalogue explains the residual: " + stop_reason + ".";
@@ -214,6 +268,16 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     v_text += " The remaining training error (" + fmt("%.3g", fin.rmse_train) + ") is " +
               fmt("%.0f", fin.rmse_train / noise) + "x the sensor noise (" + fmt("%.3g", noise) +
               " rms): something systematic is left that the catalogue does not capture.";
+  if (!res.probes.empty()) {
+    const auto& p = res.probes.front();
+    if (res.probe_rung)
+      v_text += " The probe " + p.probe + " explains " + fmt("%.0f", 100 * p.explains) +
+                " % of what is left (validated RMSE " + fmt("%.4g", fin.rmse_val) + " -> " + fmt("%.4g", p.rmse_val) +
+                "), most of it at " + p.regime + ": " + p.meaning + ". It is a probe, not part of the model.";
+    else
+      v_text += " No probe explains what is left either (the best, " + p.probe + ", " + fmt("%.0f", 100 * p.explains) +
+                " %): it may be noise that is not white, or structure none of the probes has.";
+  }
   res.verdict = v_text;
   res.seconds = seconds(t0);
   return res;
@@ -232,8 +296,19 @@ nlohmann::json toJson(const DiagnoseResult& r) {
                    {"evidence", x.evidence.text}, {"evidence_strength", x.evidence.strength}});
   j["candidates"] = c;
   nlohmann::json l = nlohmann::json::array();
-  for (const auto& g : r.ladder) l.push_back({{"effects", g.effects}, {"rmse_train", g.rmse_train}, {"rmse_val", g.rmse_val}});
+  for (const auto& g : r.ladder)
+    l.push_back({{"effects", g.effects}, {"rmse_train", g.rmse_train}, {"rmse_val", g.rmse_val}, {"probe", false}});
+  if (r.probe_rung) {
+    auto e = r.ladder.back().effects;
+    e.push_back(r.probes.front().probe);
+    l.push_back({{"effects", e}, {"rmse_train", r.probes.front().rmse_train}, {"rmse_val", r.probes.front().rmse_val}, {"probe", true}});
+  }
   j["ladder"] = l;
+  nlohmann::json pj = nlohmann::json::array();
+  for (const auto& p : r.probes)
+    pj.push_back({{"probe", p.probe}, {"rmse_val", p.rmse_val}, {"rmse_train", p.rmse_train}, {"explains", p.explains},
+                  {"regime", p.regime}, {"meaning", p.meaning}});
+  j["probes"] = pj;
   j["model"] = io::modelToJson(r.ladder.back().model);
   j["verdict"] = r.verdict;
   j["seconds"] = r.seconds;

@@ -27,6 +27,9 @@ struct DiagnoseSettings {
   // starts - about five times faster, but on the 150 000-sample emulator record it misses the
   // saturation's knee that the GA finds (docs/PERFORMANCE.md).
   ident::FitMethod method = ident::FitMethod::Ga;
+  // When the catalogue leaves the validated error above the noise, fit the probes (model/probe.hpp)
+  // on top of the final model and report which kind of structure explains what is left.
+  bool probes = true;
   std::function<void(const std::string&)> log;
 };
 
@@ -44,12 +47,24 @@ struct Rung {
   model::Model model;
 };
 
+// A probe fitted on top of the final physical model.
+struct ProbeResult {
+  std::string probe;
+  double rmse_train = 0, rmse_val = 0;
+  double explains = 0;   // fraction of the validated residual's mean square the probe removes
+  std::string regime;    // where in compare's breakdown (training data) it removes the most
+  std::string meaning;   // the kind of physics it points to (model/probes/probes.inc)
+  model::Model model;
+};
+
 struct DiagnoseResult {
   size_t samples = 0;          // training samples
   size_t val_samples = 0;
   std::string validation;      // "held out: last 30 % of DATA" or the file name
   std::vector<Rung> ladder;    // [0] is the baseline (reference model)
   std::vector<std::vector<CandidateResult>> rounds;  // candidates per round, best first
+  std::vector<ProbeResult> probes;  // best first; empty when the catalogue reached the noise
+  bool probe_rung = false;          // the best probe lowers the validated RMSE by min_gain or more
   ResidualReport baseline_residual, final_residual;  // on the training data
   std::string verdict;
   double seconds = 0;

@@ -1,6 +1,7 @@
 #include <stdexcept>
 
 #include "model/effect.hpp"
+#include "model/probe.hpp"
 
 namespace pamc::model {
 
@@ -26,6 +27,7 @@ std::string knownEffectNames() {
 std::unique_ptr<Effect> makeEffect(const std::string& name) {
   for (const auto& e : catalogue())
     if (name == e.name) return e.make();
+  if (const auto* p = findProbe(name)) return p->make();
   throw std::invalid_argument("unknown effect '" + name + "' (known: " + knownEffectNames() + ")");
 }
 
