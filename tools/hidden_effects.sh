@@ -18,10 +18,11 @@ declare -A E=(
   [dead_band]='"dead_band":{"enabled":true,"threshold":-1.0}'
   [load]='"load":{"enabled":true,"compliance":0.08}'
   [saturation]='"saturation":{"enabled":true,"knee":26,"width":6}'
+  [warm_up]='"warm_up":{"enabled":true,"tau":15,"gain":0.1,"shift":0.5}'
 )
 echo "| hidden effect | named first | effects added | validated RMSE before -> after | fall | time |"
 echo "|---|---|---|---|---|---|"
-for e in none pressure_lag asymmetry creep mass_spring friction_hysteresis delay dead_band load saturation; do
+for e in none pressure_lag asymmetry creep mass_spring friction_hysteresis delay dead_band load saturation warm_up; do
   j="$off"; [ -n "${E[$e]}" ] && j="$off,${E[$e]}"
   echo "{\"core\":{\"k\":6},\"effects\":{$j},\"stroke\":{\"enabled\":false}}" > "h_$e.json"
   L1=(); L2=(); [ "$e" = load ] && L1=(--load random:7:0:40) && L2=(--load random:8:0:40)
@@ -32,7 +33,7 @@ for e in none pressure_lag asymmetry creep mass_spring friction_hysteresis delay
 import json, sys
 e, f = sys.argv[1], sys.argv[2]
 j = json.load(open(f))
-l = j["ladder"]
+l = [r for r in j["ladder"] if not r.get("probe")]  # a probe's rung is not part of the model
 first = j["candidates"][0]["effect"] if len(l) > 1 else "-"
 added = " + ".join(l[-1]["effects"]) or "(nothing)"
 b, a = l[0]["rmse_val"], l[-1]["rmse_val"]

@@ -56,14 +56,14 @@ class DiagnoseCommand final : public Command {
     for (const auto& g : r.ladder) {
       std::string e;
       for (const auto& x : g.effects) e += (e.empty() ? "" : " + ") + x;
-      std::printf("  %-50s train %-10.5g validation %-10.5g\n", e.empty() ? "reference model" : ("+ " + e).c_str(),
-                  g.rmse_train, g.rmse_val);
+      std::printf("  %-50s train %-10.5g validation %-10.5g%s\n", e.empty() ? "reference model" : ("+ " + e).c_str(),
+                  g.rmse_train, g.rmse_val, g.removed.empty() ? "" : ("  (" + g.removed + " taken out)").c_str());
     }
     if (r.probe_rung) {
       std::string e;
-      for (const auto& x : r.ladder.back().effects) e += " + " + x;
+      for (const auto& x : r.ladder.back().effects) e += "+ " + x + " ";
       std::printf("  %-50s train %-10.5g validation %-10.5g  (probe, not added)\n",
-                  (e + " + " + r.probes.front().probe).c_str(), r.probes.front().rmse_train, r.probes.front().rmse_val);
+                  (e + "+ " + r.probes.front().probe).c_str(), r.probes.front().rmse_train, r.probes.front().rmse_val);
     }
     if (!r.probes.empty()) {
       std::printf("\nProbes (on top of the final model), best first:\n");

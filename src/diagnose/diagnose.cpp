@@ -116,7 +116,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   if (s.method == ident::FitMethod::Ga) base.refine_evals = 300;
   auto bt = std::chrono::steady_clock::now();
   const auto b = ident::fit(model::Model{}, train, base);
-  Rung rung{{}, b.rmse, v.rmse(b.model), b.model};
+  Rung rung{{}, b.rmse, v.rmse(b.model), b.model, {}};
   res.ladder.push_back(rung);
   log("  reference model: RMSE train " + fmt("%.5g", rung.rmse_train) + ", validation " + fmt("%.5g", rung.rmse_val) +
       " (" + fmt("%.1f", seconds(bt)) + " s)");
@@ -135,16 +135,17 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   }
   // Each name added to `base` and fitted on the screening data, starting from base's parameters; in
   // parallel, one fit per worker.
-  auto fitOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
-                      const ResidualReport& rr, const std::string& tag) {
+  // Fits each structure on the screening data, warm-started from `start` (structures[i] is labelled
+  // names[i]); in parallel, one fit per worker.
+  auto fitEach = [&](const std::vector<model::Model>& structures, const model::Model& base_model,
+                     const std::vector<std::string>& names, int round, const ResidualReport& rr, const std::string& tag) {
     std::vector<CandidateResult> results(names.size());
     std::atomic<size_t> next{0};
     std::mutex log_mu;
     auto worker = [&] {
       for (size_t i = next++; i < names.size(); i = next++) {
         const auto ct = std::chrono::steady_clock::now();
-        model::Model structure = base_model;
-        structure.addEffect(names[i]);
+        const model::Model& structure = structures[i];
         ident::FitSettings fs = ident::FitSettings::forMethod(s.method);
         fs.ga.population = 32;
         fs.ga.max_generations = 30;
@@ -174,6 +175,16 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     for (int w = 0; w < std::min<int>(threads, static_cast<int>(names.size())); ++w) ts.emplace_back(worker);
     for (auto& t : ts) t.join();
     return results;
+  };
+  // Each name added to base_model.
+  auto fitOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
+                      const ResidualReport& rr, const std::string& tag) {
+    std::vector<model::Model> structures;
+    for (const auto& n : names) {
+      structures.push_back(base_model);
+      structures.back().addEffect(n);
+    }
+    return fitEach(structures, base_model, names, round, rr, tag);
   };
   for (int round = 1; round <= s.max_effects; ++round) {
     const Rung cur = res.ladder.back();  // a copy: the ladder grows below
@@ -207,7 +218,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
                              : "no candidate lowers the validated RMSE";
       break;
     }
-    Rung next_rung{cur.effects, best.rmse_train, best.rmse_val, best.model};
+    Rung next_rung{cur.effects, best.rmse_train, best.rmse_val, best.model, {}};
     {
       // Refit the winner properly on the whole training record (the screening fit was short).
       ident::FitSettings ps = ident::FitSettings::forMethod(s.method);
@@ -221,13 +232,40 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       if (s.method == ident::FitMethod::Ga) ps.refine_evals = 200;
       const auto f = ident::fit(best.model, train, ps, {}, &best.model);
       const double rv = v.rmse(f.model);
-      if (rv <= best.rmse_val) next_rung = Rung{cur.effects, f.rmse, rv, f.model};
+      if (rv <= best.rmse_val) next_rung = Rung{cur.effects, f.rmse, rv, f.model, {}};
     }
     next_rung.effects.push_back(best.effect);
     res.ladder.push_back(next_rung);
     log("  -> added " + best.effect + ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " + fmt("%.5g", next_rung.rmse_val) +
         " (" + fmt("%.1f", 100 * gain) + " % lower)");
     if (round == s.max_effects) stop_reason = "the limit of " + std::to_string(s.max_effects) + " effects was reached";
+  }
+  // Pruning: an effect taken early can lose its use once later ones are in (a mass-spring standing in
+  // for a pressure lag that was not yet there). Each effect is taken out in turn and the rest refitted;
+  // the removal that costs least is kept while the validated error rises by less than a quarter of
+  // min_gain (or stays at the noise).
+  while (res.ladder.back().effects.size() >= 2) {
+    const Rung cur = res.ladder.back();
+    std::vector<model::Model> structures;
+    for (const auto& out : cur.effects) {
+      model::Model m(cur.model.core());
+      for (const auto& e : cur.effects)
+        if (e != out) m.addEffect(e);
+      structures.push_back(std::move(m));
+    }
+    log("pruning: is every effect of " + join(cur.effects) + " still needed?");
+    auto fits = fitEach(structures, cur.model, cur.effects, s.max_effects + 2, res.baseline_residual, "without ");
+    size_t best = 0;
+    for (size_t i = 1; i < fits.size(); ++i)
+      if (fits[i].rmse_val < fits[best].rmse_val) best = i;
+    const double rv = fits[best].rmse_val;
+    if (!(rv <= cur.rmse_val * (1.0 + s.min_gain / 4.0) || rv < 1.2 * noise)) break;
+    Rung pruned{{}, fits[best].rmse_train, rv, fits[best].model, {}};
+    for (const auto& e : cur.effects)
+      if (e != cur.effects[best]) pruned.effects.push_back(e);
+    pruned.removed = cur.effects[best];
+    log("  -> removed " + pruned.removed + ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " + fmt("%.5g", rv));
+    res.ladder.push_back(std::move(pruned));
   }
   const Rung& fin = res.ladder.back();
   res.final_residual = analyze(train, simulate(fin.model, train));
@@ -257,7 +295,11 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   if (res.ladder.size() == 1) {
     v_text = "No effect in the catalogue explains the residual: " + stop_reason + ".";
   } else {
-    v_text = "Added " + join(fin.effects) + ": validated RMSE " + fmt("%.4g", res.ladder.front().rmse_val) + " -> " +
+    std::string removed;
+    for (const auto& g : res.ladder)
+      if (!g.removed.empty()) removed += (removed.empty() ? "" : ", ") + g.removed;
+    v_text = "Added " + join(fin.effects) + (removed.empty() ? "" : " (" + removed + " taken out again: no longer needed)") +
+             ": validated RMSE " + fmt("%.4g", res.ladder.front().rmse_val) + " -> " +
              fmt("%.4g", fin.rmse_val) + " (" + fmt("%.1f", res.ladder.front().rmse_val / std::max(fin.rmse_val, 1e-300)) +
              "x lower). Stopped: " + stop_reason + ".";
   }
@@ -297,7 +339,10 @@ nlohmann::json toJson(const DiagnoseResult& r) {
   j["candidates"] = c;
   nlohmann::json l = nlohmann::json::array();
   for (const auto& g : r.ladder)
+  {
     l.push_back({{"effects", g.effects}, {"rmse_train", g.rmse_train}, {"rmse_val", g.rmse_val}, {"probe", false}});
+    if (!g.removed.empty()) l.back()["removed"] = g.removed;
+  }
   if (r.probe_rung) {
     auto e = r.ladder.back().effects;
     e.push_back(r.probes.front().probe);

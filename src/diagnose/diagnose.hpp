@@ -45,6 +45,7 @@ struct Rung {
   std::vector<std::string> effects;
   double rmse_train = 0, rmse_val = 0;
   model::Model model;
+  std::string removed;  // a pruning rung: the effect taken out of the previous rung
 };
 
 // A probe fitted on top of the final physical model.

@@ -73,7 +73,8 @@ INSTANTIATE_TEST_SUITE_P(
                       Hidden{"delay", R"("delay":{"enabled":true,"d":0.03})"},
                       Hidden{"dead_band", R"("dead_band":{"enabled":true,"threshold":-1.0})"},
                       Hidden{"load", R"("load":{"enabled":true,"compliance":0.08})"},
-                      Hidden{"saturation", R"("saturation":{"enabled":true,"knee":26,"width":6})"}),
+                      Hidden{"saturation", R"("saturation":{"enabled":true,"knee":26,"width":6})"},
+                      Hidden{"warm_up", R"("warm_up":{"enabled":true,"tau":7,"gain":0.12,"shift":0.4})"}),
     [](const auto& info) { return std::string(info.param.effect); });
 
 TEST(Diagnose, TwoHiddenEffectsAreBothAdded) {

@@ -1,6 +1,6 @@
 // drift: the displacement changes with the time since the start, not with the input: with
-// phi = 1 - exp(-t / T), an offset a phi and a gain change g phi that settle, and a steady trend of
-// c per 100 s.
+// phi = 1 - exp(-t / T), an offset a phi and a change g phi of the travel from where the record
+// started, both settling, and a steady trend of c per 100 s.
 #include <algorithm>
 #include <cmath>
 
@@ -24,13 +24,16 @@ class Drift final : public Effect {
     };
     return p;
   }
-  int numStates() const override { return 1; }  // time since the start
-  void init(const double*, double* s, double, const StepContext&) const noexcept override { s[0] = 0.0; }
+  int numStates() const override { return 2; }  // time since the start, stage input at the start
+  void init(const double*, double* s, double in0, const StepContext&) const noexcept override {
+    s[0] = 0.0;
+    s[1] = in0;
+  }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
     const double t = s[0];
     s[0] += c.Ts;
     const double phi = 1.0 - std::exp(-t / std::max(p[2], 1e-9));
-    return in * (1.0 + p[1] * phi) + p[0] * phi + p[3] * t / 100.0;
+    return in + phi * (p[1] * (in - s[1]) + p[0]) + p[3] * t / 100.0;
   }
 };
 
