@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 
 #include "io/model_file.hpp"
@@ -119,8 +120,18 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       break;
     }
     std::vector<std::string> todo;
-    for (const auto& c : pool)
-      if (!cur.model.hasEffect(c)) todo.push_back(c);
+    for (const auto& c : pool) {
+      if (cur.model.hasEffect(c)) continue;
+      // An alternative to an effect already taken (force_loop / mass_spring), or one more state
+      // than the estimator can carry: not a candidate on top of this model.
+      try {
+        model::Model m = cur.model;
+        m.addEffect(c);
+      } catch (const std::invalid_argument&) {
+        continue;
+      }
+      todo.push_back(c);
+    }
     if (todo.empty()) break;
     const ResidualReport rr = round == 1 ? res.baseline_residual : analyze(train, simulate(cur.model, train));
     log("round " + std::to_string(round) + ": trying " + std::to_string(todo.size()) + " effects on top of " +
