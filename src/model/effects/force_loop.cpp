@@ -44,58 +44,70 @@ class ForceLoop final : public Effect {
     };
     return p;
   }
-  int numStates() const override { return 3; }  // y, v = dy/dt, z
+  // y, v = dy/dt, z, then the cached one-sample map of the payload without friction,
+  // [y v]' = A [y v] + B in (A row-major, B), the same as mass_spring's.
+  int numStates() const override { return 9; }
   // y and v: the core reaches the displacement through them (as in mass_spring); the friction
   // state follows the estimated motion with the filter's mean.
   int numFilterStates() const override { return 2; }
-  void init(const double*, double* s, double in0, const StepContext&) const noexcept override {
+  void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
+    // mass_spring's map: semi-implicit Euler with sub-steps short against the period (stable and
+    // accurate at any fn), composed once into the exact one-sample linear map it amounts to.
+    const double wn = 2.0 * M_PI * std::max(p[0], 1e-6);
+    const double zeta = std::max(p[1], 0.0);
+    // Clamped before the conversion, so a huge fn cannot overflow the int (NaN takes one step).
+    const double steps = std::ceil(wn * c.Ts / 0.05);
+    const int n = steps >= 1.0 ? (steps < 2000.0 ? static_cast<int>(steps) : 2000) : 1;
+    const double h = c.Ts / n;
+    auto run = [&](double y, double v, double in) {
+      for (int i = 0; i < n; ++i) {
+        v += h * (wn * wn * (in - y) - 2.0 * zeta * wn * v);
+        y += h * v;
+      }
+      return std::pair<double, double>(y, v);
+    };
+    const auto e1 = run(1, 0, 0), e2 = run(0, 1, 0), b = run(0, 0, 1);
+    s[3] = e1.first;
+    s[4] = e2.first;
+    s[5] = e1.second;
+    s[6] = e2.second;
+    s[7] = b.first;
+    s[8] = b.second;
     s[0] = in0;
     s[1] = 0.0;
     s[2] = 0.0;
   }
-  double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
-    const double wn = 2.0 * M_PI * std::max(p[0], 1e-6);
-    const double zeta = std::max(p[1], 0.0);
+  double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
     const double zmax = std::fabs(p[2]);
-    const double delta = std::max(p[3], 1e-9);
-    const double a = zmax / delta;  // friction stiffness (over k) while sticking
-    const double w2 = wn * wn;
-    // Sub-steps short against the period, as mass_spring's (the same semi-implicit Euler, so with
-    // zmax = 0 both give the same displacement). Clamped before the conversion, so a huge fn cannot
-    // overflow the int (NaN takes one step).
-    const double steps = std::ceil(wn * c.Ts / 0.05);
-    const int n = steps >= 1.0 ? (steps < 2000.0 ? static_cast<int>(steps) : 2000) : 1;
-    const double h = c.Ts / n;
-    double y = s[0], v = s[1], z = s[2];
-    if (a > 0.0) {
-      for (int i = 0; i < n; ++i) {
-        // Velocity without the friction's change over the sub-step; the friction then enters
-        // implicitly (its force at the end of the sub-step), so a stiff pre-sliding spring
-        // (small delta) cannot make the step unstable. The direction of motion is that of vs.
-        const double vs = v + h * (w2 * (in - y - z) - 2.0 * zeta * wn * v);
-        if (vs == 0.0) {
-          v = 0.0;
-          continue;
-        }
-        const double dir = vs > 0.0 ? 1.0 : -1.0;
-        const double g = std::max(0.0, 1.0 - dir * z / zmax);
-        v = vs / (1.0 + h * h * w2 * a * g);
-        const double dy = h * v;
-        y += dy;
-        // The friction over the travel dy, exactly (it never passes the Coulomb level).
-        z += (dir * zmax - z) * -std::expm1(-std::fabs(dy) / delta);
+    const double y = s[0], v = s[1];
+    double z = s[2];
+    // The payload under the force in - z of the sample's start.
+    double y1 = s[3] * y + s[4] * v + s[7] * (in - z);
+    if (zmax > 0.0 && y1 != y) {
+      // Over the sample the friction stiffens by a g (its slope dz/dy in the direction of motion),
+      // taken at the sample's end (implicit), so a stiff pre-sliding spring (small delta) cannot
+      // make the step unstable: y1 = y* - B0 a g (y1 - y). The direction is that of y* - y.
+      const double a = zmax / std::max(p[3], 1e-9);
+      const double dir = y1 > y ? 1.0 : -1.0;
+      const double g = std::max(0.0, 1.0 - dir * z / zmax);
+      const double b0 = std::max(s[7], 0.0);
+      const double y_free = y1;
+      y1 = y + (y_free - y) / (1.0 + b0 * a * g);
+      z += a * g * (y1 - y);
+      if (dir * z > zmax) {
+        // Sliding within the sample: the friction is at the Coulomb level, and the payload moves
+        // under that force (still in the same direction, as the slope took more than that).
+        const double z_end = dir * zmax;
+        y1 = y_free - b0 * (z_end - s[2]);
+        z = z_end;
       }
-    } else {
-      for (int i = 0; i < n; ++i) {
-        v += h * (w2 * (in - y) - 2.0 * zeta * wn * v);
-        y += h * v;
-      }
+    } else if (zmax == 0.0) {
       z = 0.0;
     }
-    s[0] = y;
-    s[1] = v;
+    s[1] = s[5] * y + s[6] * v + s[8] * (in - z);
+    s[0] = y1;
     s[2] = z;
-    return y;
+    return y1;
   }
 };
 
