@@ -38,9 +38,13 @@ class ForceLoop final : public Effect {
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
         {"fn", 0.2, 100.0, 10.0, "Hz"},       // natural frequency of payload against stiffness
-        {"zeta", 0.01, 3.0, 0.5, "-"},        // viscous damping ratio
-        {"zmax", 0.0, 10.0, 0.5, "y-unit"},   // Coulomb friction force over stiffness
-        {"delta", 0.01, 20.0, 0.5, "y-unit"}, // pre-sliding travel
+        // Viscous damping ratio, up to critical: an overdamped force balance is a lag of the
+        // force, which pressure_lag and creep stand for.
+        {"zeta", 0.01, 1.0, 0.5, "-"},
+        {"zmax", 0.0, 10.0, 0.5, "y-unit"},  // Coulomb friction force over stiffness
+        // Pre-sliding travel: short against the stroke (a travel of many millimetres is no
+        // friction but a smooth loop, which the core and asymmetry stand for).
+        {"delta", 0.01, 2.0, 0.5, "y-unit"},
     };
     return p;
   }
