@@ -173,6 +173,17 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     for (auto& t : ts) t.join();
     std::stable_sort(results.begin(), results.end(),
                      [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
+    // An effect that holds its alternative as a special case (force_loop is mass_spring with friction
+    // in the force balance) goes before it only when what it adds lowers the validated RMSE by
+    // min_gain too, as any effect must to be added; otherwise the simpler alternative is taken.
+    if (const char* alt = model::makeEffect(results.front().effect)->alternativeTo()) {
+      for (size_t i = 1; i < results.size(); ++i) {
+        if (results[i].effect != alt) continue;
+        if (!(results.front().rmse_val <= (1.0 - s.min_gain) * results[i].rmse_val))
+          std::rotate(results.begin(), results.begin() + static_cast<long>(i), results.begin() + static_cast<long>(i) + 1);
+        break;
+      }
+    }
     res.rounds.push_back(results);
     const auto& best = results.front();
     const double gain = 1.0 - best.rmse_val / cur.rmse_val;

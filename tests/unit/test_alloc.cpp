@@ -102,6 +102,30 @@ TEST_P(AllocationFree, TenThousandCyclesOnTheEmulator) {
   EXPECT_EQ(allocs, 0) << control::toString(GetParam());
 }
 
+// The AMC and the emulator with the payload's friction inside its force balance (force_loop).
+TEST(Allocation, ForceLoopCyclesAllocateNothing) {
+  if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  const auto pc = plant::PlantConfig::fromJson(
+      nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},"force_loop":{"enabled":true,"zmax":0.6}}})"), "test");
+  control::ControllerConfig cfg;
+  cfg.model = pc.truth;
+  auto ctrl = control::makeController(control::Kind::PiAmc, cfg);
+  plant::Plant plant(pc);
+  plant.reset(0.0);
+  ctrl->activate(0.0, plant.measure());
+  long allocs = 0;
+  {
+    CountAllocations c;
+    for (int k = 0; k < 10000; ++k) {
+      const double yd = 15 + 10 * std::sin(2 * M_PI * 0.5 * k * 1e-3);
+      const auto o = ctrl->update(yd, yd, plant.measure());
+      plant.step(o.u, k > 5000 ? 40.0 : 0.0);
+    }
+    allocs = c.count();
+  }
+  EXPECT_EQ(allocs, 0);
+}
+
 INSTANTIATE_TEST_SUITE_P(Controllers, AllocationFree,
                          ::testing::Values(control::Kind::OpenLoop, control::Kind::PI, control::Kind::PidEso,
                                            control::Kind::PiAmc),

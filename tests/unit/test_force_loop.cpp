@@ -97,6 +97,25 @@ TEST(ForceLoop, IsAnAlternativeToMassSpring) {
   EXPECT_EQ(f.describe(), "bouc_wen + creep + friction_hysteresis + force_loop");
 }
 
+// The emulator switches it on from JSON like every effect; next to mass_spring it says why not.
+TEST(ForceLoop, TheEmulatorTakesItFromJson) {
+  const auto pc = plantWith(R"({"k":6.0})", R"("force_loop":{"enabled":true,"fn":7.0,"zmax":0.4})");
+  ASSERT_TRUE(pc.truth.hasEffect("force_loop"));
+  EXPECT_DOUBLE_EQ(paramOf(pc.truth, "force_loop.fn"), 7.0);
+  EXPECT_DOUBLE_EQ(paramOf(pc.truth, "force_loop.zmax"), 0.4);
+  EXPECT_DOUBLE_EQ(paramOf(pc.truth, "force_loop.zeta"), 0.5);  // the default
+  const auto back = plant::PlantConfig::fromJson(pc.toJson(), "round trip");
+  EXPECT_EQ(back.truth.params(), pc.truth.params());
+  try {
+    // The default emulator has mass_spring on.
+    plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"effects":{"force_loop":{"enabled":true}}})"), "cfg.json");
+    ADD_FAILURE() << "force_loop next to mass_spring was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cfg.json: effects"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("alternatives"), std::string::npos) << e.what();
+  }
+}
+
 // A slow sine of the force: the displacement lags the force by the friction at every reversal, so
 // y against in is a loop 2 zmax wide (in the force direction) at the middle of the stroke.
 TEST(ForceLoop, QuasiStaticLoopIsTwiceTheFrictionWide) {
