@@ -18,6 +18,7 @@
 // hold the ringing payload; this effect puts it into the same force balance.
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "model/effect.hpp"
 
@@ -90,7 +91,8 @@ class ForceLoop final : public Effect {
     if (zmax > 0.0 && y1 != y) {
       // Over the sample the friction stiffens by a g (its slope dz/dy in the direction of motion),
       // taken at the sample's end (implicit), so a stiff pre-sliding spring (small delta) cannot
-      // make the step unstable: y1 = y* - B0 a g (y1 - y). The direction is that of y* - y.
+      // make the step unstable: y1 = y_free - B0 a g (y1 - y), y_free the payload's position
+      // without that change. The direction is that of y_free - y.
       const double a = zmax / std::max(p[3], 1e-9);
       const double dir = y1 > y ? 1.0 : -1.0;
       const double g = std::max(0.0, 1.0 - dir * z / zmax);
