@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The hidden-effect table of docs/MODELING.md: the emulator with the plain Bouc-Wen core plus one
 # catalogue effect, trained on random ramps and holds, validated on a different excitation, and
-# `pamc diagnose` asked which effect is missing. Usage: tools/hidden_effects.sh [WORKDIR]
+# `pamc diagnose` asked which effect is missing. Usage: [ONLY="force_loop ..."] tools/hidden_effects.sh [WORKDIR]
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 P="$root/build/src/pamc"
@@ -14,6 +14,7 @@ declare -A E=(
   [creep]='"creep":{"enabled":true,"fraction":0.1,"tau":3}'
   [mass_spring]='"mass_spring":{"enabled":true,"fn":3,"zeta":0.3}'
   [friction_hysteresis]='"friction_hysteresis":{"enabled":true,"zmax":1.0,"delta":0.5}'
+  [force_loop]='"force_loop":{"enabled":true,"fn":3,"zeta":0.3,"zmax":1.0,"delta":0.5}'
   [delay]='"delay":{"enabled":true,"d":0.03}'
   [dead_band]='"dead_band":{"enabled":true,"threshold":-1.0}'
   [load]='"load":{"enabled":true,"compliance":0.08}'
@@ -22,7 +23,7 @@ declare -A E=(
 )
 echo "| hidden effect | named first | effects added | validated RMSE before -> after | fall | time |"
 echo "|---|---|---|---|---|---|"
-for e in none pressure_lag asymmetry creep mass_spring friction_hysteresis delay dead_band load saturation warm_up; do
+for e in ${ONLY:-none pressure_lag asymmetry creep mass_spring force_loop friction_hysteresis delay dead_band load saturation warm_up}; do
   j="$off"; [ -n "${E[$e]}" ] && j="$off,${E[$e]}"
   echo "{\"core\":{\"k\":6},\"effects\":{$j},\"stroke\":{\"enabled\":false}}" > "h_$e.json"
   L1=(); L2=(); [ "$e" = load ] && L1=(--load random:7:0:40) && L2=(--load random:8:0:40)

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 
 #include "io/model_file.hpp"
@@ -196,8 +197,18 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       break;
     }
     std::vector<std::string> todo;
-    for (const auto& c : pool)
-      if (!cur.model.hasEffect(c)) todo.push_back(c);
+    for (const auto& c : pool) {
+      if (cur.model.hasEffect(c)) continue;
+      // An alternative to an effect already taken (force_loop / mass_spring), or one more state
+      // than the estimator can carry: not a candidate on top of this model.
+      try {
+        model::Model m = cur.model;
+        m.addEffect(c);
+      } catch (const std::invalid_argument&) {
+        continue;
+      }
+      todo.push_back(c);
+    }
     if (todo.empty()) break;
     const ResidualReport rr = round == 1 ? res.baseline_residual : analyze(train, simulate(cur.model, train));
     log("round " + std::to_string(round) + ": trying " + std::to_string(todo.size()) + " effects on top of " +
@@ -205,6 +216,17 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     std::vector<CandidateResult> results = fitOnTop(cur.model, todo, round, rr, "");
     std::stable_sort(results.begin(), results.end(),
                      [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
+    // An effect that holds its alternative as a special case (force_loop is mass_spring with friction
+    // in the force balance) goes before it only when what it adds lowers the validated RMSE by
+    // min_gain too, as any effect must to be added; otherwise the simpler alternative is taken.
+    if (const char* alt = model::makeEffect(results.front().effect)->alternativeTo()) {
+      for (size_t i = 1; i < results.size(); ++i) {
+        if (results[i].effect != alt) continue;
+        if (!(results.front().rmse_val <= (1.0 - s.min_gain) * results[i].rmse_val))
+          std::rotate(results.begin(), results.begin() + static_cast<long>(i), results.begin() + static_cast<long>(i) + 1);
+        break;
+      }
+    }
     res.rounds.push_back(results);
     const auto& best = results.front();
     const double gain = 1.0 - best.rmse_val / cur.rmse_val;

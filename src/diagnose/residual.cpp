@@ -305,6 +305,11 @@ Evidence effectEvidence(const std::string& effect, const ResidualReport& r) {
     ev.text = m < -0.05 ? "the residual auto-correlation swings to " + fmt("%.2f", m) + ": it rings near " + fmt("%.3g", f) +
                               " Hz after fast changes"
                         : "no ringing in the residual (its auto-correlation does not swing negative within the lags)";
+  } else if (effect == "force_loop") {
+    const double m = get("ring_min"), t = get("turn_ratio");
+    ev.strength = clamp01(std::max(-m * 2, 0.0) + std::max((t - 1) / 4, 0.0));
+    ev.text = "ringing (residual auto-correlation down to " + fmt("%.2f", m) + ") together with " + fmt("%.1f", t) +
+              "x the error near turning points: a moving payload that sticks at reversals";
   } else if (effect == "friction_hysteresis") {
     const double t = get("turn_ratio");
     ev.strength = clamp01((t - 1) / 2);

@@ -63,6 +63,9 @@ class Effect {
   // One sample: takes the stage input at sample k, returns the stage output at sample k and
   // advances the states to k+1. Must not allocate or throw.
   virtual double step(const double* p, double* s, double in, const StepContext& c) const noexcept = 0;
+  // An effect that stands for the same physics in another form (nullptr if none): a model holds
+  // at most one of the two (Model::addEffect refuses the second).
+  virtual const char* alternativeTo() const { return nullptr; }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }
 };

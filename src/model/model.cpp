@@ -28,6 +28,19 @@ Model& Model::operator=(const Model& o) {
 void Model::addEffect(const std::string& name) {
   if (hasEffect(name)) throw std::invalid_argument("effect '" + name + "' is already in the model");
   auto e = makeEffect(name);
+  // Checked before anything changes, so a refused effect leaves the model as it was.
+  int filter_states = e->stage() == Stage::Output ? e->numFilterStates() : 0;
+  for (const auto& s : effects_) {
+    const char* mine = e->alternativeTo();
+    const char* theirs = s.impl->alternativeTo();
+    if ((mine && s.impl->name() == std::string(mine)) || (theirs && name == theirs))
+      throw std::invalid_argument("effects '" + std::string(s.impl->name()) + "' and '" + name +
+                                  "' are alternatives for the same physics; a model takes one of them");
+    if (s.impl->stage() == Stage::Output) filter_states += s.impl->numFilterStates();
+  }
+  if (filter_states > kMaxFilterStates)
+    throw std::invalid_argument("effect '" + name + "' would give the model " + std::to_string(filter_states) +
+                                " output states for the estimator to carry (at most " + std::to_string(kMaxFilterStates) + ")");
   // Keep existing parameter values by name while re-laying out.
   std::vector<std::vector<double>> old;
   for (size_t i = 0; i < effects_.size(); ++i) {

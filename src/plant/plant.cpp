@@ -94,7 +94,13 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
       if (on) enabled.insert(it.key());
       else enabled.erase(it.key());
     }
-    for (const auto& name : enabled) m.addEffect(name);
+    for (const auto& name : enabled) {
+      try {
+        m.addEffect(name);
+      } catch (const std::invalid_argument& ex) {
+        fail(where + ": effects", ex.what());
+      }
+    }
     for (const auto& kv : keep)
       if (enabled.count(kv.first))
         for (const auto& pv : kv.second) m.setEffectParam(kv.first, pv.first, pv.second);

@@ -69,6 +69,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Hidden{"asymmetry", R"("asymmetry":{"enabled":true,"gain":2,"w_up":1.5,"w_down":0.3})"},
                       Hidden{"creep", R"("creep":{"enabled":true,"fraction":0.1,"tau":3})"},
                       Hidden{"mass_spring", R"("mass_spring":{"enabled":true,"fn":3,"zeta":0.3})"},
+                      Hidden{"force_loop", R"("force_loop":{"enabled":true,"fn":3,"zeta":0.3,"zmax":1.0,"delta":0.5})"},
                       Hidden{"friction_hysteresis", R"("friction_hysteresis":{"enabled":true,"zmax":1.0,"delta":0.5})"},
                       Hidden{"delay", R"("delay":{"enabled":true,"d":0.03})"},
                       Hidden{"dead_band", R"("dead_band":{"enabled":true,"threshold":-1.0})"},

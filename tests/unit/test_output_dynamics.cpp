@@ -98,6 +98,45 @@ TEST(OutputDynamics, TheFilterStaysBoundedAndFollowsTheWholeEmulatorModel) {
   EXPECT_EQ(am.resets(), 0u);
 }
 
+// The same with the payload's friction inside its force balance (force_loop in mass_spring's place,
+// friction_hysteresis still in series): the filter carries force_loop's y and v, its friction
+// follows the filter's mean; 100 s, bounded, following, no reset.
+TEST(OutputDynamics, TheFilterFollowsAModelWithFrictionInsideTheForceBalance) {
+  const auto pc = plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},
+      "force_loop":{"enabled":true,"fn":6.0,"zeta":0.4,"zmax":0.6,"delta":0.3}}})"),
+                                               "test");
+  ASSERT_TRUE(pc.truth.hasEffect("force_loop"));
+  ASSERT_EQ(pc.truth.numFilterStates(), 2);
+  plant::Plant plant(pc);
+  estimation::ActiveModel am;
+  am.configure(pc.truth, estimation::ActiveModelSettings{}, kTs);
+  plant.reset(command(0));
+  am.reset(command(0));
+  double e2 = 0.0, max_ph = 0.0, max_err = 0.0;
+  long n = 0;
+  for (long k = 0; k < 100'000; ++k) {
+    const double u = command(k);
+    const double y_true = plant.step(u);
+    const auto st = am.update(u, plant.measure());
+    ASSERT_NE(st.status, estimation::UkfStatus::Reset) << "sample " << k;
+    if (k % 1000 == 0) {
+      ASSERT_TRUE(spd(am.covariance())) << "sample " << k;
+    }
+    if (k < 2000) continue;
+    e2 += (st.y_post - y_true) * (st.y_post - y_true);
+    max_err = std::max(max_err, std::fabs(st.y_post - y_true));
+    max_ph = std::max(max_ph, am.covariance()(0, 0));
+    ++n;
+  }
+  const double rmse = std::sqrt(e2 / static_cast<double>(n));
+  std::printf("emulator model with force_loop, 100 s: estimate RMSE %.4f mm (max %.3f mm), largest P_h %.3g\n", rmse,
+              max_err, max_ph);
+  EXPECT_LT(rmse, 0.05);
+  EXPECT_LT(max_err, 0.5);
+  EXPECT_LT(max_ph, 100.0);
+  EXPECT_EQ(am.resets(), 0u);
+}
+
 // The paper's Q (eq. 26, 10 per sample) with such a model: much noisier (the filter believes h may
 // jump by 3 V per millisecond and can see it only through the mass-spring), but bounded, and the
 // estimate stays inside the divergence guard's bound: no reset.
