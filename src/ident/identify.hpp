@@ -38,7 +38,7 @@ struct FitSettings {
   int lm_warm_starts = 4;
 
   // The defaults of a method: the GA's as above; the multi-start method with fewer spread starts
-  // (6), more starts around a start model (8) and a shorter Nelder-Mead polish (100), which on the benchmark records reach the GA's error
+  // (6), more starts around a start model (8) and a shorter Nelder-Mead polish (100, none for the plain core), which on the benchmark records reach the GA's error
   // (docs/PERFORMANCE.md).
   static FitSettings forMethod(FitMethod m) {
     FitSettings s;
