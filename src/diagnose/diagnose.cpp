@@ -219,12 +219,13 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
                      [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
     // An effect that holds its alternative as a special case (force_loop is mass_spring with friction
     // in the force balance) goes before it only when what it adds lowers the validated RMSE by
-    // min_gain too, as any effect must to be added; otherwise the simpler alternative is taken.
+    // min_gain too, as any effect must to be added; otherwise it ranks right behind the alternative.
     if (const char* alt = model::makeEffect(results.front().effect)->alternativeTo()) {
       for (size_t i = 1; i < results.size(); ++i) {
         if (results[i].effect != alt) continue;
+        // Not better by min_gain: it goes behind its alternative, and the order of the rest stands.
         if (!(results.front().rmse_val <= (1.0 - s.min_gain) * results[i].rmse_val))
-          std::rotate(results.begin(), results.begin() + static_cast<long>(i), results.begin() + static_cast<long>(i) + 1);
+          std::rotate(results.begin(), results.begin() + 1, results.begin() + static_cast<long>(i) + 1);
         break;
       }
     }
