@@ -428,6 +428,16 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
     io::writeCsvAtomic(p + "acf_" + name + ".csv", {"lag_s", "acf", "upper", "lower"}, {&lag, &acf, &up, &dn});
     io::writeCsvAtomic(p + "ccf_" + name + ".csv", {"lag_s", "ccf", "upper", "lower"}, {&clag, &ccf, &cup, &cdn});
   }
+  if (!r.probes.empty()) {
+    // Probes: how much of what the final model leaves each explains (percent of the validated MSE).
+    std::string t = "probe,explains_pct,rmse_val,regime\n";
+    for (const auto& q : r.probes) {
+      std::string regime = q.regime;
+      std::replace(regime.begin(), regime.end(), ',', ';');
+      t += q.probe + "," + fmt("%.2f", 100 * q.explains) + "," + fmt("%.6g", q.rmse_val) + "," + regime + "\n";
+    }
+    io::writeFileAtomic(p + "probes.csv", t);
+  }
   io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", toJson(r)["ladder"]}});
   io::writeFileAtomic(p + "diagnosis.json", toJson(r).dump(2) + "\n");
   if (!report::haveGnuplot()) {
@@ -443,6 +453,10 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
       {{"RMSE after each added effect (0 = reference model)", "rung", "RMSE",
         {{p + "ladder.csv", "rung", "rmse_train", "training", "linespoints lw 2 pt 7"},
          {p + "ladder.csv", "rung", "rmse_val", "validation", "linespoints lw 2 pt 5"}}}});
+  if (!r.probes.empty() && !report::renderBars(p + "probes.png", "Probes: share of what " + join(r.ladder.back().effects) +
+                                                   " leaves that each explains (validation)",
+                                               p + "probes.csv", 1, 2, "explained [%]", err) && warnings)
+    warnings->push_back(err);
   fig("validation.png", "Validation data: measured, reference model and final model (" + join(r.ladder.back().effects) + ")",
       {{"measured and models over time", "t [s]", "y", {{vcsv, "t", "y", "measured"}, {vcsv, "t", "y_reference", "reference model"}, {vcsv, "t", "y_final", "final model"}}},
        {"loops: y against u", "u", "y", {{vcsv, "u", "y", "measured"}, {vcsv, "u", "y_reference", "reference model"}, {vcsv, "u", "y_final", "final model"}}},
