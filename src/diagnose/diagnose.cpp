@@ -137,10 +137,11 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   }
   // Each name added to `base` and fitted on the screening data, starting from base's parameters; in
   // parallel, one fit per worker.
-  // Fits each structure on the screening data, warm-started from `start` (structures[i] is labelled
-  // names[i]); in parallel, one fit per worker.
+  // Fits each structure on the screening data with `method`, warm-started from base_model
+  // (structures[i] is labelled names[i]); in parallel, one fit per worker.
   auto fitEach = [&](const std::vector<model::Model>& structures, const model::Model& base_model,
-                     const std::vector<std::string>& names, int round, const ResidualReport& rr, const std::string& tag) {
+                     const std::vector<std::string>& names, int round, const ResidualReport& rr, const std::string& tag,
+                     ident::FitMethod method) {
     std::vector<CandidateResult> results(names.size());
     std::atomic<size_t> next{0};
     std::mutex log_mu;
@@ -148,7 +149,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       for (size_t i = next++; i < names.size(); i = next++) {
         const auto ct = std::chrono::steady_clock::now();
         const model::Model& structure = structures[i];
-        ident::FitSettings fs = ident::FitSettings::forMethod(s.method);
+        ident::FitSettings fs = ident::FitSettings::forMethod(method);
         fs.ga.population = 32;
         fs.ga.max_generations = 30;
         fs.ga.stall_generations = 10;
@@ -157,8 +158,8 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         fs.lm_iterations = 30;
         // The core is fitted already: the starts keep it and spread the new effect's parameters
         // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
-        if (s.method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
-        if (s.method == ident::FitMethod::Ga) fs.refine_evals = 200;
+        if (method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
+        if (method == ident::FitMethod::Ga) fs.refine_evals = 200;
         const auto f = ident::fit(structure, screen, fs, {}, &base_model);
         CandidateResult& c = results[i];
         c.effect = names[i];
@@ -180,13 +181,13 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   };
   // Each name added to base_model.
   auto fitOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
-                      const ResidualReport& rr, const std::string& tag) {
+                      const ResidualReport& rr, const std::string& tag, ident::FitMethod method) {
     std::vector<model::Model> structures;
     for (const auto& n : names) {
       structures.push_back(base_model);
       structures.back().addEffect(n);
     }
-    return fitEach(structures, base_model, names, round, rr, tag);
+    return fitEach(structures, base_model, names, round, rr, tag, method);
   };
   for (int round = 1; round <= s.max_effects; ++round) {
     const Rung cur = res.ladder.back();  // a copy: the ladder grows below
@@ -214,7 +215,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     const ResidualReport rr = round == 1 ? res.baseline_residual : analyze(train, simulate(cur.model, train));
     log("round " + std::to_string(round) + ": trying " + std::to_string(todo.size()) + " effects on top of " +
         join(cur.effects));
-    std::vector<CandidateResult> results = fitOnTop(cur.model, todo, round, rr, "");
+    std::vector<CandidateResult> results = fitOnTop(cur.model, todo, round, rr, "", s.method);
     std::stable_sort(results.begin(), results.end(),
                      [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
     // An effect that holds its alternative as a special case (force_loop is mass_spring with friction
@@ -278,7 +279,9 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       structures.push_back(std::move(m));
     }
     log("pruning: is every effect of " + join(cur.effects) + " still needed?");
-    auto fits = fitEach(structures, cur.model, cur.effects, s.max_effects + 2, res.baseline_residual, "without ");
+    // Every parameter has a value to start from: Levenberg-Marquardt from there, whatever the method.
+    auto fits = fitEach(structures, cur.model, cur.effects, s.max_effects + 2, res.baseline_residual, "without ",
+                        ident::FitMethod::MultiStart);
     size_t best = 0;
     for (size_t i = 1; i < fits.size(); ++i)
       if (fits[i].rmse_val < fits[best].rmse_val) best = i;
@@ -299,7 +302,10 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     std::vector<std::string> names;
     for (const auto& p : model::probes()) names.emplace_back(p.name);
     log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
-    const auto fits = fitOnTop(fin.model, names, s.max_effects + 1, res.final_residual, "probe ");
+    // A probe says what kind of structure is missing, it is not a model: LM from starts spread over its
+    // parameters (lm_warm_starts) around the final model, whatever the method.
+    const auto fits = fitOnTop(fin.model, names, s.max_effects + 1, res.final_residual, "probe ",
+                               ident::FitMethod::MultiStart);
     for (const auto& c : fits) {
       ProbeResult p;
       p.probe = c.effect;
