@@ -110,6 +110,7 @@ TEST(Probes, JsonContractAndNames) {
     EXPECT_LE(p["explains"].get<double>(), 1.0);
     EXPECT_TRUE(p["regime"].is_string());
     EXPECT_FALSE(p["meaning"].get<std::string>().empty());
+    EXPECT_EQ(p["params"].size(), model::makeEffect(p["probe"].get<std::string>())->params().size());
   }
   // The ladder marks the probe's rung; the model holds physical effects only.
   const auto& last_rung = j["ladder"].back();
