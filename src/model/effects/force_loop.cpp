@@ -21,6 +21,7 @@
 #include <utility>
 
 #include "model/effect.hpp"
+#include "model/effects/second_order.hpp"
 
 namespace pamc::model {
 namespace {
@@ -56,28 +57,7 @@ class ForceLoop final : public Effect {
   // state follows the estimated motion with the filter's mean.
   int numFilterStates() const override { return 2; }
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
-    // mass_spring's map: semi-implicit Euler with sub-steps short against the period (stable and
-    // accurate at any fn), composed once into the exact one-sample linear map it amounts to.
-    const double wn = 2.0 * M_PI * std::max(p[0], 1e-6);
-    const double zeta = std::max(p[1], 0.0);
-    // Clamped before the conversion, so a huge fn cannot overflow the int (NaN takes one step).
-    const double steps = std::ceil(wn * c.Ts / 0.05);
-    const int n = steps >= 1.0 ? (steps < 2000.0 ? static_cast<int>(steps) : 2000) : 1;
-    const double h = c.Ts / n;
-    auto run = [&](double y, double v, double in) {
-      for (int i = 0; i < n; ++i) {
-        v += h * (wn * wn * (in - y) - 2.0 * zeta * wn * v);
-        y += h * v;
-      }
-      return std::pair<double, double>(y, v);
-    };
-    const auto e1 = run(1, 0, 0), e2 = run(0, 1, 0), b = run(0, 0, 1);
-    s[3] = e1.first;
-    s[4] = e2.first;
-    s[5] = e1.second;
-    s[6] = e2.second;
-    s[7] = b.first;
-    s[8] = b.second;
+    secondOrderMap(p[0], p[1], c.Ts, s + 3);  // mass_spring's map
     s[0] = in0;
     s[1] = 0.0;
     s[2] = 0.0;
