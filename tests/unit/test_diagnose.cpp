@@ -7,6 +7,7 @@
 
 #include "diagnose/compare.hpp"
 #include "diagnose/diagnose.hpp"
+#include "emulator_data.hpp"
 #include "plant/plant.hpp"
 #include "sim/lockstep.hpp"
 
@@ -14,28 +15,11 @@ using namespace pamc;
 
 namespace {
 
-// Plant with the plain Bouc-Wen core plus the listed effects (JSON fragments), noise and quantisation on.
-plant::PlantConfig hidden(const std::string& effects_json) {
-  std::string j = R"({"effects":{"pressure_lag":{"enabled":false},"load":{"enabled":false},"saturation":{"enabled":false},
-    "friction_hysteresis":{"enabled":false},"mass_spring":{"enabled":false})";
-  if (!effects_json.empty()) j += "," + effects_json;
-  j += R"(},"stroke":{"enabled":false},"core":{"k":6.0}})";
-  return plant::PlantConfig::fromJson(nlohmann::json::parse(j), "test");
-}
+// Plant with the plain Bouc-Wen core (k = 6) plus the listed effects (JSON fragments).
+plant::PlantConfig hidden(const std::string& effects_json) { return testdata::plainPlantWith(R"({"k":6.0})", effects_json); }
 
 io::Measurement record(const plant::PlantConfig& pc, std::uint64_t seed, double seconds, bool with_load) {
-  plant::Plant p(pc);
-  const auto u = control::Trajectory::randomRampHold(seed, -2.5, 2.5);
-  const auto f = control::Trajectory::randomRampHold(seed + 100, 0.0, 40.0);
-  const auto r = sim::runOpenLoopInput(p, u, seconds, with_load ? &f : nullptr);
-  io::Measurement m;
-  m.source = "emulator seed " + std::to_string(seed);
-  m.t = r.t;
-  m.u = r.u;
-  m.y = r.y;
-  m.Ts = r.t[1] - r.t[0];
-  if (with_load) m.extra["load"] = r.force;
-  return m;
+  return testdata::emulatorRecord(pc, seed, seconds, with_load);
 }
 
 diagnose::DiagnoseResult run(const plant::PlantConfig& pc, bool with_load = false) {

@@ -3,6 +3,8 @@
 // hard inputs, its identification, and diagnose naming it on data made with that structure.
 #include <gtest/gtest.h>
 
+#include "emulator_data.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -34,25 +36,11 @@ model::Model loopOnly(double fn, double zeta, double zmax, double delta) {
 // Plant: the Bouc-Wen core given plus the listed effects (JSON fragments), every other effect off,
 // noise and quantisation on, as in test_diagnose.cpp.
 plant::PlantConfig plantWith(const std::string& core_json, const std::string& effects_json) {
-  std::string j = R"({"effects":{"pressure_lag":{"enabled":false},"load":{"enabled":false},"saturation":{"enabled":false},
-    "friction_hysteresis":{"enabled":false},"mass_spring":{"enabled":false})";
-  if (!effects_json.empty()) j += "," + effects_json;
-  j += R"(},"stroke":{"enabled":false},"core":)" + core_json + "}";
-  return plant::PlantConfig::fromJson(nlohmann::json::parse(j), "test");
+  return testdata::plainPlantWith(core_json, effects_json);
 }
 
-io::Measurement record(const plant::PlantConfig& pc, std::uint64_t seed, double seconds, double lo = -2.5,
-                       double hi = 2.5) {
-  plant::Plant p(pc);
-  const auto u = control::Trajectory::randomRampHold(seed, lo, hi);
-  const auto r = sim::runOpenLoopInput(p, u, seconds);
-  io::Measurement m;
-  m.source = "emulator seed " + std::to_string(seed);
-  m.t = r.t;
-  m.u = r.u;
-  m.y = r.y;
-  m.Ts = r.t[1] - r.t[0];
-  return m;
+io::Measurement record(const plant::PlantConfig& pc, std::uint64_t seed, double seconds) {
+  return testdata::emulatorRecord(pc, seed, seconds);
 }
 
 double paramOf(const model::Model& m, const std::string& name) {
