@@ -22,7 +22,7 @@ class DiagnoseCommand final : public Command {
     cmd_->add_option("--min-gain", ds.min_gain, "an effect must lower the validated RMSE by this fraction")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 0.99));
-    cmd_->add_option("--candidates", dg_cands, "comma list of effects to try, or of effects to leave out as -name (default: the whole catalogue)");
+    cmd_->add_option("--candidates", dg_cands, "comma list of effects to try, or of effects to leave out as -name (write --candidates=-name,...; default: the whole catalogue)");
     cmd_->add_option("--report", dg_report, "folder for figures, CSVs and the final model");
     cmd_->add_option("--json", dg_json, "write the result as JSON to this file");
     cmd_->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
