@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "control/trajectory.hpp"
@@ -51,7 +52,14 @@ diagnose::DiagnoseResult run(double (*pre)(double), double (*post)(double, doubl
   diagnose::DiagnoseSettings s;
   s.method = ident::FitMethod::MultiStart;
   s.candidates = std::move(cands);
-  return diagnose::diagnose(train, &val, s);
+  auto r = diagnose::diagnose(train, &val, s);
+  // The numbers of docs/MODELING.md's probe table: where the catalogue ends, the best probe.
+  std::string fin;
+  for (const auto& e : r.ladder.back().effects) fin += " + " + e;
+  std::printf("catalogue ends at reference model%s, validated %.3g; best probe %s explains %.0f %% -> %.3g\n", fin.c_str(),
+              r.ladder.back().rmse_val, r.probes.empty() ? "(none run)" : r.probes.front().probe.c_str(),
+              r.probes.empty() ? 0.0 : 100 * r.probes.front().explains, r.probes.empty() ? 0.0 : r.probes.front().rmse_val);
+  return r;
 }
 
 }  // namespace
