@@ -22,6 +22,11 @@ class ExperimentsCommand final : public Command {
     cmd_->add_option("--only", only_, "comma list of: table1, table2, discontinuous, payload (table1 always runs)");
     cmd_->add_option("--seed", seed_, "GA seed")->capture_default_str();
     cmd_->add_flag("--no-figures", nofig_, "skip the PNG figures");
+    cmd_->add_option("--sine-start", sine_start_,
+                     "where Table 2's sines start: 'centre' (rising, from the muscle parked at 0.2 mm, scored from the "
+                     "first reach: the paper's start transient) or 'trough' (where the muscle is parked: none)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"centre", "trough"}));
     ctrl_.add(cmd_);
     cmd_->get_option("--model")->description("use this model file instead of identifying one on u0");
   }
@@ -31,6 +36,7 @@ class ExperimentsCommand final : public Command {
     s.out_dir = out_;
     s.model_file = ctrl_.model_file;
     s.figures = !nofig_;
+    s.sine_start = sine_start_ == "trough" ? sim::SineStart::Trough : sim::SineStart::Centre;
     s.only = splitList(only_);
     for (const auto& o : s.only)
       if (o != "table1" && o != "table2" && o != "discontinuous" && o != "payload")
@@ -49,7 +55,7 @@ class ExperimentsCommand final : public Command {
   }
 
  private:
-  std::string out_ = "results", plant_, only_;
+  std::string out_ = "results", plant_, only_, sine_start_ = "centre";
   bool nofig_ = false;
   std::uint64_t seed_ = 1;
   ControllerOptions ctrl_;

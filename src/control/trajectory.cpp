@@ -21,7 +21,7 @@ double Trajectory::at(double t) const noexcept {
     case Shape::SineDescending: {
       const double f = duration > 0 ? std::min(std::max(t / duration, 0.0), 1.0) : 0.0;
       const double a = amplitude + (amplitude_end - amplitude) * f;
-      return offset - a * std::cos(2.0 * M_PI * freq_hz * t);
+      return offset - a * std::cos(2.0 * M_PI * freq_hz * t + phase);
     }
     case Shape::Chirp: {
       const double tt = duration > 0 ? std::min(std::max(t, 0.0), duration) : t;
@@ -50,8 +50,9 @@ std::string Trajectory::describe() const {
     case Shape::Square: std::snprintf(b, sizeof b, "%g Hz square %g-%g", freq_hz, lo, hi); break;
     case Shape::Sawtooth: std::snprintf(b, sizeof b, "%g Hz sawtooth %g-%g", freq_hz, lo, hi); break;
     case Shape::SineDescending:
-      std::snprintf(b, sizeof b, "%g Hz sine about %g, amplitude %g -> %g over %g s", freq_hz, offset, amplitude,
-                    amplitude_end, duration);
+      std::snprintf(b, sizeof b, "%g Hz sine about %g, amplitude %g -> %g over %g s%s", freq_hz, offset, amplitude,
+                    amplitude_end, duration,
+                    phase == 0.0 ? "" : std::fabs(phase - M_PI / 2) < 1e-12 ? ", from the centre" : ", phase shifted");
       break;
     case Shape::Chirp:
       std::snprintf(b, sizeof b, "chirp %g -> %g Hz over %g s, %g sin + %g", freq_hz, freq_end_hz, duration, amplitude, offset);
@@ -94,7 +95,7 @@ Trajectory Trajectory::sawtooth(double f, double lo, double hi) {
   t.shape = Shape::Sawtooth;
   return t;
 }
-Trajectory Trajectory::sineDescending(double f, double c, double a0, double a1, double d) {
+Trajectory Trajectory::sineDescending(double f, double c, double a0, double a1, double d, double phase) {
   Trajectory t;
   t.shape = Shape::SineDescending;
   t.freq_hz = f;
@@ -102,6 +103,7 @@ Trajectory Trajectory::sineDescending(double f, double c, double a0, double a1, 
   t.amplitude = a0;
   t.amplitude_end = a1;
   t.duration = d;
+  t.phase = phase;
   t.lo = c - a0;
   t.hi = c + a0;
   return t;
@@ -154,7 +156,7 @@ Trajectory Trajectory::parse(const std::string& spec) {
   auto bad = [&](const std::string& why) {
     throw std::invalid_argument("trajectory '" + spec + "': " + why +
                                 " (forms: const:Y, sine:F:CENTRE:AMP, triangle:F:LO:HI, square:F:LO:HI, "
-                                "sawtooth:F:LO:HI, sinedesc:F:CENTRE:A0:A1:DURATION, chirp:F0:F1:OFFSET:AMP:DURATION, random:SEED:LO:HI)");
+                                "sawtooth:F:LO:HI, sinedesc:F:CENTRE:A0:A1:DURATION[:PHASE_DEG], chirp:F0:F1:OFFSET:AMP:DURATION, random:SEED:LO:HI)");
   };
   if (parts.empty()) bad("empty");
   std::vector<double> v;
@@ -173,7 +175,10 @@ Trajectory Trajectory::parse(const std::string& spec) {
   if (k == "triangle") { need(3); return triangle(v[0], v[1], v[2]); }
   if (k == "square") { need(3); return square(v[0], v[1], v[2]); }
   if (k == "sawtooth") { need(3); return sawtooth(v[0], v[1], v[2]); }
-  if (k == "sinedesc") { need(5); return sineDescending(v[0], v[1], v[2], v[3], v[4]); }
+  if (k == "sinedesc") {
+    if (v.size() != 6) need(5);
+    return sineDescending(v[0], v[1], v[2], v[3], v[4], v.size() == 6 ? v[5] * M_PI / 180.0 : 0.0);
+  }
   if (k == "chirp") { need(5); return chirp(v[0], v[1], v[2], v[3], v[4]); }
   if (k == "random") {
     need(3);

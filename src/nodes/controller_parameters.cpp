@@ -66,7 +66,10 @@ bool trajectoryToOd(canopen::ObjectDictionary& od, const control::Trajectory& t)
     case S::Constant: choice = 0; break;
     case S::Triangle: choice = 1; break;
     case S::Sine: choice = 2; break;
-    case S::SineDescending: choice = 3; break;
+    case S::SineDescending:
+      if (t.phase != 0.0) return false;  // the dictionary's descending sine starts at the trough
+      choice = 3;
+      break;
     case S::Square: choice = 4; break;
     case S::Sawtooth: choice = 5; break;
     default: return false;

@@ -40,7 +40,7 @@ void Lockstep::start() {
   ctrl_.activate(u0_, plant_.measure());
   pipe_.fill(u0_);
   k_ = 0;
-  const double y_home = run_.reference.at(0.0);
+  const double y_home = std::isnan(run_.home_mm) ? run_.reference.at(0.0) : run_.home_mm;
   const auto n_pre = static_cast<size_t>(std::llround(std::max(run_.preroll_s, 0.0) / Ts_));
   for (size_t k = 0; k < n_pre; ++k) {
     const auto o = ctrl_.update(y_home, y_home, plant_.measure());
@@ -118,6 +118,14 @@ TrackingStats tracking(const Record& r, double from_s) {
   }
   s.rmse = n ? std::sqrt(acc / static_cast<double>(n)) : 0.0;
   return s;
+}
+
+double firstReach(const Record& r) {
+  if (r.t.empty()) return 0.0;
+  const double e0 = r.yd[0] - r.y[0];
+  for (size_t i = 0; i < r.t.size(); ++i)
+    if ((r.yd[i] - r.y[i]) * e0 <= 0.0) return r.t[i];
+  return r.t.back();
 }
 
 StepStats stepResponse(const Record& r, int dir, double min_jump, double band_frac) {

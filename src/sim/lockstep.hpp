@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <functional>
 #include <string>
 #include <vector>
@@ -34,6 +35,9 @@ struct ClosedLoopRun {
   // Before t = 0 the loop holds the first setpoint this long, as one homes a rig before a run;
   // not recorded.
   double preroll_s = 5.0;
+  // The position held in the pre-roll; NaN: the first setpoint. Elsewhere, the run starts with a jump
+  // from there to the first setpoint, as when a trajectory is started on a muscle parked at home.
+  double home_mm = NAN;
 };
 
 // The closed loop declared once and then stepped. The constructor takes the controller, the plant
@@ -87,6 +91,10 @@ struct TrackingStats {
   double rmse = 0, max_abs = 0;
 };
 TrackingStats tracking(const Record& r, double from_s = 0.0);
+// The time at which the measured position first reaches the reference (the error changes sign or
+// vanishes); the record's end if it never does. Tracking scored from here leaves out the rise from
+// home to a trajectory that starts elsewhere, and keeps the overshoot and the oscillation after it.
+double firstReach(const Record& r);
 
 struct StepStats {
   double overshoot_pct = 0;   // mean over the steps

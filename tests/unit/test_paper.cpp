@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <set>
+#include <stdexcept>
 
 #include "sim/experiments.hpp"
 #include "sim/lockstep.hpp"
@@ -51,6 +52,37 @@ TEST(PaperResults, PiAndAmcWithinTable2) {
       EXPECT_LE(ratio, 1.3) << sim::PaperNumbers::table2_rows[r] << " " << col;
       EXPECT_GE(ratio, 1 / 1.3) << sim::PaperNumbers::table2_rows[r] << " " << col;
     }
+}
+
+// The sines of Table 2 start at their centre, rising; the dictionary cannot hold that start, so a node
+// given such a trajectory keeps it as an override; the spec form takes the phase in degrees.
+TEST(SineStart, CentreStartRisesFromTheCentre) {
+  const auto trough = control::Trajectory::sineDescending(0.1, 15.1, 14.9, 3.0, 30.0);
+  const auto centre = control::Trajectory::sineDescending(0.1, 15.1, 14.9, 3.0, 30.0, M_PI / 2);
+  EXPECT_NEAR(trough.at(0.0), 0.2, 1e-12);
+  EXPECT_NEAR(centre.at(0.0), 15.1, 1e-12);
+  EXPECT_GT(centre.at(0.5), 15.1 + 4.0);  // rising at 2 pi f A = 9.4 mm/s
+  const auto parsed = control::Trajectory::parse("sinedesc:0.1:15.1:14.9:3:30:90");
+  EXPECT_NEAR(parsed.at(1.234), centre.at(1.234), 1e-9);
+  EXPECT_THROW(control::Trajectory::parse("sinedesc:0.1:15.1:14.9:3:30:90:1"), std::invalid_argument);
+}
+
+// Scoring from the first reach: the rise from home is left out, the overshoot after it is kept.
+TEST(SineStart, FirstReachLeavesOutTheRiseOnly) {
+  sim::Record r;
+  for (int i = 0; i <= 100; ++i) {
+    const double t = 0.01 * i;
+    r.t.push_back(t);
+    r.yd.push_back(10.0);
+    r.y.push_back(t < 0.5 ? 20.0 * t : 10.0 + 2.0 * std::sin(6.0 * (t - 0.5)));  // rise, then overshoot
+  }
+  EXPECT_NEAR(sim::firstReach(r), 0.5, 1e-12);
+  const auto st = sim::tracking(r, sim::firstReach(r));
+  EXPECT_NEAR(st.max_abs, 2.0, 0.01);
+  EXPECT_GT(sim::tracking(r).max_abs, 9.0);
+  sim::Record never = r;
+  for (auto& y : never.y) y = 0.0;
+  EXPECT_NEAR(sim::firstReach(never), 1.0, 1e-12);
 }
 
 // The ringing measure itself: a clean first-order step has no crossings and one command move; a
