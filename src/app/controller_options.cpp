@@ -24,11 +24,25 @@ void ControllerOptions::add(CLI::App* a) {
                 "response (0: the paper's kc e_hat)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
-  a->add_option("--eso-b0", cc.b0, "ESO input gain b0 [mm/(s^2 V)]")->capture_default_str()->check(CLI::PositiveNumber);
-  a->add_option("--eso-delta", cc.delta, "ESO fal() linear zone delta [mm]")->capture_default_str()->check(CLI::PositiveNumber);
-  a->add_option("--eso-beta1", cc.beta1, "ESO observer gain beta1")->capture_default_str()->check(CLI::NonNegativeNumber);
-  a->add_option("--eso-beta2", cc.beta2, "ESO observer gain beta2")->capture_default_str()->check(CLI::NonNegativeNumber);
-  a->add_option("--eso-beta3", cc.beta3, "ESO observer gain beta3")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--eso-form", eso_form,
+                "the plant the ESO's observer assumes: 'first-order' (a lag: x1' = (gain u - x1)/tau + x2; fitted "
+                "to the paper's ESO column) or 'printed' (eq. 22's double integrator with beta1..3, delta, b0)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"first-order", "printed"}));
+  a->add_option("--eso-gain", cc.eso_gain, "first-order ESO: static gain of its plant [mm/V]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  a->add_option("--eso-tau", cc.eso_tau, "first-order ESO: time constant of its plant [s]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  a->add_option("--eso-wo", cc.eso_wo, "first-order ESO: observer bandwidth [rad/s]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  a->add_option("--eso-b0", cc.b0, "printed ESO: input gain b0 [mm/(s^2 V)]")->capture_default_str()->check(CLI::PositiveNumber);
+  a->add_option("--eso-delta", cc.delta, "printed ESO: fal() linear zone delta [mm]")->capture_default_str()->check(CLI::PositiveNumber);
+  a->add_option("--eso-beta1", cc.beta1, "printed ESO: observer gain beta1")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--eso-beta2", cc.beta2, "printed ESO: observer gain beta2")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--eso-beta3", cc.beta3, "printed ESO: observer gain beta3")->capture_default_str()->check(CLI::NonNegativeNumber);
   a->add_option("--delay", cc.delay_cycles,
                 "cycles from command to the measurement that shows it, beyond one sample (2 on the CAN bus)")
       ->capture_default_str()
@@ -39,6 +53,7 @@ void ControllerOptions::add(CLI::App* a) {
 control::ControllerConfig ControllerOptions::config() const {
   control::ControllerConfig c = cc;
   c.amc_as_printed = amc_form == "printed";
+  c.eso_order = eso_form == "printed" ? 2 : 1;
   if (!model_file.empty()) c.model = io::readModelFile(model_file);
   return c;
 }

@@ -113,6 +113,9 @@ void validate(const ControllerConfig& c) {
   for (double g : {c.kp, c.ki, c.kc, c.beta1, c.beta2, c.beta3})
     if (!std::isfinite(g) || g < 0) bad("gains must be finite and non-negative");
   if (!(c.delta > 0) || !(c.b0 > 0)) bad("ESO delta and b0 must be positive");
+  if (c.eso_order != 1 && c.eso_order != 2) bad("eso_order must be 1 (first-order plant) or 2 (eq. 22 as printed)");
+  if (!(c.eso_gain > 0 && c.eso_tau > 0 && c.eso_wo > 0) || !std::isfinite(c.eso_gain + c.eso_tau + c.eso_wo))
+    bad("ESO gain, time constant and bandwidth must be positive");
   if (c.delay_cycles < 0 || c.delay_cycles > 7) bad("delay_cycles must be 0..7");
   if (c.amc_horizon < 0 || c.amc_horizon > 2000) bad("amc_horizon must be 0 (automatic) .. 2000 samples");
   if (!(c.amc_inverse >= 0.0 && c.amc_inverse <= 1.0)) bad("amc_inverse must be in [0, 1]");
@@ -340,7 +343,7 @@ class PiAmc final : public Controller {
   double inverse_gain_ = 1.0;  // model's response at the horizon to a unit command change [mm/V]
 };
 
-// PID + extended state observer, eqs. (22)-(25).
+// PID + extended state observer, eqs. (22)-(25), on the plant model eso_order says.
 class PidEso final : public Controller {
  public:
   explicit PidEso(const ControllerConfig& c) : cfg_(c) { pi_.configure(c); }
@@ -352,6 +355,16 @@ class PidEso final : public Controller {
     x1_ = std::isfinite(y0) ? y0 : 0.0;
     x2_ = 0.0;
     x3_ = 0.0;
+    sat_dir_ = 0;
+    if (cfg_.eso_order == 1 && std::isfinite(u0)) {
+      // At rest: the disturbance that holds x1 under u0, and the PI carrying the rest (bumpless).
+      x2_ = (x1_ - cfg_.eso_gain * u0) / cfg_.eso_tau;
+      pi_.reset(u0 - compensation());
+    }
+  }
+  // u_c of eq. (25): the disturbance estimate in volts.
+  double compensation() const noexcept {
+    return cfg_.eso_order == 1 ? -x2_ * cfg_.eso_tau / cfg_.eso_gain : -x3_ / cfg_.b0;
   }
   static double fal(double e, double a, double delta) noexcept {
     const double ae = std::fabs(e);
@@ -367,9 +380,21 @@ class PidEso final : public Controller {
     const bool ok = y_.take(y);
     o.measurement_rejected = !ok;
     const double e = ok ? x1_ - y : 0.0;
-    const double x1 = x1_ + Ts * (x2_ - cfg_.beta1 * e);
-    const double x2 = x2_ + Ts * (cfg_.b0 * u_applied + x3_ - cfg_.beta2 * fal(e, 0.5, cfg_.delta));
-    const double x3 = x3_ + Ts * (-cfg_.beta3 * fal(e, 0.25, cfg_.delta));
+    double x1, x2, x3 = 0.0;
+    if (cfg_.eso_order == 1) {
+      // (s + wo)^2 for the error: l1 + 1/T = 2 wo, l2 = wo^2.
+      const double T = cfg_.eso_tau, wo = cfg_.eso_wo;
+      x1 = x1_ + Ts * ((cfg_.eso_gain * u_applied - x1_) / T + x2_ - (2.0 * wo - 1.0 / T) * e);
+      x2 = x2_ - Ts * wo * wo * e;
+      // Conditional integration, as the PI's: while the command sits in a limit, the estimate does not
+      // move the compensation further into it (a valve that does not follow would otherwise be taken
+      // for a growing disturbance, to be given back at wo after it recovers).
+      if (sat_dir_ != 0 && (x2_ - x2) * sat_dir_ > 0.0) x2 = x2_;
+    } else {
+      x1 = x1_ + Ts * (x2_ - cfg_.beta1 * e);
+      x2 = x2_ + Ts * (cfg_.b0 * u_applied + x3_ - cfg_.beta2 * fal(e, 0.5, cfg_.delta));
+      x3 = x3_ + Ts * (-cfg_.beta3 * fal(e, 0.25, cfg_.delta));
+    }
     if (std::isfinite(x1) && std::isfinite(x2) && std::isfinite(x3)) {
       x1_ = x1;
       x2_ = x2;
@@ -381,14 +406,15 @@ class PidEso final : public Controller {
     }
     o.y_hat = x1_;
     const double un = pi_.nominal(yd - y_.get(), ok);
-    // Eq. (25): u = u_n - x3_hat (divided by the observer's input gain b0).
-    o.u_c = -x3_ / cfg_.b0;
+    // Eq. (25): u = u_n - the disturbance in volts.
+    o.u_c = compensation();
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
+    sat_dir_ = !o.saturated ? 0 : o.u >= cfg_.u_max ? 1 : -1;
     hist_.push(o.u);
     return o;
   }
   double integral() const noexcept override { return pi_.integral(); }
-  double disturbance() const noexcept override { return x3_; }
+  double disturbance() const noexcept override { return cfg_.eso_order == 1 ? x2_ : x3_; }
 
  private:
   ControllerConfig cfg_;
@@ -396,6 +422,7 @@ class PidEso final : public Controller {
   CommandHistory hist_;
   LastGood y_;
   double x1_ = 0, x2_ = 0, x3_ = 0;
+  int sat_dir_ = 0;  // the last command: +1 in the upper limit, -1 in the lower, 0 inside
 };
 
 }  // namespace

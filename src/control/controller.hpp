@@ -54,9 +54,19 @@ struct ControllerConfig {
   // itself through the direct feedthrough with gain kc k rho) or as an increment on the posterior
   // output (false); see docs/CONTROL.md. Only for the paper's form (amc_inverse = 0, horizon 1).
   bool amc_as_printed = true;
-  // ESO, eq. (24): fal() with delta in mm; b0 [mm/(s^2 V)] is the input gain the observer
-  // assumes (the paper's eq. (22) has b0 = 1).
+  // ESO, the plant its observer assumes (docs/CONTROL.md). 2: eqs. (22)-(24) as printed, a double
+  // integrator x1'' = b0 u + tau, with fal() of delta in mm and b0 [mm/(s^2 V)] (the paper: b0 = 1).
+  // 1 (default): the same extended-state idea on a first-order lag, which is what a valve filling a
+  // muscle is from command to position: x1' = (eso_gain u - x1) / eso_tau + x2, the total disturbance
+  // x2 estimated with both eigenvalues of the error dynamics at -eso_wo, u = u_n - x2 eso_tau / eso_gain.
+  // On a nearly static plant the printed form trades the PI's integral with its own through a slow
+  // mode and cannot beat PI; eso_gain, eso_tau and eso_wo are fitted to the paper's ESO column
+  // (docs/CALIBRATION.md).
+  int eso_order = 1;
   double beta1 = 100.0, beta2 = 100.0, beta3 = 100.0, delta = 500.0, b0 = 1.0;
+  double eso_gain = 8.4;  // [mm/V]
+  double eso_tau = 0.3;   // [s]
+  double eso_wo = 0.5;    // [rad/s]
   // Cycles between issuing a command and the first measurement that reflects it, beyond the one
   // sample of any sampled loop. 2 on the CANopen bus: the valve applies a synchronous RPDO at the
   // next SYNC, and the controller latches the position (sent after the SYNC at which it was
@@ -73,7 +83,7 @@ struct ControllerConfig {
 struct ControlOutput {
   double u = 0.0;    // saturated command sent to the valve [V]
   double u_n = 0.0;  // nominal controller part [V]
-  double u_c = 0.0;  // compensation part (AMC u_c, or -x3_hat for ESO) [V]
+  double u_c = 0.0;  // compensation part (AMC u_c, or the ESO's disturbance estimate in volts) [V]
   double y_hat = 0.0;  // estimator output (AMC posterior / ESO x1_hat) [mm]
   bool saturated = false;
   bool estimator_reset = false;  // the estimator started over this cycle (the UKF or the ESO)
@@ -99,7 +109,8 @@ class Controller {
   virtual double integral() const noexcept { return 0.0; }
   // The AMC's estimator (nullptr for the other controllers).
   virtual const estimation::ActiveModel* activeModel() const noexcept { return nullptr; }
-  // The ESO's total-disturbance estimate x3_hat [mm/s^2] (0 for the other controllers).
+  // The ESO's total-disturbance estimate (x3_hat [mm/s^2] of eq. (24), x2_hat [mm/s] of the
+  // first-order form; 0 for the other controllers).
   virtual double disturbance() const noexcept { return 0.0; }
 };
 

@@ -22,7 +22,10 @@ namespace {
 constexpr double control::ControllerConfig::*kGains[] = {
     &control::ControllerConfig::kp,    &control::ControllerConfig::ki,    &control::ControllerConfig::kc,
     &control::ControllerConfig::beta1, &control::ControllerConfig::beta2, &control::ControllerConfig::beta3,
-    &control::ControllerConfig::delta, &control::ControllerConfig::b0};
+    &control::ControllerConfig::delta, &control::ControllerConfig::b0,    &control::ControllerConfig::eso_gain,
+    &control::ControllerConfig::eso_tau, &control::ControllerConfig::eso_wo};
+// 0x2000 sub 12, after the gains: the ESO's form (1 first-order, 2 as printed).
+constexpr std::uint8_t kEsoFormSub = std::size(kGains) + 1;
 constexpr double model::BoucWenParams::*kModel[] = {&model::BoucWenParams::k,     &model::BoucWenParams::rho,
                                                     &model::BoucWenParams::b,     &model::BoucWenParams::alpha,
                                                     &model::BoucWenParams::beta,  &model::BoucWenParams::gamma};
@@ -36,9 +39,10 @@ constexpr double ParameterSet::*kPlausibility[] = {&ParameterSet::range_steps, &
 
 constexpr std::uint8_t sub(std::size_t i) { return static_cast<std::uint8_t>(i + 1); }
 
-// Ranges the application adds to the EDS limits: the divisors ESO delta, ESO b0 and UKF R above 0.
+// Ranges the application adds to the EDS limits: the divisors ESO delta, b0, gain, tau and the
+// bandwidth wo, and UKF R above 0.
 std::uint32_t applicationRange(std::uint16_t idx, std::uint8_t s, double v) {
-  if (((idx == 0x2000 && (s == 7 || s == 8)) || (idx == 0x2002 && s == 5)) && !(v > 0.0))
+  if (((idx == 0x2000 && s >= 7 && s <= 11) || (idx == 0x2002 && s == 5)) && !(v > 0.0))
     return canopen::kAbortValueTooLow;
   return canopen::kSdoOk;
 }
@@ -96,6 +100,7 @@ ParameterSet ControllerParameters::read() const {
   ParameterSet p;
   p.ctrl = running_.ctrl;
   for (std::size_t i = 0; i < std::size(kGains); ++i) p.ctrl.*kGains[i] = od.ref<double>(0x2000, sub(i)).get();
+  p.ctrl.eso_order = od.ref<std::uint8_t>(0x2000, kEsoFormSub).get();
   for (std::size_t i = 0; i < std::size(kModel); ++i) p.ctrl.model.core().*kModel[i] = od.ref<double>(0x2001, sub(i)).get();
   for (std::size_t i = 0; i < std::size(kUkf); ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, sub(i)).get();
   p.safe_u = pd::commandFromVolts(od.ref<double>(0x2020, 0).get());
@@ -106,6 +111,7 @@ ParameterSet ControllerParameters::read() const {
 
 void ControllerParameters::writeGains(const control::ControllerConfig& c) {
   for (std::size_t i = 0; i < std::size(kGains); ++i) node_.od().ref<double>(0x2000, sub(i)).set(c.*kGains[i]);
+  node_.od().ref<std::uint8_t>(0x2000, kEsoFormSub).set(static_cast<std::uint8_t>(c.eso_order));
 }
 
 void ControllerParameters::writeModel(const model::BoucWenParams& m) {

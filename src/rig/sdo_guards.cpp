@@ -126,12 +126,14 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
   row("0x1001 error register (ro)", kAbortReadOnly, sdo.writeU8(0x1001, 0, 1), unchanged());
   row("0x2003:02 staged flag (ro)", kAbortReadOnly, sdo.writeU8(0x2003, 2, 1), unchanged());
   row("0x2004 (no such object)", kAbortNoObject, sdo.writeU8(0x2004, 0, 1), unchanged());
-  row("0x2000:09 (no such sub-index)", kAbortNoSubIndex, sdo.writeDouble(0x2000, 9, 1.0), unchanged());
+  row("0x2000:0D (no such sub-index)", kAbortNoSubIndex, sdo.writeDouble(0x2000, 13, 1.0), unchanged());
   row("kp 0x2000:01 = 20 V/mm (above the EDS limit 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 20.0), unchanged());
   row("kp 0x2000:01 = 5000 (far above the EDS limit 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 5000.0), unchanged());
   row("kp 0x2000:01 = -1", kAbortValueTooLow, sdo.writeDouble(0x2000, 1, -1.0), unchanged());
   row("ki 0x2000:02 = NaN", kAbortValueRange, sdo.writeDouble(0x2000, 2, nan), unchanged());
   row("ESO b0 0x2000:08 = 0", kAbortValueTooLow, sdo.writeDouble(0x2000, 8, 0.0), unchanged());
+  row("ESO wo 0x2000:0B = 0", kAbortValueTooLow, sdo.writeDouble(0x2000, 11, 0.0), unchanged());
+  row("ESO form 0x2000:0C = 3 (above the EDS limit 2)", kAbortValueTooHigh, sdo.writeU8(0x2000, 12, 3), unchanged());
   row("UKF R0 0x2002:05 = 0", kAbortValueTooLow, sdo.writeDouble(0x2002, 5, 0.0), unchanged());
   row("UKF divergence bound 0x2002:09 = -1", kAbortValueTooLow, sdo.writeDouble(0x2002, 9, -1.0), unchanged());
   row("model k 0x2001:01 = inf", kAbortValueRange, sdo.writeDouble(0x2001, 1, inf), unchanged());

@@ -65,10 +65,17 @@ void writeStepOverlay(const Record& r, const std::string& path) {
   io::writeFileAtomic(path, out);
 }
 
+std::string esoText(const control::ControllerConfig& c) {
+  if (c.eso_order == 1)
+    return "ESO first-order gain " + fmt("%g", c.eso_gain) + " mm/V tau " + fmt("%g", c.eso_tau) + " s wo " +
+           fmt("%g", c.eso_wo) + " rad/s";
+  return "ESO as printed b0 " + fmt("%g", c.b0) + " delta " + fmt("%g", c.delta);
+}
+
 std::string gainsText(const control::ControllerConfig& c) {
   return "kp " + fmt("%g", c.kp) + " V/mm, ki " + fmt("%g", c.ki) + " V/(mm s), kc " + fmt("%g", c.kc) + " V/mm" +
-         (c.amc_as_printed ? " (eq. 17 as printed)" : " (eq. 17 as increment)") + ", ESO b0 " + fmt("%g", c.b0) +
-         " delta " + fmt("%g", c.delta) + ", delay " + std::to_string(c.delay_cycles) + " cycles";
+         (c.amc_as_printed ? " (eq. 17 as printed)" : " (eq. 17 as increment)") + ", " + esoText(c) + ", delay " +
+         std::to_string(c.delay_cycles) + " cycles";
 }
 
 // The emulator's effects that are on, with their parameters, in one line.

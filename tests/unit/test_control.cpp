@@ -64,30 +64,65 @@ class ClosesTheLoop : public ::testing::TestWithParam<control::Kind> {};
 
 // Each feedback controller settles on a step of the setpoint held long enough, on the full
 // emulator (every effect on, noise, one cycle of bus delay).
-TEST_P(ClosesTheLoop, SettlesAfterAStep) {
+// 20 s at 25 mm, then 20 s at 10 mm; the mean absolute error of the last 3 s of each half.
+std::pair<double, double> settledErrors(control::Kind kind, const control::ControllerConfig& cfg = {}) {
   sim::ClosedLoopRun r;
-  // 20 s at 25 mm, then 20 s at 10 mm: the ESO's slow observer mode (about 0.1 rad/s with the
-  // paper's beta and delta) needs that long.
   r.reference = control::Trajectory::square(0.025, 10.0, 25.0);
   r.duration_s = 40.0;
-  const auto rec = run(GetParam(), r);
-  // Last 2 s of each half.
+  const auto rec = run(kind, r, cfg);
   double e1 = 0, e2 = 0;
   int n1 = 0, n2 = 0;
   for (size_t i = 0; i < rec.t.size(); ++i) {
     if (rec.t[i] > 17 && rec.t[i] < 20) e1 += std::fabs(rec.yd[i] - rec.y[i]), ++n1;
     if (rec.t[i] > 37) e2 += std::fabs(rec.yd[i] - rec.y[i]), ++n2;
   }
-  // PI + ESO with the paper's observer gains has a slow (period about 60 s), weakly damped mode
-  // in which the PI integral and the ESO's disturbance estimate trade the static command
-  // (docs/CONTROL.md); it converges, but not within these 20 s to PI's accuracy.
-  const double tol = GetParam() == control::Kind::PidEso ? 1.5 : 0.05;
-  EXPECT_LT(e1 / n1, tol) << control::toString(GetParam());
-  EXPECT_LT(e2 / n2, tol) << control::toString(GetParam());
-  for (double u : rec.u) {
-    ASSERT_GE(u, -5.0);
-    ASSERT_LE(u, 5.0);
+  for (double u : rec.u)
+    if (u < -5.0 || u > 5.0) ADD_FAILURE() << "command " << u << " V outside the valve's range";
+  return {e1 / n1, e2 / n2};
+}
+
+TEST_P(ClosesTheLoop, SettlesAfterAStep) {
+  const auto [e1, e2] = settledErrors(GetParam());
+  EXPECT_LT(e1, 0.05) << control::toString(GetParam());
+  EXPECT_LT(e2, 0.05) << control::toString(GetParam());
+}
+
+// The ESO as printed (eq. 22's double integrator) on this nearly static plant: a slow (period about
+// 60 s), weakly damped mode in which the PI integral and the ESO's disturbance estimate trade the
+// static command (docs/CONTROL.md); it converges, but not within these 20 s to PI's accuracy - and
+// the first-order form, the default, does.
+TEST(EsoForms, PrintedFormSettlesSlowlyTheFirstOrderFormLikePi) {
+  control::ControllerConfig printed;
+  printed.eso_order = 2;
+  const auto [p1, p2] = settledErrors(control::Kind::PidEso, printed);
+  EXPECT_LT(p1, 1.5);
+  EXPECT_LT(p2, 1.5);
+  EXPECT_GT(std::max(p1, p2), 0.05) << "the printed form's slow mode is gone: docs/CONTROL.md is out of date";
+}
+
+// The first-order ESO on its own nominal plant (a lag of gain K and time constant T) with a constant
+// output disturbance d: x2 converges to d / T and the compensation cancels it, u_c = -d / K; at
+// activation it takes over the holding command without a bump.
+TEST(EsoForms, FirstOrderObserverEstimatesAConstantDisturbance) {
+  control::ControllerConfig c;
+  c.ki = 0.0;
+  c.kp = 0.0;  // the compensation alone
+  c.delay_cycles = 0;
+  auto eso = control::makeController(control::Kind::PidEso, c);
+  const double K = c.eso_gain, T = c.eso_tau, d = 3.0, u0 = 1.0;
+  double x = K * u0;  // the plant at rest under u0, before the disturbance
+  eso->activate(u0, x);
+  auto o = eso->update(x, x, x);
+  EXPECT_NEAR(o.u, u0, 1e-9) << "bumpless activation";
+  double u = o.u;
+  for (int k = 0; k < 60000; ++k) {  // 60 s: 30 time constants of the observer
+    x += 1e-3 * (K * u - x) / T;
+    o = eso->update(x + d, x + d, x + d);
+    u = o.u;
   }
+  EXPECT_NEAR(eso->disturbance(), d / T, 1e-3 * d / T);
+  EXPECT_NEAR(o.u_c, -d / K, 1e-3);
+  EXPECT_NEAR(x + d, K * u0, 1e-3) << "the output is back where u0 held it";
 }
 
 TEST_P(ClosesTheLoop, TracksASlowSineBetterThanOpenLoop) {

@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <set>
 #include <stdexcept>
 
 #include "sim/experiments.hpp"
@@ -28,15 +27,12 @@ const nlohmann::json& defaultRun() {
 
 }  // namespace
 
-// Every claim the default run is calibrated to, except the ones docs/CALIBRATION.md lists as not
-// reproduced (the ESO's place between PI and AMC).
+// Every claim the default run is calibrated to (docs/CALIBRATION.md).
 TEST(PaperResults, DefaultRunReproducesTheClaims) {
-  const std::set<std::string> known_misses = {"order_amc_eso_pi"};
   const auto crit = sim::paperCriteria(defaultRun());
-  ASSERT_GE(crit.size(), 10u);
+  ASSERT_GE(crit.size(), 11u);
   for (const auto& c : crit) {
     EXPECT_TRUE(c.checked) << c.name;
-    if (known_misses.count(c.name)) continue;
     EXPECT_TRUE(c.ok) << c.name << ": " << c.claim << " - " << c.detail;
   }
 }
