@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "io/measurement.hpp"
+#include "io/text.hpp"
 #include "plant/plant.hpp"
 #include "sim/calibration.hpp"
 
@@ -44,6 +45,8 @@ class CalibrateCommand final : public Command {
     cmd_->add_option("--lag", lag_, "comma list of pressure-lag time constants to try [s]")->capture_default_str();
     cmd_->add_option("--ki", ki_, "comma list of PI integral gains to try [V/(mm s)] (0.15: as printed)")->capture_default_str();
     cmd_->add_option("--forms", forms_, "eq. (17) readings to try: printed, increment (comma list)")->capture_default_str();
+    cmd_->add_option("--eso-tau", eso_tau_, "comma list of first-order ESO time constants to try [s]")->capture_default_str();
+    cmd_->add_option("--eso-wo", eso_wo_, "comma list of first-order ESO bandwidths to try [rad/s]")->capture_default_str();
     cmd_->add_option("--plant", plant_, "start from this emulator configuration (JSON) instead of the defaults");
     cmd_->add_option("--work", work_, "directory for every candidate's runs")->capture_default_str();
     cmd_->add_option("--out", out_, "also write the table (Markdown) to this file");
@@ -54,6 +57,8 @@ class CalibrateCommand final : public Command {
     if (!plant_.empty()) s.base.plant = plant::PlantConfig::fromFile(plant_);
     s.lag_tau_s = numbers("--lag", lag_);
     s.ki = numbers("--ki", ki_);
+    s.eso_tau = numbers("--eso-tau", eso_tau_);
+    s.eso_wo = numbers("--eso-wo", eso_wo_);
     std::stringstream ss(forms_);
     std::string f;
     while (std::getline(ss, f, ',')) {
@@ -70,8 +75,9 @@ class CalibrateCommand final : public Command {
     const std::string table = sim::formatCalibration(rows, 0);
     std::printf("%s\n", table.c_str());
     if (!rows.empty()) {
-      std::printf("Best: lag %g s, ki %g, eq. 17 %s - %d/%zu of the paper's claims:\n%s", rows[0].lag_tau_s, rows[0].ki,
-                  rows[0].amc_as_printed ? "as printed" : "as increment", rows[0].met, rows[0].criteria.size(),
+      std::printf("Best: lag %g s, ki %g, eq. 17 %s, ESO tau %g s wo %g rad/s - %d/%zu of the paper's claims:\n%s",
+                  rows[0].lag_tau_s, rows[0].ki, rows[0].amc_as_printed ? "as printed" : "as increment", rows[0].eso_tau,
+                  rows[0].eso_wo, rows[0].met, rows[0].criteria.size(),
                   sim::formatCriteria(rows[0].criteria).c_str());
     }
     if (!out_.empty()) io::writeFileAtomic(out_, table);
@@ -84,6 +90,8 @@ class CalibrateCommand final : public Command {
   std::string lag_ = "0.04,0.1,0.15,0.2,0.25,0.3";
   std::string ki_ = "0.15,1.0,1.1,1.2,1.3";
   std::string forms_ = "printed,increment";
+  std::string eso_tau_ = io::fmt("%g", control::ControllerConfig{}.eso_tau);  // the default alone
+  std::string eso_wo_ = io::fmt("%g", control::ControllerConfig{}.eso_wo);
   std::string plant_, out_;
   std::string work_ = "calibration";
 };

@@ -40,7 +40,9 @@ double distanceToPaper(const nlohmann::json& s) {
 std::vector<CalibrationRow> runCalibration(const CalibrationSettings& s) {
   std::vector<CalibrationRow> rows;
   ::mkdir(s.work_dir.c_str(), 0755);
-  const size_t total = s.lag_tau_s.size() * s.ki.size() * s.amc_as_printed.size();
+  const std::vector<double> eso_tau = s.eso_tau.empty() ? std::vector<double>{s.base.ctrl.eso_tau} : s.eso_tau;
+  const std::vector<double> eso_wo = s.eso_wo.empty() ? std::vector<double>{s.base.ctrl.eso_wo} : s.eso_wo;
+  const size_t total = s.lag_tau_s.size() * s.ki.size() * s.amc_as_printed.size() * eso_tau.size() * eso_wo.size();
   size_t done = 0;
   for (double tau : s.lag_tau_s) {
     ExperimentSettings es = s.base;
@@ -51,9 +53,13 @@ std::vector<CalibrationRow> runCalibration(const CalibrationSettings& s) {
     es.out_dir = s.work_dir + "/tau_" + fmt("%g", tau);
     std::string model_file;  // identified once per emulator, reused for every gain reading
     for (double ki : s.ki)
-      for (bool printed : s.amc_as_printed) {
+      for (bool printed : s.amc_as_printed)
+        for (double e_tau : eso_tau)
+          for (double e_wo : eso_wo) {
         es.ctrl.ki = ki;
         es.ctrl.amc_as_printed = printed;
+        es.ctrl.eso_tau = e_tau;
+        es.ctrl.eso_wo = e_wo;
         es.model_file = model_file;
         const auto rep = runExperiments(es);
         if (model_file.empty()) model_file = es.out_dir + "/model.json";
@@ -61,6 +67,8 @@ std::vector<CalibrationRow> runCalibration(const CalibrationSettings& s) {
         row.lag_tau_s = tau;
         row.ki = ki;
         row.amc_as_printed = printed;
+        row.eso_tau = e_tau;
+        row.eso_wo = e_wo;
         row.summary = rep.json;
         row.criteria = paperCriteria(rep.json);
         row.met = criteriaMet(row.criteria);
@@ -69,7 +77,8 @@ std::vector<CalibrationRow> runCalibration(const CalibrationSettings& s) {
         ++done;
         if (s.log)
           s.log("calibrate: " + std::to_string(done) + "/" + std::to_string(total) + "  tau " + fmt("%g", tau) +
-                " s, ki " + fmt("%g", ki) + (printed ? ", eq. 17 as printed" : ", eq. 17 as increment") + ": " +
+                " s, ki " + fmt("%g", ki) + (printed ? ", eq. 17 as printed" : ", eq. 17 as increment") + ", ESO tau " +
+                fmt("%g", e_tau) + " s wo " + fmt("%g", e_wo) + " rad/s: " +
                 std::to_string(rows.back().met) + "/" + std::to_string(rows.back().criteria.size()) +
                 " criteria, distance " + fmt("%.3f", rows.back().distance));
       }
@@ -86,11 +95,11 @@ void rankCalibration(std::vector<CalibrationRow>& rows) {
 
 std::string formatCalibration(const std::vector<CalibrationRow>& rows, int mark) {
   std::string t =
-      "| lag tau [s] | ki [V/(mm s)] | eq. 17 | Table 1 u0 / u1 / u2 | triangle PI / ESO / AMC | sine 0.05 Hz PI / ESO / "
+      "| lag tau [s] | ki [V/(mm s)] | eq. 17 | ESO tau [s] / wo [rad/s] | Table 1 u0 / u1 / u2 | triangle PI / ESO / AMC | sine 0.05 Hz PI / ESO / "
       "AMC | sine 0.1 Hz PI / ESO / AMC | triangle max PI / ESO / AMC | square fwd PI os / AMC os, settle | payload "
-      "AMC best | criteria | distance |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+      "AMC best | criteria | distance |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   // The paper's own row.
-  t += "| paper | | | " + fmt("%.2f", PaperNumbers::table1_reference[0]) + " / " +
+  t += "| paper | | | | " + fmt("%.2f", PaperNumbers::table1_reference[0]) + " / " +
        fmt("%.2f", PaperNumbers::table1_reference[1]) + " / " + fmt("%.2f", PaperNumbers::table1_reference[2]) + " |";
   for (int r = 0; r < 3; ++r)
     t += " " + fmt("%.3f", PaperNumbers::table2[r][1][1]) + " / " + fmt("%.3f", PaperNumbers::table2[r][2][1]) + " / " +
@@ -102,7 +111,8 @@ std::string formatCalibration(const std::vector<CalibrationRow>& rows, int mark)
     const auto& s = r.summary;
     const std::string b = static_cast<int>(i) == mark ? "**" : "";
     t += "| " + b + fmt("%g", r.lag_tau_s) + b + " | " + b + fmt("%g", r.ki) + b + " | " +
-         (r.amc_as_printed ? "printed" : "increment") + " | " + fmt("%.2f", at(s, {"table1", "u0", "reference_rmse"})) +
+         (r.amc_as_printed ? "printed" : "increment") + " | " + fmt("%g", r.eso_tau) + " / " + fmt("%g", r.eso_wo) +
+         " | " + fmt("%.2f", at(s, {"table1", "u0", "reference_rmse"})) +
          " / " + fmt("%.2f", at(s, {"table1", "u1", "reference_rmse"})) + " / " +
          fmt("%.2f", at(s, {"table1", "u2", "reference_rmse"})) + " |";
     for (int row = 0; row < 3; ++row) {

@@ -20,6 +20,7 @@ struct CalibrationSettings {
   std::vector<double> lag_tau_s;      // pressure_lag tau of the emulator [s]
   std::vector<double> ki;             // PI integral gain [V/(mm s)]
   std::vector<bool> amc_as_printed;   // eq. (17) as printed / as an increment
+  std::vector<double> eso_tau, eso_wo;  // first-order ESO's time constant [s] and bandwidth [rad/s]; empty: base's
   std::string work_dir = "calibration";
   std::function<void(const std::string&)> log;
 };
@@ -27,6 +28,7 @@ struct CalibrationSettings {
 struct CalibrationRow {
   double lag_tau_s = 0, ki = 0;
   bool amc_as_printed = true;
+  double eso_tau = 0, eso_wo = 0;
   nlohmann::json summary;               // the experiments' summary.json
   std::vector<Criterion> criteria;
   int met = 0;

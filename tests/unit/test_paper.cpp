@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "sim/calibration.hpp"
 #include "sim/experiments.hpp"
 #include "sim/lockstep.hpp"
 #include "sim/paper_criteria.hpp"
@@ -109,4 +110,30 @@ TEST(StepResponse, RingingMeasure) {
   const auto ringing = sim::stepResponse(make(true), +1, 1.0, 0.02);
   EXPECT_GT(ringing.max_error_crossings, 2);
   EXPECT_GT(ringing.max_u_reversals, 3);
+}
+
+// The calibration varies the first-order ESO like the other readings: one row per (tau, wo), each run
+// with its own observer, and the table names them.
+TEST(Calibration, VariesTheEsoAndShowsItInTheTable) {
+  sim::CalibrationSettings s;
+  s.base.only = {"table2"};
+  s.lag_tau_s = {0.2};
+  s.ki = {1.3};
+  s.amc_as_printed = {true};
+  s.eso_tau = {0.3};
+  s.eso_wo = {0.5, 2.0};
+  s.work_dir = (std::filesystem::temp_directory_path() / "pamc_test_calibration").string();
+  const auto rows = sim::runCalibration(s);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].eso_wo, 0.5);
+  EXPECT_EQ(rows[1].eso_wo, 2.0);
+  const char* tri = sim::PaperNumbers::table2_rows[0];
+  const double slow = sim::jsonNumber(rows[0].summary, {"table2", tri, "eso", "rmse"});
+  const double fast = sim::jsonNumber(rows[1].summary, {"table2", tri, "eso", "rmse"});
+  EXPECT_NE(slow, fast) << "the observer's bandwidth did not reach the runs";
+  EXPECT_EQ(sim::jsonNumber(rows[0].summary, {"table2", tri, "pi", "rmse"}),
+            sim::jsonNumber(rows[1].summary, {"table2", tri, "pi", "rmse"}));
+  const std::string table = sim::formatCalibration(rows);
+  EXPECT_NE(table.find("| 0.3 / 0.5 |"), std::string::npos) << table;
+  EXPECT_NE(table.find("| 0.3 / 2 |"), std::string::npos) << table;
 }
