@@ -23,16 +23,16 @@ namespace {
 
 using io::fmt;
 
-// Candidates, pruning and probes are fitted on the screening record: the training record decimated to
-// at most this many samples (every k-th sample), so the whole record - all its levels and rates - is
-// seen at a fraction of the cost (the first samples alone missed the end stops of the 150 000-sample
-// record in docs/PERFORMANCE.md); a fit taken into the ladder is then refitted on all of it.
-constexpr size_t kScreenSamples = 12000;
+// Candidates, pruning and probes are fitted on the screening record: the training record decimated by
+// the largest step that leaves at least this many samples (every k-th sample; a record of fewer than
+// twice as many is screened whole), so the whole record - all its levels and rates - is seen at a
+// fraction of the cost (the first samples alone missed the end stops of the 150 000-sample record in
+// docs/PERFORMANCE.md); a fit taken into the ladder is then refitted on all of it.
+constexpr size_t kScreenSamples = 12500;
 // A screening fit ranks the candidates to a percent (min_gain is 10 %), not to the last digit: its
-// Levenberg-Marquardt runs stop at this relative step and start from this many points around the
-// current model; the fit taken into the ladder is refitted to convergence on all the training data.
+// Levenberg-Marquardt runs stop at this relative step; the fit taken into the ladder is refitted to
+// convergence on all the training data.
 constexpr double kScreenTolerance = 1e-5;
-constexpr int kScreenWarmStarts = 4;
 
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -118,7 +118,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
                             [&](const std::string& c) { return model::makeEffect(c)->needsLoad() && !have_load; }),
              pool.end());
 
-  const size_t step = (train.size() + kScreenSamples - 1) / kScreenSamples;
+  const size_t step = std::max<size_t>(1, train.size() / kScreenSamples);
   const io::Measurement screen = step > 1 ? train.decimate(step) : train;
   if (step > 1)
     log("screening on every " + std::to_string(step) + "th training sample (" + std::to_string(screen.size()) +
@@ -186,7 +186,6 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
         fs.lm_iterations = 20;
         fs.lm_tolerance = kScreenTolerance;
-        fs.lm_warm_starts = kScreenWarmStarts;
         // The core is fitted already: the starts keep it and spread the new effect's parameters
         // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
         if (method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
