@@ -27,8 +27,8 @@ class DiagnoseCommand final : public Command {
     cmd_->add_option("--json", dg_json, "write the result as JSON to this file");
     cmd_->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
     cmd_->add_option("--method", dg_method,
-                     "how each fit searches: ga (the paper's GA first) or lm (Levenberg-Marquardt from spread starts: faster, "
-                     "may miss an effect with several basins; docs/PERFORMANCE.md)")
+                     "how each fit searches: lm (Levenberg-Marquardt from starts around the current model, each round's best "
+                     "searched again by the GA) or ga (the paper's GA first for every fit: slower; docs/PERFORMANCE.md)")
         ->capture_default_str()
         ->check(CLI::IsMember({"lm", "ga"}));
     cmd_->add_flag("--no-probes", dg_no_probes, "do not try the probes when the catalogue leaves the error above the noise");
@@ -84,7 +84,7 @@ class DiagnoseCommand final : public Command {
   }
 
  private:
-  std::string dg_data, dg_val, dg_report, dg_json, dg_cands, dg_method = "ga";
+  std::string dg_data, dg_val, dg_report, dg_json, dg_cands, dg_method = "lm";
   bool dg_no_probes = false;
   diagnose::DiagnoseSettings ds;
 };

@@ -23,6 +23,17 @@ namespace {
 
 using io::fmt;
 
+// Candidates, pruning and probes are fitted on the screening record: the training record decimated by
+// the largest step that leaves at least this many samples (every k-th sample; a record of fewer than
+// twice as many is screened whole), so the whole record - all its levels and rates - is seen at a
+// fraction of the cost (the first samples alone missed the end stops of the 150 000-sample record in
+// docs/PERFORMANCE.md); a fit taken into the ladder is then refitted on all of it.
+constexpr size_t kScreenSamples = 12500;
+// A screening fit ranks the candidates to a percent (min_gain is 10 %), not to the last digit: its
+// Levenberg-Marquardt runs stop at this relative step; the fit taken into the ladder is refitted to
+// convergence on all the training data.
+constexpr double kScreenTolerance = 1e-5;
+
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -107,7 +118,27 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
                             [&](const std::string& c) { return model::makeEffect(c)->needsLoad() && !have_load; }),
              pool.end());
 
-  // Baseline: the reference model, full GA.
+  const size_t step = std::max<size_t>(1, train.size() / kScreenSamples);
+  const io::Measurement screen = step > 1 ? train.decimate(step) : train;
+  if (step > 1)
+    log("screening on every " + std::to_string(step) + "th training sample (" + std::to_string(screen.size()) +
+        " samples at " + fmt("%.4g", 1.0 / screen.Ts) + " Hz)");
+  // Refit on the whole training record, starting from a fit on the screening record: every parameter
+  // has a value to start from, so one Levenberg-Marquardt run from there, whatever the method.
+  auto refitOnAll = [&](const model::Model& m) {
+    ident::FitSettings ps = ident::FitSettings::forMethod(ident::FitMethod::MultiStart);
+    ps.ga.threads = threads;
+    ps.ga.seed = s.seed;
+    ps.lm_spread_starts = 0;
+    ps.lm_warm_starts = 0;
+    const auto rt = std::chrono::steady_clock::now();
+    auto f = ident::fit(m, train, ps, {}, &m);
+    log("  refitted on all " + std::to_string(train.size()) + " training samples: train " + fmt("%.5g", f.rmse) + " (" +
+        fmt("%.1f", seconds(rt)) + " s)");
+    return f;
+  };
+
+  // Baseline: the reference model, searched on the screening record and refitted on all of it.
   log("fitting the reference model (Bouc-Wen) on " + std::to_string(train.size()) + " samples ...");
   ident::FitSettings base = ident::FitSettings::forMethod(s.method);
   base.ga.seed = s.seed;
@@ -117,17 +148,14 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   base.ga.stall_generations = 20;
   if (s.method == ident::FitMethod::Ga) base.refine_evals = 300;
   auto bt = std::chrono::steady_clock::now();
-  const auto b = ident::fit(model::Model{}, train, base);
+  auto b = ident::fit(model::Model{}, screen, base);
+  if (step > 1) b = refitOnAll(b.model);
   Rung rung{{}, b.rmse, v.rmse(b.model), b.model, {}};
   res.ladder.push_back(rung);
   log("  reference model: RMSE train " + fmt("%.5g", rung.rmse_train) + ", validation " + fmt("%.5g", rung.rmse_val) +
       " (" + fmt("%.1f", seconds(bt)) + " s)");
   res.baseline_residual = analyze(train, simulate(b.model, train));
 
-  // Candidates are screened on at most kScreen training samples (the start of the record); the
-  // winner is then polished on all of it.
-  constexpr size_t kScreen = 50000;
-  const io::Measurement screen = train.size() > kScreen ? train.slice(0, kScreen) : train;
   std::string stop_reason = "the catalogue is exhausted";
   // Sensor noise of the training and validation outputs: below about 1.5x it nothing is left to explain.
   double noise = res.baseline_residual.noise_floor;
@@ -145,6 +173,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     std::vector<CandidateResult> results(names.size());
     std::atomic<size_t> next{0};
     std::mutex log_mu;
+    const int workers = std::min<int>(threads, static_cast<int>(names.size()));
     auto worker = [&] {
       for (size_t i = next++; i < names.size(); i = next++) {
         const auto ct = std::chrono::steady_clock::now();
@@ -153,9 +182,10 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         fs.ga.population = 32;
         fs.ga.max_generations = 30;
         fs.ga.stall_generations = 10;
-        fs.ga.threads = 1;
+        fs.ga.threads = std::max(1, threads / workers);  // a single fit gets every worker
         fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
-        fs.lm_iterations = 30;
+        fs.lm_iterations = 20;
+        fs.lm_tolerance = kScreenTolerance;
         // The core is fitted already: the starts keep it and spread the new effect's parameters
         // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
         if (method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
@@ -175,7 +205,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       }
     };
     std::vector<std::thread> ts;
-    for (int w = 0; w < std::min<int>(threads, static_cast<int>(names.size())); ++w) ts.emplace_back(worker);
+    for (int w = 0; w < workers; ++w) ts.emplace_back(worker);
     for (auto& t : ts) t.join();
     return results;
   };
@@ -230,6 +260,15 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         break;
       }
     }
+    if (s.method == ident::FitMethod::MultiStart) {
+      // Levenberg-Marquardt from a few starts can end in a wrong basin of the new effect (a mass-spring's
+      // frequency) where the GA, searching its whole range, does not: the round's best is searched
+      // again by the GA, and the better fit kept.
+      model::Model st = cur.model;
+      st.addEffect(results.front().effect);
+      const auto g = fitEach({st}, cur.model, {results.front().effect}, round, rr, "GA: ", ident::FitMethod::Ga);
+      if (g.front().rmse_val < results.front().rmse_val) results.front() = g.front();
+    }
     res.rounds.push_back(results);
     const auto& best = results.front();
     const double gain = 1.0 - best.rmse_val / cur.rmse_val;
@@ -245,17 +284,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     }
     Rung next_rung{cur.effects, best.rmse_train, best.rmse_val, best.model, {}};
     {
-      // Refit the winner properly on the whole training record (the screening fit was short).
-      ident::FitSettings ps = ident::FitSettings::forMethod(s.method);
-      ps.ga.population = 32;
-      ps.ga.max_generations = 40;
-      ps.ga.stall_generations = 12;
-      ps.ga.threads = threads;
-      ps.ga.seed = s.seed + static_cast<std::uint64_t>(round);
-      ps.lm_iterations = 40;
-      if (s.method == ident::FitMethod::MultiStart) ps.lm_spread_starts = 0;
-      if (s.method == ident::FitMethod::Ga) ps.refine_evals = 200;
-      const auto f = ident::fit(best.model, train, ps, {}, &best.model);
+      const auto f = refitOnAll(best.model);
       const double rv = v.rmse(f.model);
       if (rv <= best.rmse_val) next_rung = Rung{cur.effects, f.rmse, rv, f.model, {}};
     }

@@ -23,10 +23,10 @@ struct DiagnoseSettings {
   std::vector<std::string> candidates;  // empty: the whole catalogue
   std::uint64_t seed = 1;
   int threads = 0;           // 0: all cores
-  // How every fit is searched: the paper's GA first (default), or Levenberg-Marquardt from spread
-  // starts - about five times faster, but on the 150 000-sample emulator record it misses the
-  // saturation's knee that the GA finds (docs/PERFORMANCE.md).
-  ident::FitMethod method = ident::FitMethod::Ga;
+  // How every fit is searched: Levenberg-Marquardt from starts around the current model, each round's
+  // best searched again by the GA (default), or the paper's GA first for every fit - several times
+  // slower (docs/PERFORMANCE.md).
+  ident::FitMethod method = ident::FitMethod::MultiStart;
   // When the catalogue leaves the validated error above the noise, fit the probes (model/probe.hpp)
   // on top of the final model and report which kind of structure explains what is left.
   bool probes = true;

@@ -274,7 +274,7 @@ OptResult nelderMead(const CostFn& f, const std::vector<double>& x0, const std::
 
 OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<double>& x0,
                              const std::vector<double>& lo, const std::vector<double>& hi, int max_iterations,
-                             int threads, int worker) {
+                             int threads, int worker, double rel_tol) {
   std::vector<size_t> freeIdx;
   for (size_t i = 0; i < x0.size(); ++i)
     if (hi[i] > lo[i]) freeIdx.push_back(i);
@@ -375,7 +375,7 @@ OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<do
         c = cn;
         lambda = std::max(lambda / 3.0, 1e-9);
         improved = true;
-        if (rel < 1e-10) it = max_iterations;  // converged
+        if (rel < rel_tol) it = max_iterations;  // converged
         break;
       }
       lambda *= 4.0;

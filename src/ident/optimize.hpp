@@ -49,10 +49,10 @@ using ResidualFn = std::function<void(const std::vector<double>& x, std::vector<
 // Bounded Levenberg-Marquardt on sum(r^2)/n, Jacobian by finite differences in the unit box, its
 // columns computed on `threads` workers (0..threads-1). With threads = 1 every call of f is made as
 // `worker`, so that several runs can go on at once, each on its own worker's scratch space. Fixed
-// parameters (lo == hi) stay put.
+// parameters (lo == hi) stay put. It stops when a step lowers the cost by less than rel_tol of it.
 OptResult levenbergMarquardt(const ResidualFn& f, size_t n_residuals, const std::vector<double>& x0,
                              const std::vector<double>& lo, const std::vector<double>& hi, int max_iterations,
-                             int threads = 1, int worker = 0);
+                             int threads = 1, int worker = 0, double rel_tol = 1e-10);
 
 int defaultThreads();
 

@@ -67,6 +67,24 @@ Measurement Measurement::slice(size_t b, size_t e) const {
   return m;
 }
 
+Measurement Measurement::decimate(size_t step) const {
+  if (step == 0) throw std::invalid_argument("decimate: the step must be at least 1");
+  Measurement m;
+  m.source = source;
+  m.Ts = Ts * static_cast<double>(step);
+  auto pick = [&](const std::vector<double>& v) {
+    std::vector<double> r;
+    r.reserve(v.size() / step + 1);
+    for (size_t i = 0; i < v.size(); i += step) r.push_back(v[i]);
+    return r;
+  };
+  m.t = pick(t);
+  m.u = pick(u);
+  m.y = pick(y);
+  for (const auto& kv : extra) m.extra[kv.first] = pick(kv.second);
+  return m;
+}
+
 Measurement parseMeasurementCsv(const std::string& text, const std::string& src, std::vector<std::string>* warnings) {
   Measurement m;
   m.source = src;

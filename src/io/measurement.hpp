@@ -29,6 +29,9 @@ struct Measurement {
   }
   // Sub-range [begin, end) as a new measurement.
   Measurement slice(size_t begin, size_t end) const;
+  // Every `step`-th sample from the first (step >= 1), with the sampling step step * Ts: the whole
+  // record at a lower rate.
+  Measurement decimate(size_t step) const;
 };
 
 // Limits of the data a measurement may hold; the one place for them, enforced by parseMeasurementCsv.
