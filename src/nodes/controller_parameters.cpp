@@ -41,8 +41,17 @@ constexpr std::uint8_t sub(std::size_t i) { return static_cast<std::uint8_t>(i +
 
 // Ranges the application adds to the EDS limits: the divisors ESO delta, b0, gain, tau and the
 // bandwidth wo, and UKF R above 0.
+constexpr double control::ControllerConfig::*kGainDivisors[] = {
+    &control::ControllerConfig::delta, &control::ControllerConfig::b0, &control::ControllerConfig::eso_gain,
+    &control::ControllerConfig::eso_tau, &control::ControllerConfig::eso_wo};
+constexpr bool isGainDivisor(std::uint8_t s) {
+  if (s < 1 || s > std::size(kGains)) return false;
+  for (auto m : kGainDivisors)
+    if (kGains[s - 1] == m) return true;
+  return false;
+}
 std::uint32_t applicationRange(std::uint16_t idx, std::uint8_t s, double v) {
-  if (((idx == 0x2000 && s >= 7 && s <= 11) || (idx == 0x2002 && s == 5)) && !(v > 0.0))
+  if (((idx == 0x2000 && isGainDivisor(s)) || (idx == 0x2002 && s == 5)) && !(v > 0.0))
     return canopen::kAbortValueTooLow;
   return canopen::kSdoOk;
 }

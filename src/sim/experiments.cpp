@@ -45,7 +45,7 @@ const char* label(control::Kind k) {
 }
 
 // A run that starts away from home is scored from its first reach: the rise is not tracking.
-double scoredFrom(const Record& r, const ClosedLoopRun& run) { return std::isnan(run.home_mm) ? 0.0 : firstReach(r); }
+double scoredFrom(const Record& r, const ClosedLoopRun& run) { return run.startsAwayFromHome() ? firstReach(r) : 0.0; }
 
 // Each step of the reference (jumps of at least 1 mm) as its own block: time since the step and the
 // response in % of the jump (0 = where it started, 100 = the target), blocks separated by a blank line
@@ -251,7 +251,7 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     auto ctrl = control::makeController(kind, c);
     ClosedLoopRun rr = run;
     rr.delay_cycles = c.delay_cycles;
-    Record r = runClosedLoop(*ctrl, p, rr, inv(std::isnan(run.home_mm) ? run.reference.at(0.0) : run.home_mm));
+    Record r = runClosedLoop(*ctrl, p, rr, inv(run.home()));
     r.writeCsv(csv);
     return r;
   };
@@ -316,7 +316,7 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
       cases.push_back({"triangle_0.05Hz", r});
       const bool centre = s.sine_start == SineStart::Centre;
       const double phase = centre ? M_PI / 2 : 0.0;
-      if (centre) r.home_mm = 0.2;  // parked where the triangle starts: the bottom of every trajectory
+      if (centre) r.home_mm = r.reference.at(0.0);  // parked where the triangle starts: the bottom of the range
       r.reference = Trajectory::sineDescending(0.05, 15.1, 14.9, 3.0, 60.0, phase);
       r.duration_s = 60.0;
       cases.push_back({"sine_0.05Hz", r});
@@ -359,7 +359,7 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
         const Record r = runWith(control::Kind::OpenLoop, linear, c.run, dir + c.tag + "_open_linear.csv");
         const auto st = tracking(r, scoredFrom(r, c.run));
         txt << "  | " << fmt("%6.3f", st.max_abs) << "/" << fmt("%-6.4f", st.rmse);
-        row["open_linear"] = {{"max", st.max_abs}, {"rmse", st.rmse}};
+        row["open_linear"] = {{"max", st.max_abs}, {"rmse", st.rmse}, {"scored_from_s", scoredFrom(r, c.run)}};
       }
       txt << "\n";
       t2[c.tag] = row;

@@ -40,7 +40,7 @@ void Lockstep::start() {
   ctrl_.activate(u0_, plant_.measure());
   pipe_.fill(u0_);
   k_ = 0;
-  const double y_home = std::isnan(run_.home_mm) ? run_.reference.at(0.0) : run_.home_mm;
+  const double y_home = run_.home();
   const auto n_pre = static_cast<size_t>(std::llround(std::max(run_.preroll_s, 0.0) / Ts_));
   for (size_t k = 0; k < n_pre; ++k) {
     const auto o = ctrl_.update(y_home, y_home, plant_.measure());

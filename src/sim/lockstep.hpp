@@ -38,6 +38,8 @@ struct ClosedLoopRun {
   // The position held in the pre-roll; NaN: the first setpoint. Elsewhere, the run starts with a jump
   // from there to the first setpoint, as when a trajectory is started on a muscle parked at home.
   double home_mm = NAN;
+  double home() const { return std::isnan(home_mm) ? reference.at(0.0) : home_mm; }
+  bool startsAwayFromHome() const { return !std::isnan(home_mm); }
 };
 
 // The closed loop declared once and then stepped. The constructor takes the controller, the plant

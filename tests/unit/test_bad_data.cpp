@@ -132,8 +132,8 @@ control::ControllerConfig controllerConfig(const Spec& s) {
   control::ControllerConfig c;
   c.ki = s.ki;
   // ki 0.15 is the paper's gain set as printed; its ESO is the printed one too. (The first-order ESO,
-  // fitted with ki 1.3, comes back from a valve or a stuck-sensor fault with ki 0.15 in up to 11.4 s and
-  // 8.8 s, above the bounds of 11 s and 6 s: docs/RELIABILITY.md.)
+  // fitted with ki 1.3, comes back from a valve or a stuck-sensor fault with ki 0.15 more slowly than
+  // backBound() allows: docs/RELIABILITY.md.)
   if (s.ki < 1.0) c.eso_order = 2;
   const auto truth = plant::PlantConfig::defaults().truth;
   c.model = s.full_model ? truth : model::Model(truth.core());
