@@ -23,8 +23,10 @@ namespace {
 
 const std::string kOd = std::string(PAMC_SOURCE_DIR) + "/od/";
 
+// In the temporary directory, named after the test too: ctest runs the tests of this file at once.
 std::string writeTemp(const std::string& name, const std::string& text) {
-  const std::string path = ::testing::TempDir() + name;
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const std::string path = ::testing::TempDir() + info->test_suite_name() + "." + info->name() + "." + name;
   std::ofstream(path) << text;
   return path;
 }
