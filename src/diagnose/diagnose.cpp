@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -33,6 +34,13 @@ constexpr size_t kScreenSamples = 12500;
 // Levenberg-Marquardt runs stop at this relative step; the fit taken into the ladder is refitted to
 // convergence on all the training data.
 constexpr double kScreenTolerance = 1e-5;
+// How hard a candidate or probe is searched. Quick: Levenberg-Marquardt from the current model and
+// kQuickStarts starts spread over the new structure's parameters, no Nelder-Mead polish - enough to
+// rank. Full: the fit's own number of starts and the polish. Every candidate and probe is searched
+// quickly; the kFullSearches best of them are searched in full, and the better fit is kept.
+enum class Search { Quick, Full };
+constexpr int kQuickStarts = 3;
+constexpr size_t kFullSearches = 2;
 
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -131,6 +139,8 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     ps.ga.seed = s.seed;
     ps.lm_spread_starts = 0;
     ps.lm_warm_starts = 0;
+    // The screening fit was polished by Nelder-Mead; on all samples Levenberg-Marquardt alone moves it.
+    ps.refine_evals = 0;
     const auto rt = std::chrono::steady_clock::now();
     auto f = ident::fit(m, train, ps, {}, &m);
     log("  refitted on all " + std::to_string(train.size()) + " training samples: train " + fmt("%.5g", f.rmse) + " (" +
@@ -150,7 +160,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   auto bt = std::chrono::steady_clock::now();
   auto b = ident::fit(model::Model{}, screen, base);
   if (step > 1) b = refitOnAll(b.model);
-  Rung rung{{}, b.rmse, v.rmse(b.model), b.model, {}};
+  Rung rung{{}, b.rmse, v.rmse(b.model), b.model, {}, {}};
   res.ladder.push_back(rung);
   log("  reference model: RMSE train " + fmt("%.5g", rung.rmse_train) + ", validation " + fmt("%.5g", rung.rmse_val) +
       " (" + fmt("%.1f", seconds(bt)) + " s)");
@@ -169,7 +179,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   // (structures[i] is labelled names[i]); in parallel, one fit per worker.
   auto fitEach = [&](const std::vector<model::Model>& structures, const model::Model& base_model,
                      const std::vector<std::string>& names, int round, const ResidualReport& rr, const std::string& tag,
-                     ident::FitMethod method) {
+                     ident::FitMethod method, Search search = Search::Full) {
     std::vector<CandidateResult> results(names.size());
     std::atomic<size_t> next{0};
     std::mutex log_mu;
@@ -190,6 +200,14 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
         if (method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
         if (method == ident::FitMethod::Ga) fs.refine_evals = 200;
+        if (search == Search::Quick) {
+          fs.lm_warm_starts = kQuickStarts;
+          fs.lm_keep = 1;
+          fs.refine_evals = 0;
+        }
+        // The GA's second opinion on a round's best (method lm) searches the new effect's ranges
+        // itself: no Levenberg-Marquardt starts spread over the whole box after it.
+        if (method == ident::FitMethod::Ga && s.method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
         const auto f = ident::fit(structure, screen, fs, {}, &base_model);
         CandidateResult& c = results[i];
         c.effect = names[i];
@@ -211,13 +229,32 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   };
   // Each name added to base_model.
   auto fitOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
-                      const ResidualReport& rr, const std::string& tag, ident::FitMethod method) {
+                      const ResidualReport& rr, const std::string& tag, ident::FitMethod method,
+                      Search search = Search::Full) {
     std::vector<model::Model> structures;
     for (const auto& n : names) {
       structures.push_back(base_model);
       structures.back().addEffect(n);
     }
-    return fitEach(structures, base_model, names, round, rr, tag, method);
+    return fitEach(structures, base_model, names, round, rr, tag, method, search);
+  };
+  // Every name on top of base_model searched quickly, the kFullSearches best (by validated RMSE) again
+  // in full; the better fit of each kept, best first. With the GA every fit is a full search.
+  auto searchOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
+                         const ResidualReport& rr, const std::string& tag, ident::FitMethod method) {
+    const bool staged = method == ident::FitMethod::MultiStart && names.size() > kFullSearches;
+    auto results = fitOnTop(base_model, names, round, rr, tag, method, staged ? Search::Quick : Search::Full);
+    const auto byVal = [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; };
+    std::stable_sort(results.begin(), results.end(), byVal);
+    if (staged) {
+      std::vector<std::string> top;
+      for (size_t i = 0; i < kFullSearches; ++i) top.push_back(results[i].effect);
+      const auto full = fitOnTop(base_model, top, round, rr, "full: " + tag, method, Search::Full);
+      for (size_t i = 0; i < full.size(); ++i)
+        if (full[i].rmse_val < results[i].rmse_val) results[i] = full[i];
+      std::stable_sort(results.begin(), results.end(), byVal);
+    }
+    return results;
   };
   for (int round = 1; round <= s.max_effects; ++round) {
     const Rung cur = res.ladder.back();  // a copy: the ladder grows below
@@ -245,9 +282,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     const ResidualReport rr = round == 1 ? res.baseline_residual : analyze(train, simulate(cur.model, train));
     log("round " + std::to_string(round) + ": trying " + std::to_string(todo.size()) + " effects on top of " +
         join(cur.effects));
-    std::vector<CandidateResult> results = fitOnTop(cur.model, todo, round, rr, "", s.method);
-    std::stable_sort(results.begin(), results.end(),
-                     [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
+    std::vector<CandidateResult> results = searchOnTop(cur.model, todo, round, rr, "", s.method);
     // An effect that holds its alternative as a special case (force_loop is mass_spring with friction
     // in the force balance) goes before it only when what it adds lowers the validated RMSE by
     // min_gain too, as any effect must to be added; otherwise it ranks right behind the alternative.
@@ -282,11 +317,11 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
                              : "no candidate lowers the validated RMSE";
       break;
     }
-    Rung next_rung{cur.effects, best.rmse_train, best.rmse_val, best.model, {}};
+    Rung next_rung{cur.effects, best.rmse_train, best.rmse_val, best.model, {}, {}};
     {
       const auto f = refitOnAll(best.model);
       const double rv = v.rmse(f.model);
-      if (rv <= best.rmse_val) next_rung = Rung{cur.effects, f.rmse, rv, f.model, {}};
+      if (rv <= best.rmse_val) next_rung = Rung{cur.effects, f.rmse, rv, f.model, {}, {}};
     }
     next_rung.effects.push_back(best.effect);
     res.ladder.push_back(next_rung);
@@ -295,32 +330,52 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     if (round == s.max_effects) stop_reason = "the limit of " + std::to_string(s.max_effects) + " effects was reached";
   }
   // Pruning: an effect taken early can lose its use once later ones are in (a mass-spring standing in
-  // for a pressure lag that was not yet there). Each effect is taken out in turn and the rest refitted;
-  // the removal that costs least is kept while the validated error rises by less than a quarter of
-  // min_gain (or stays at the noise).
-  while (res.ladder.back().effects.size() >= 2) {
+  // for a pressure lag that was not yet there). Each effect is taken out in turn and the rest refitted,
+  // and an effect that holds a simpler one as a special case (Effect::alternativeTo: force_loop is
+  // mass_spring with friction) is replaced by it. The removal that costs least is kept while the
+  // validated error rises by less than a quarter of min_gain (or stays at the noise); failing that, the
+  // replacement that costs least on the same terms.
+  while (!res.ladder.back().effects.empty()) {
     const Rung cur = res.ladder.back();
     std::vector<model::Model> structures;
-    for (const auto& out : cur.effects) {
+    std::vector<std::string> labels, out, in;
+    auto structure = [&](const std::string& drop, const char* put) {
       model::Model m(cur.model.core());
-      for (const auto& e : cur.effects)
-        if (e != out) m.addEffect(e);
+      for (const auto& e : cur.effects) {
+        if (e != drop) m.addEffect(e);
+        else if (put) m.addEffect(put);
+      }
       structures.push_back(std::move(m));
-    }
+      out.push_back(drop);
+      in.emplace_back(put ? put : "");
+      labels.push_back(put ? drop + " -> " + put : "without " + drop);
+    };
+    if (cur.effects.size() >= 2)
+      for (const auto& e : cur.effects) structure(e, nullptr);
+    for (const auto& e : cur.effects)
+      if (const char* alt = model::makeEffect(e)->alternativeTo()) structure(e, alt);
+    if (structures.empty()) break;
     log("pruning: is every effect of " + join(cur.effects) + " still needed?");
     // Every parameter has a value to start from: Levenberg-Marquardt from there, whatever the method.
-    auto fits = fitEach(structures, cur.model, cur.effects, s.max_effects + 2, res.baseline_residual, "without ",
+    auto fits = fitEach(structures, cur.model, labels, s.max_effects + 2, res.baseline_residual, "",
                         ident::FitMethod::MultiStart);
-    size_t best = 0;
-    for (size_t i = 1; i < fits.size(); ++i)
-      if (fits[i].rmse_val < fits[best].rmse_val) best = i;
+    const auto acceptable = [&](double rv) { return rv <= cur.rmse_val * (1.0 + s.min_gain / 4.0) || rv < 1.2 * noise; };
+    size_t best = fits.size();
+    for (int pass = 0; pass < 2 && best == fits.size(); ++pass)  // removals first, then replacements
+      for (size_t i = 0; i < fits.size(); ++i)
+        if (in[i].empty() == (pass == 0) && acceptable(fits[i].rmse_val) &&
+            (best == fits.size() || fits[i].rmse_val < fits[best].rmse_val))
+          best = i;
+    if (best == fits.size()) break;
     const double rv = fits[best].rmse_val;
-    if (!(rv <= cur.rmse_val * (1.0 + s.min_gain / 4.0) || rv < 1.2 * noise)) break;
-    Rung pruned{{}, fits[best].rmse_train, rv, fits[best].model, {}};
+    Rung pruned{{}, fits[best].rmse_train, rv, fits[best].model, {}, {}};
     for (const auto& e : cur.effects)
-      if (e != cur.effects[best]) pruned.effects.push_back(e);
-    pruned.removed = cur.effects[best];
-    log("  -> removed " + pruned.removed + ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " + fmt("%.5g", rv));
+      if (e != out[best]) pruned.effects.push_back(e);
+      else if (!in[best].empty()) pruned.effects.push_back(in[best]);
+    pruned.removed = out[best];
+    pruned.replaced_by = in[best];
+    log("  -> " + (in[best].empty() ? "removed " + out[best] : "replaced " + out[best] + " by " + in[best]) +
+        ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " + fmt("%.5g", rv));
     res.ladder.push_back(std::move(pruned));
   }
   const Rung& fin = res.ladder.back();
@@ -333,8 +388,8 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
     // A probe says what kind of structure is missing, it is not a model: LM from starts spread over its
     // parameters (lm_warm_starts) around the final model, whatever the method.
-    const auto fits = fitOnTop(fin.model, names, s.max_effects + 1, res.final_residual, "probe ",
-                               ident::FitMethod::MultiStart);
+    const auto fits = searchOnTop(fin.model, names, s.max_effects + 1, res.final_residual, "probe ",
+                                  ident::FitMethod::MultiStart);
     for (const auto& c : fits) {
       ProbeResult p;
       p.probe = c.effect;
@@ -354,10 +409,15 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   if (res.ladder.size() == 1) {
     v_text = "No effect in the catalogue explains the residual: " + stop_reason + ".";
   } else {
-    std::string removed;
+    std::string removed, replaced;
     for (const auto& g : res.ladder)
-      if (!g.removed.empty()) removed += (removed.empty() ? "" : ", ") + g.removed;
-    v_text = "Added " + join(fin.effects) + (removed.empty() ? "" : " (" + removed + " taken out again: no longer needed)") +
+      if (g.removed.empty()) continue;
+      else if (g.replaced_by.empty()) removed += (removed.empty() ? "" : ", ") + g.removed;
+      else replaced += (replaced.empty() ? "" : ", ") + g.removed + " by " + g.replaced_by;
+    std::string notes;
+    if (!removed.empty()) notes += removed + " taken out again: no longer needed";
+    if (!replaced.empty()) notes += (notes.empty() ? "" : "; ") + replaced + " replaced: the simpler form is enough";
+    v_text = "Added " + join(fin.effects) + (notes.empty() ? "" : " (" + notes + ")") +
              ": validated RMSE " + fmt("%.4g", res.ladder.front().rmse_val) + " -> " +
              fmt("%.4g", fin.rmse_val) + " (" + fmt("%.1f", res.ladder.front().rmse_val / std::max(fin.rmse_val, 1e-300)) +
              "x lower). Stopped: " + stop_reason + ".";
@@ -401,6 +461,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
   {
     l.push_back({{"effects", g.effects}, {"rmse_train", g.rmse_train}, {"rmse_val", g.rmse_val}, {"probe", false}});
     if (!g.removed.empty()) l.back()["removed"] = g.removed;
+    if (!g.replaced_by.empty()) l.back()["replaced_by"] = g.replaced_by;
   }
   if (r.probe_rung) {
     auto e = r.ladder.back().effects;

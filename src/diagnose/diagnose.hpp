@@ -46,6 +46,7 @@ struct Rung {
   double rmse_train = 0, rmse_val = 0;
   model::Model model;
   std::string removed;  // a pruning rung: the effect taken out of the previous rung
+  std::string replaced_by;  // ... and, if not empty, the simpler alternative put in its place
 };
 
 // A probe fitted on top of the final physical model.

@@ -312,9 +312,10 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
         if (l.cost < best.cost) best = l;
       return best;
     };
-    OptResult best_l = group(starts, 2);
+    const auto keep = static_cast<std::size_t>(std::max(1, s.lm_keep));
+    OptResult best_l = group(starts, keep);
     if (!spread.empty()) {
-      const OptResult far = group(spread, 2);
+      const OptResult far = group(spread, keep);
       // Without a GA the spread starts are the search itself, not a second opinion.
       if (far.cost < (use_ga ? 0.9 : 1.0) * best_l.cost) best_l = far;
     }

@@ -38,6 +38,8 @@ struct FitSettings {
   // With a start model: LM also from this many points that keep it and spread the parameters of the
   // effects it lacks over their ranges (Latin hypercube).
   int lm_warm_starts = 4;
+  // Of each group of starts, this many of the short runs (the best) go on to the end.
+  int lm_keep = 2;
 
   // The defaults of a method: the GA's as above; the multi-start method with fewer spread starts
   // (6), more starts around a start model (8) and a shorter Nelder-Mead polish (100, none for the plain core), which on the benchmark records reach the GA's error

@@ -311,6 +311,7 @@ OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<do
   }
   threads = std::max(1, std::min(threads, n));
   std::vector<std::vector<double>> cols(static_cast<size_t>(n), std::vector<double>(m));
+  Eigen::MatrixXd J(static_cast<Eigen::Index>(m), n);  // the Jacobian, column k = d r / d g_k
   double lambda = 1e-3;
   for (int it = 0; it < max_iterations; ++it) {
     ++res.iterations;
@@ -335,25 +336,19 @@ OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<do
       for (auto& t : ts) t.join();
     }
     res.evaluations += n;
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-    for (int a = 0; a < n; ++a) {
-      auto& ca = cols[static_cast<size_t>(a)];
-      const double sa = steps[static_cast<size_t>(a)];
-      for (size_t i = 0; i < m; ++i) ca[i] = (ca[i] - r[i]) / sa;  // now the derivative
-    }
+    // The derivatives into one column-major matrix, then the normal equations by Eigen's blocked,
+    // vectorised products (a scalar loop per pair of columns cost as much as the simulations).
     for (int a = 0; a < n; ++a) {
       const auto& ca = cols[static_cast<size_t>(a)];
-      double sb = 0;
-      for (size_t i = 0; i < m; ++i) sb += ca[i] * r[i];
-      b(a) = sb;
-      for (int q = a; q < n; ++q) {
-        const auto& cq = cols[static_cast<size_t>(q)];
-        double s = 0;
-        for (size_t i = 0; i < m; ++i) s += ca[i] * cq[i];
-        A(a, q) = A(q, a) = s;
-      }
+      const double sa = steps[static_cast<size_t>(a)];
+      double* ja = J.col(a).data();
+      for (size_t i = 0; i < m; ++i) ja[i] = (ca[i] - r[i]) / sa;
     }
+    const Eigen::Map<const Eigen::VectorXd> rv(r.data(), static_cast<Eigen::Index>(m));
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+    A.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
+    A.triangularView<Eigen::StrictlyUpper>() = A.transpose();
+    const Eigen::VectorXd b = J.transpose() * rv;
     if (!A.allFinite() || !b.allFinite()) break;
     bool improved = false;
     for (int tries = 0; tries < 12; ++tries) {

@@ -37,11 +37,15 @@ inline double boucWenOutput(const BoucWenParams& p, double u, double h) noexcept
 }
 
 namespace detail {
-// (1 - exp(-c v)) / c, the factor of the exact step below (v for c = 0). Below |c v| = 1e-2 its
-// series to (c v)^3 is within 1e-10 relative and costs no exp.
+// (1 - exp(-c v)) / c, the factor of the exact step below (v for c = 0). Below |c v| = 0.25 its
+// series to (c v)^8 is within 2e-12 relative and costs no exp (a record sampled at 100 Hz moves by
+// more than 1e-2 V per sample, and expm1 was then a sixth of a fit's time).
 inline double boucWenTravel(double c, double v) noexcept {
   const double y = c * v;
-  return std::fabs(y) < 1e-2 ? v * (1.0 - y * (1.0 / 2 - y * (1.0 / 6 - y * (1.0 / 24)))) : -std::expm1(-y) / c;
+  if (!(std::fabs(y) < 0.25)) return -std::expm1(-y) / c;
+  constexpr double k2 = 1.0 / 2, k3 = 1.0 / 6, k4 = 1.0 / 24, k5 = 1.0 / 120, k6 = 1.0 / 720, k7 = 1.0 / 5040,
+                   k8 = 1.0 / 40320, k9 = 1.0 / 362880;
+  return v * (1.0 - y * (k2 - y * (k3 - y * (k4 - y * (k5 - y * (k6 - y * (k7 - y * (k8 - y * k9))))))));
 }
 
 // Side of h = 0 whose equation applies; at h = 0 the side that the flow (a) enters.
