@@ -39,7 +39,8 @@ constexpr double kScreenTolerance = 1e-5;
 // rank. Full: the fit's own number of starts and the polish. Every candidate and probe is searched
 // quickly; the kFullSearches best of them are searched in full, and the better fit is kept.
 enum class Search { Quick, Full };
-constexpr int kQuickStarts = 3;
+constexpr int kQuickStarts = 2;
+constexpr int kQuickIterations = 12;
 constexpr size_t kFullSearches = 2;
 
 double seconds(std::chrono::steady_clock::time_point t0) {
@@ -202,6 +203,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         if (method == ident::FitMethod::Ga) fs.refine_evals = 200;
         if (search == Search::Quick) {
           fs.lm_warm_starts = kQuickStarts;
+          fs.lm_iterations = kQuickIterations;
           fs.lm_keep = 1;
           fs.refine_evals = 0;
         }

@@ -6,6 +6,8 @@
 #include <numeric>
 #include <sstream>
 
+#include <Eigen/Core>
+
 #include "io/text.hpp"
 
 namespace pamc::diagnose {
@@ -18,20 +20,19 @@ double rms(const std::vector<double>& v) {
   return v.empty() ? 0 : std::sqrt(s / static_cast<double>(v.size()));
 }
 
+// Correlation of a[0..n) and b[0..n).
+double corr(const double* a, const double* b, size_t n) {
+  if (n <= 2) return 0;
+  const auto N = static_cast<Eigen::Index>(n);
+  const Eigen::Map<const Eigen::ArrayXd> A(a, N), B(b, N);
+  const Eigen::ArrayXd ac = A - A.mean(), bc = B - B.mean();
+  const double sab = (ac * bc).sum(), saa = ac.square().sum(), sbb = bc.square().sum();
+  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
+
 double corr(const std::vector<double>& a, const std::vector<double>& b, size_t from = 0) {
   const size_t n = std::min(a.size(), b.size());
-  if (n <= from + 2) return 0;
-  double ma = 0, mb = 0;
-  for (size_t i = from; i < n; ++i) ma += a[i], mb += b[i];
-  ma /= static_cast<double>(n - from);
-  mb /= static_cast<double>(n - from);
-  double sab = 0, saa = 0, sbb = 0;
-  for (size_t i = from; i < n; ++i) {
-    sab += (a[i] - ma) * (b[i] - mb);
-    saa += (a[i] - ma) * (a[i] - ma);
-    sbb += (b[i] - mb) * (b[i] - mb);
-  }
-  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
+  return n <= from ? 0.0 : corr(a.data() + from, b.data() + from, n - from);
 }
 
 std::vector<double> quantiles(std::vector<double> v, std::initializer_list<double> qs) {
@@ -176,31 +177,21 @@ ResidualReport analyze(const io::Measurement& d, const std::vector<double>& yhat
   r.max_lag = static_cast<int>(std::min<size_t>(n / 4, 250));
   r.lag_step_s = Ts;
   {
-    const double e0 = std::inner_product(e.begin(), e.end(), e.begin(), 0.0);
-    const double em = r.mean;
-    double v0 = 0;
-    for (double x : e) v0 += (x - em) * (x - em);
+    // Each lag's sum as one vectorised product over the overlap of the centred series.
+    const auto N = static_cast<Eigen::Index>(n);
+    const Eigen::VectorXd ec = Eigen::Map<const Eigen::VectorXd>(e.data(), N).array() - r.mean;
+    const Eigen::Map<const Eigen::VectorXd> dv(du.data(), N);
+    const Eigen::VectorXd dc = dv.array() - dv.mean();
+    const double v0 = ec.squaredNorm(), vd = dc.squaredNorm();
     r.acf.resize(static_cast<size_t>(r.max_lag) + 1);
-    for (int L = 0; L <= r.max_lag; ++L) {
-      double s = 0;
-      for (size_t i = static_cast<size_t>(L); i < n; ++i) s += (e[i] - em) * (e[i - static_cast<size_t>(L)] - em);
-      r.acf[static_cast<size_t>(L)] = v0 > 0 ? s / v0 : 0;
-    }
-    (void)e0;
-    double dm = 0;
-    for (double x : du) dm += x;
-    dm /= static_cast<double>(n);
-    double vd = 0;
-    for (double x : du) vd += (x - dm) * (x - dm);
+    for (int L = 0; L <= r.max_lag; ++L)
+      r.acf[static_cast<size_t>(L)] = v0 > 0 ? ec.tail(N - L).dot(ec.head(N - L)) / v0 : 0;
+    // corr(e(i), du(i - L)): for L >= 0 the pairs (i, i - L), i >= L; for L < 0, i < n + L.
     r.ccf_du.resize(2 * static_cast<size_t>(r.max_lag) + 1);
     for (int L = -r.max_lag; L <= r.max_lag; ++L) {
-      double s = 0;
-      for (size_t i = 0; i < n; ++i) {
-        const long j = static_cast<long>(i) - L;
-        if (j < 0 || j >= static_cast<long>(n)) continue;
-        s += (e[i] - em) * (du[static_cast<size_t>(j)] - dm);
-      }
-      r.ccf_du[static_cast<size_t>(L + r.max_lag)] = v0 > 0 && vd > 0 ? s / std::sqrt(v0 * vd) : 0;
+      const Eigen::Index m = N - std::abs(L);
+      const double sum = L >= 0 ? ec.tail(m).dot(dc.head(m)) : ec.head(m).dot(dc.tail(m));
+      r.ccf_du[static_cast<size_t>(L + r.max_lag)] = v0 > 0 && vd > 0 ? sum / std::sqrt(v0 * vd) : 0;
     }
   }
 
@@ -264,14 +255,11 @@ ResidualReport analyze(const io::Measurement& d, const std::vector<double>& yhat
     int at = 0;
     const int maxs = static_cast<int>(std::min<size_t>(n / 4, 250));
     for (int s = 0; s <= maxs; s += std::max(1, maxs / 100)) {
-      std::vector<double> a(d.y.begin() + s, d.y.begin() + static_cast<long>(n));
-      std::vector<double> b(yhat.begin(), yhat.begin() + static_cast<long>(n) - s);
-      const double c = corr(a, b);
+      const double c = corr(d.y.data() + s, yhat.data(), n - static_cast<size_t>(s));
       if (c > best) best = c, at = s;
     }
     r.ind["best_shift_s"] = at * Ts;
-    std::vector<double> a0(d.y.begin(), d.y.begin() + static_cast<long>(n));
-    r.ind["shift_gain"] = best - corr(a0, yhat);
+    r.ind["shift_gain"] = best - corr(d.y.data(), yhat.data(), n);
   }
   return r;
 }

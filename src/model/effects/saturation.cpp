@@ -29,7 +29,10 @@ class Saturation final : public Effect {
     // at knee + width.
     if (in <= p[0]) return in;
     const double w = p[1] > 1e-9 ? p[1] : 1e-9;
-    return p[0] + w * std::tanh((in - p[0]) / w);
+    // tanh(x) = (1 - e^-2x) / (1 + e^-2x) for x > 0: one exp (glibc's tanh, through expm1, took a
+    // sixth of a fit's time); exact to rounding in the displacement (knee + w tanh).
+    const double q = std::exp(-2.0 * (in - p[0]) / w);
+    return p[0] + w * ((1.0 - q) / (1.0 + q));
   }
 };
 
