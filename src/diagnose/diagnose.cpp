@@ -7,7 +7,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -42,6 +41,10 @@ enum class Search { Quick, Full };
 constexpr int kQuickStarts = 2;
 constexpr int kQuickIterations = 12;
 constexpr size_t kFullSearches = 2;
+
+// A validated error below this multiple of the sensor noise leaves nothing to explain: the ladder
+// stops adding effects and the probes are not run.
+constexpr double kAtNoise = 1.5;
 
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -168,7 +171,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   res.baseline_residual = analyze(train, simulate(b.model, train));
 
   std::string stop_reason = "the catalogue is exhausted";
-  // Sensor noise of the training and validation outputs: below about 1.5x it nothing is left to explain.
+  // Sensor noise of the training and validation outputs: below kAtNoise times it nothing is left to explain.
   double noise = res.baseline_residual.noise_floor;
   {
     io::Measurement vv = v.data->slice(v.from, v.data->size());
@@ -262,7 +265,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     const Rung cur = res.ladder.back();  // a copy: the ladder grows below
     // At the noise level nothing is left to explain; the first round still runs, so the candidates
     // and their evidence are reported.
-    const bool at_noise = cur.rmse_val < 1.5 * noise;
+    const bool at_noise = cur.rmse_val < kAtNoise * noise;
     if (at_noise && round > 1) {
       stop_reason = "the validated error is at the sensor noise level (" + fmt("%.3g", noise) + " rms)";
       break;
@@ -384,7 +387,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   res.final_residual = analyze(train, simulate(fin.model, train));
   // Probes: when the catalogue leaves the validated error above the noise, which kind of structure
   // explains what is left, and where.
-  if (s.probes && !(fin.rmse_val < 1.5 * noise)) {
+  if (s.probes && !(fin.rmse_val < kAtNoise * noise)) {
     std::vector<std::string> names;
     for (const auto& p : model::probes()) names.emplace_back(p.name);
     log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
@@ -532,6 +535,9 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
     io::writeCsvAtomic(p + "acf_" + name + ".csv", {"lag_s", "acf", "upper", "lower"}, {&lag, &acf, &up, &dn});
     io::writeCsvAtomic(p + "ccf_" + name + ".csv", {"lag_s", "ccf", "upper", "lower"}, {&clag, &ccf, &cup, &cdn});
   }
+  // A folder used before keeps no probe table or chart that this diagnosis did not make.
+  if (r.probes.empty())
+    for (const char* f : {"probes.csv", "probes.png"}) std::remove((p + f).c_str());
   if (!r.probes.empty()) {
     // Probes: how much of what the final model leaves each explains (percent of the validated MSE).
     std::string t = "probe,explains_pct,rmse_val,regime\n";

@@ -106,5 +106,13 @@ check "rig --faults --controller pi runs PI" grep -q "in-process bus, pi," "$wor
 "$PAMC" rig --od "$SRC/od" --faults --only sensor-silent-short > /dev/null 2> "$work/faults_err2.txt"
 check "rig --faults without --controller runs the fault table's AMC" grep -q "in-process bus, amc," "$work/faults_err2.txt"
 
+# A report folder used before keeps no probe table or chart the new diagnosis did not make.
+"$PAMC" emulate --input random:1:-3:3 --duration 6 --out "$work/dg.csv" > /dev/null 2>&1
+mkdir -p "$work/rep" && touch "$work/rep/probes.png" "$work/rep/probes.csv"
+"$PAMC" diagnose "$work/dg.csv" --candidates pressure_lag --max-effects 1 --no-probes --report "$work/rep" > /dev/null 2>&1
+check "diagnose --report writes its files" test -s "$work/rep/diagnosis.json"
+check "diagnose --report leaves no stale probe chart" test ! -e "$work/rep/probes.png"
+check "diagnose --report leaves no stale probe table" test ! -e "$work/rep/probes.csv"
+
 echo "$passes passed, $fails failed"
 test $fails -eq 0
