@@ -36,11 +36,13 @@ constexpr double kScreenTolerance = 1e-5;
 // How hard a candidate or probe is searched. Quick: Levenberg-Marquardt from the current model and
 // kQuickStarts starts spread over the new structure's parameters, no Nelder-Mead polish - enough to
 // rank. Full: the fit's own number of starts and the polish. Every candidate and probe is searched
-// quickly; the kFullSearches best of them are searched in full, and the better fit is kept.
+// quickly; the best of them are searched in full (kFullSearches candidates - the ladder is built from
+// them - and kFullProbes probes), and the better fit is kept.
 enum class Search { Quick, Full };
 constexpr int kQuickStarts = 2;
 constexpr int kQuickIterations = 12;
 constexpr size_t kFullSearches = 2;
+constexpr size_t kFullProbes = 1;
 
 // A validated error below this multiple of the sensor noise leaves nothing to explain: the ladder
 // stops adding effects and the probes are not run.
@@ -243,17 +245,17 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     }
     return fitEach(structures, base_model, names, round, rr, tag, method, search);
   };
-  // Every name on top of base_model searched quickly, the kFullSearches best (by validated RMSE) again
+  // Every name on top of base_model searched quickly, the `full` best (by validated RMSE) again
   // in full; the better fit of each kept, best first. With the GA every fit is a full search.
   auto searchOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
-                         const ResidualReport& rr, const std::string& tag, ident::FitMethod method) {
-    const bool staged = method == ident::FitMethod::MultiStart && names.size() > kFullSearches;
+                         const ResidualReport& rr, const std::string& tag, ident::FitMethod method, size_t full_n) {
+    const bool staged = method == ident::FitMethod::MultiStart && names.size() > full_n;
     auto results = fitOnTop(base_model, names, round, rr, tag, method, staged ? Search::Quick : Search::Full);
     const auto byVal = [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; };
     std::stable_sort(results.begin(), results.end(), byVal);
     if (staged) {
       std::vector<std::string> top;
-      for (size_t i = 0; i < kFullSearches; ++i) top.push_back(results[i].effect);
+      for (size_t i = 0; i < full_n; ++i) top.push_back(results[i].effect);
       const auto full = fitOnTop(base_model, top, round, rr, "full: " + tag, method, Search::Full);
       for (size_t i = 0; i < full.size(); ++i)
         if (full[i].rmse_val < results[i].rmse_val) results[i] = full[i];
@@ -287,7 +289,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     const ResidualReport rr = round == 1 ? res.baseline_residual : analyze(train, simulate(cur.model, train));
     log("round " + std::to_string(round) + ": trying " + std::to_string(todo.size()) + " effects on top of " +
         join(cur.effects));
-    std::vector<CandidateResult> results = searchOnTop(cur.model, todo, round, rr, "", s.method);
+    std::vector<CandidateResult> results = searchOnTop(cur.model, todo, round, rr, "", s.method, kFullSearches);
     // An effect that holds its alternative as a special case (force_loop is mass_spring with friction
     // in the force balance) goes before it only when what it adds lowers the validated RMSE by
     // min_gain too, as any effect must to be added; otherwise it ranks right behind the alternative.
@@ -394,7 +396,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     // A probe says what kind of structure is missing, it is not a model: LM from starts spread over its
     // parameters (lm_warm_starts) around the final model, whatever the method.
     const auto fits = searchOnTop(fin.model, names, s.max_effects + 1, res.final_residual, "probe ",
-                                  ident::FitMethod::MultiStart);
+                                  ident::FitMethod::MultiStart, kFullProbes);
     for (const auto& c : fits) {
       ProbeResult p;
       p.probe = c.effect;
