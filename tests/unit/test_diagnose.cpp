@@ -53,7 +53,9 @@ TEST_P(HiddenEffect, IsNamedFirstAndTheValidatedErrorFallsFiveFold) {
   // the true family does not reach the noise on them.
   EXPECT_EQ(r.ladder.back().effects, std::vector<std::string>{h.effect}) << r.verdict;
   const double noise = std::sqrt(0.004 * 0.004 + 0.001 * 0.001 / 12.0);
-  if (std::string(h.effect) != "warm_up") EXPECT_LT(r.ladder.back().rmse_val, 1.5 * noise) << r.verdict;
+  if (std::string(h.effect) != "warm_up") {
+    EXPECT_LT(r.ladder.back().rmse_val, 1.5 * noise) << r.verdict;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(
