@@ -229,7 +229,7 @@ class Ukf {
                          double widen = 0.0) noexcept {
     static_assert(M == 1, "one measurement");
     UkfStatus st = UkfStatus::Ok;
-    if (!factorOrRepair(st)) return UkfStatus::Reset;  // P positive definite, as for sigma points
+    if (!definite_ && !factorOrRepair(st)) return UkfStatus::Reset;  // P positive definite, as for sigma points
     double hx = Hm(0) * x_(0);
     for (int j = 1; j < N; ++j) hx += Hm(j) * x_(j);
     z_pred_(0) = z0 + hx;
@@ -257,7 +257,7 @@ class Ukf {
     }
     for (int c = 0; c < N; ++c)
       for (int r = 0; r < N; ++r) P_(r, c) -= KS[r] * K[c];
-    factored_ = false;
+    factored_ = definite_ = false;
     return worst(st, guard());
   }
 
@@ -324,7 +324,7 @@ class Ukf {
   // Every change of P goes through here: the kept factor no longer applies.
   void setP(const Mat& P) noexcept {
     P_ = P;
-    factored_ = false;
+    factored_ = definite_ = false;
   }
 
   // P factored, repaired or reset if it has to be; false if even P0 is not positive definite.
@@ -363,8 +363,26 @@ class Ukf {
     for (int c = 0; c < N; ++c)
       for (int r = c + 1; r < N; ++r) P_(r, c) = P_(c, r) = 0.5 * (P_(r, c) + P_(c, r));
     factored_ = false;
+    if (surelyDefinite()) {  // factor() will succeed: it runs when sigma points need it
+      definite_ = true;
+      return UkfStatus::Ok;
+    }
     if (factor()) return UkfStatus::Ok;
     return repair();
+  }
+
+  // For 2 x 2, a test that implies factor() succeeds on the symmetric P, without its square roots and
+  // division: with P00, P11 > 0 and P10^2 < P00 P11 / 4 (the product in the normal range) the second
+  // pivot P11 - (P10 / sqrt(P00))^2 stays above 3/4 P11 whatever the rounding. With the linear update
+  // P is then factored once a step (for the next sigma points) instead of after predict() as well.
+  bool surelyDefinite() const noexcept {
+    if constexpr (N == 2) {
+      const double q = P_(0, 0) * P_(1, 1);  // in the normal range: P00 and P11 of one sign, not 0
+      return (P_(0, 0) > 0.0) & (q >= 4.0 * std::numeric_limits<double>::min()) &
+             (q <= std::numeric_limits<double>::max()) & (P_(1, 0) * P_(1, 0) < 0.25 * q);
+    } else {
+      return false;
+    }
   }
 
   // An outlier: P goes back to before the last predict() (see update()).
@@ -401,6 +419,7 @@ class Ukf {
   Mat P_last_ = Mat::Identity();  // P before the last predict (held on an outlier)
   Mat spread_ = Mat::Zero();      // gamma L, L P's Cholesky factor, while factored_
   bool factored_ = false;
+  bool definite_ = false;         // P known positive definite (factor() succeeds), not yet factored
   double nis_ = 0.0, gate_stat_ = 0.0;
   MSigmas Z_ = MSigmas::Zero();
   MVec z_pred_ = MVec::Zero();
