@@ -14,7 +14,9 @@
 // Cost: the step runs at 1 kHz beside the controller, so the small factorisations are written out
 // (cholesky(), the scalar measurement's solves) instead of Eigen's LLT/LDLT, whose dynamic-size
 // blocks cost more than the arithmetic at these sizes; each does Eigen's operations in Eigen's order,
-// so the results are the same to the bit. The factor guard() computes is kept for the next sigma points.
+// so the results are the same to the bit. The factor guard() computes is kept for the next sigma points;
+// a 2 x 2 P that passes a cheaper test implying the factor exists is factored only when sigma points
+// need it (surelyDefinite()).
 #pragma once
 
 #include <Eigen/Cholesky>
