@@ -99,22 +99,27 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   const int nf = nf_;
   ActiveModelStep out;
   const model::BoucWenStep bw(p, du);  // the same increment for every sigma point
-  UkfStatus s1 = ukf.predict(
-      [&](const Vec& x) {
-        if constexpr (Vec::RowsAtCompileTime == kCore) {
-          // Built from its two values: a copy of x with one entry overwritten is stored and reloaded
-          // whole (a store-forwarding stall per sigma point).
-          return Vec(bw(x(0), x(1), Ts), x(1));
-        } else {
+  UkfStatus s1;
+  if constexpr (Vec::RowsAtCompileTime == kCore) {
+    // h' = BW(h) + f_h Ts: the Bouc-Wen part reads h alone, so the sigma points that differ from the
+    // mean only in f_h share the mean's (Ukf::predictShared). The next state is built from its two
+    // values: a copy of x with one entry overwritten is stored and reloaded whole (a store-forwarding
+    // stall per sigma point).
+    s1 = ukf.template predictShared<1>([&](const Eigen::Matrix<double, 1, 1>& h) { return bw.advance(h(0)); },
+                                       [&](const Vec& x, double h_adv) { return Vec(bw.finish(h_adv, x(1), Ts), x(1)); },
+                                       Q<F>());
+  } else {
+    s1 = ukf.predict(
+        [&](const Vec& x) {
           Vec n = x;
           n(0) = bw(x(0), x(1), Ts);
           double next[model::kMaxFilterStates];
           mdl.outputWith(st_prev_, x.data() + kCore, next, mdl.coreOutput(ue_prev_, x(0)), cp);
           for (int i = 0; i < nf; ++i) n(kCore + i) = next[i];
           return n;
-        }
-      },
-      Q<F>());
+        },
+        Q<F>());
+  }
 
   const double ue = model_.inputStage(st_, u, c);
   c.u_eff = ue;

@@ -14,7 +14,9 @@
 // Cost: the step runs at 1 kHz beside the controller, so the small factorisations are written out
 // (cholesky(), the scalar measurement's solves) instead of Eigen's LLT/LDLT, whose dynamic-size
 // blocks cost more than the arithmetic at these sizes; each does Eigen's operations in Eigen's order,
-// so the results are the same to the bit. The factor guard() computes is kept for the next sigma points.
+// so the results are the same to the bit. The factor guard() computes is kept for the next sigma points;
+// a 2 x 2 P that passes a cheaper test implying the factor exists is factored only when sigma points
+// need it (surelyDefinite()).
 #pragma once
 
 #include <Eigen/Cholesky>
@@ -99,25 +101,56 @@ class Ukf {
   template <class F>
   UkfStatus predict(F&& f, const Mat& Q) noexcept {
     UkfStatus st = UkfStatus::Ok;
-    const bool drawn = sigmaPoints(st);
+    Sigmas X, Xp;
+    const bool drawn = sigmaPoints(st, X);
     P_last_ = P_;  // as used for the sigma points (repaired if it had to be)
     if (!drawn) return UkfStatus::Reset;
-    for (int i = 0; i < kSigma; ++i) Xp_.col(i) = f(static_cast<const Vec&>(X_.col(i)));
+    for (int i = 0; i < kSigma; ++i) Xp.col(i) = f(static_cast<const Vec&>(X.col(i)));
+    return predicted(Xp, Q, st);
+  }
+
+  // predict() for a transition f(x) = next(x, g(x_1..x_K)) whose costly part g reads only the first K
+  // components (K <= N). P's factor is lower triangular, so the sigma points x +- gamma L.col(j) of the
+  // columns j >= K have the first K components of x itself (x + 0 is x): g of the central point serves
+  // them, and g runs on 2K + 1 points instead of 2N + 1, with the same numbers as predict(f, Q).
+  // g: Eigen::Matrix<double, K, 1> (const&) -> any type; next: (Vec (const&), that type) -> Vec.
+  template <int K, class G, class Next>
+  UkfStatus predictShared(G&& g, Next&& next, const Mat& Q) noexcept {
+    static_assert(K >= 1 && K <= N, "a leading part of the state");
+    using Head = Eigen::Matrix<double, K, 1>;
+    UkfStatus st = UkfStatus::Ok;
+    Sigmas X, Xp;
+    const bool drawn = sigmaPoints(st, X);
+    P_last_ = P_;
+    if (!drawn) return UkfStatus::Reset;
+    const auto g0 = g(Head(X.col(0).template head<K>()));
+    Xp.col(0) = next(static_cast<const Vec&>(X.col(0)), g0);
+    for (int i = 0; i < N; ++i)
+      for (int j : {1 + i, 1 + N + i}) {
+        const Vec& Xj = static_cast<const Vec&>(X.col(j));
+        Xp.col(j) = i < K ? next(Xj, g(Head(Xj.template head<K>()))) : next(Xj, g0);
+      }
+    return predicted(Xp, Q, st);
+  }
+
+ private:
+  // The rest of predict() from the transformed sigma points Xp.
+  UkfStatus predicted(const Sigmas& Xp, const Mat& Q, UkfStatus st) noexcept {
     // About the central point: P = sum_i Wi d_i d_i' + (b - a^2) m m', d_i = X_i - X_0, m = x - X_0 -
     // algebraically the weighted sum about the mean, without the ~1e6 weights cancelling. Element by
     // element: Eigen's 2-vector packets here cost more in shuffles than they save.
     double d[kSigma][N], wd[kSigma][N];
     for (int i = 1; i < kSigma; ++i)
       for (int r = 0; r < N; ++r) {
-        d[i][r] = Xp_(r, i) - Xp_(r, 0);
+        d[i][r] = Xp(r, i) - Xp(r, 0);
         wd[i][r] = wi_ * d[i][r];
       }
     double m[N];
     for (int r = 0; r < N; ++r) {
       double sum = 0.0;
       for (int i = 1; i < kSigma; ++i) sum += d[i][r];
-      x_(r) = Xp_(r, 0) + wi_ * sum;
-      m[r] = x_(r) - Xp_(r, 0);
+      x_(r) = Xp(r, 0) + wi_ * sum;
+      m[r] = x_(r) - Xp(r, 0);
     }
     Mat P;
     for (int c = 0; c < N; ++c)
@@ -130,6 +163,7 @@ class Ukf {
     return worst(st, guard());
   }
 
+ public:
   // Measurement update with z = h(x) + v, v ~ N(0, R). h: Vec (const&) -> MVec.
   // Sigma points are drawn afresh from the predicted (x, P).
   // gate > 0: a measurement whose innovation is beyond the gate, nu' (S + widen)^-1 nu > gate, is an
@@ -142,20 +176,21 @@ class Ukf {
   template <class H>
   UkfStatus update(H&& h, const MVec& z, const MMat& R, double gate = 0.0, const MMat& widen = MMat::Zero()) noexcept {
     UkfStatus st = UkfStatus::Ok;
-    if (!sigmaPoints(st)) return UkfStatus::Reset;
-    for (int i = 0; i < kSigma; ++i) Z_.col(i) = h(static_cast<const Vec&>(X_.col(i)));
+    Sigmas X;
+    if (!sigmaPoints(st, X)) return UkfStatus::Reset;
+    for (int i = 0; i < kSigma; ++i) Z_.col(i) = h(static_cast<const Vec&>(X.col(i)));
     z_pred_ = weightedMean(Z_);
     if (!z.allFinite()) return worst(st, UkfStatus::MeasurementRejected);
     MMat S = MMat::Zero();
     Eigen::Matrix<double, N, M> C = Eigen::Matrix<double, N, M>::Zero();
     for (int i = 1; i < kSigma; ++i) {
       const MVec dz = Z_.col(i) - Z_.col(0);
-      const Vec dx = X_.col(i) - X_.col(0);
+      const Vec dx = X.col(i) - X.col(0);
       S.noalias() += wi_ * dz * dz.transpose();
       C.noalias() += wi_ * dx * dz.transpose();
     }
     const MVec mz = z_pred_ - Z_.col(0);
-    const Vec mx = x_ - X_.col(0);  // zero: these sigma points are centred on x
+    const Vec mx = x_ - X.col(0);  // zero: these sigma points are centred on x
     S.noalias() += central_ * mz * mz.transpose();
     C.noalias() += central_ * mx * mz.transpose();
     S += R;
@@ -196,7 +231,7 @@ class Ukf {
                          double widen = 0.0) noexcept {
     static_assert(M == 1, "one measurement");
     UkfStatus st = UkfStatus::Ok;
-    if (!factorOrRepair(st)) return UkfStatus::Reset;  // P positive definite, as for sigma points
+    if (!definite_ && !factorOrRepair(st)) return UkfStatus::Reset;  // P positive definite, as for sigma points
     double hx = Hm(0) * x_(0);
     for (int j = 1; j < N; ++j) hx += Hm(j) * x_(j);
     z_pred_(0) = z0 + hx;
@@ -224,7 +259,7 @@ class Ukf {
     }
     for (int c = 0; c < N; ++c)
       for (int r = 0; r < N; ++r) P_(r, c) -= KS[r] * K[c];
-    factored_ = false;
+    factored_ = definite_ = false;
     return worst(st, guard());
   }
 
@@ -291,7 +326,7 @@ class Ukf {
   // Every change of P goes through here: the kept factor no longer applies.
   void setP(const Mat& P) noexcept {
     P_ = P;
-    factored_ = false;
+    factored_ = definite_ = false;
   }
 
   // P factored, repaired or reset if it has to be; false if even P0 is not positive definite.
@@ -306,13 +341,13 @@ class Ukf {
     return true;
   }
 
-  bool sigmaPoints(UkfStatus& st) noexcept {
+  bool sigmaPoints(UkfStatus& st, Sigmas& X) noexcept {
     if (!factorOrRepair(st)) return false;
     for (int r = 0; r < N; ++r) {
-      X_(r, 0) = x_(r);
+      X(r, 0) = x_(r);
       for (int i = 0; i < N; ++i) {
-        X_(r, 1 + i) = x_(r) + spread_(r, i);
-        X_(r, 1 + N + i) = x_(r) - spread_(r, i);
+        X(r, 1 + i) = x_(r) + spread_(r, i);
+        X(r, 1 + N + i) = x_(r) - spread_(r, i);
       }
     }
     return true;
@@ -330,8 +365,26 @@ class Ukf {
     for (int c = 0; c < N; ++c)
       for (int r = c + 1; r < N; ++r) P_(r, c) = P_(c, r) = 0.5 * (P_(r, c) + P_(c, r));
     factored_ = false;
+    if (surelyDefinite()) {  // factor() will succeed: it runs when sigma points need it
+      definite_ = true;
+      return UkfStatus::Ok;
+    }
     if (factor()) return UkfStatus::Ok;
     return repair();
+  }
+
+  // For 2 x 2, a test that implies factor() succeeds on the symmetric P, without its square roots and
+  // division: with P00, P11 > 0 and P10^2 < P00 P11 / 4 (the product in the normal range) the second
+  // pivot P11 - (P10 / sqrt(P00))^2 stays above 3/4 P11 whatever the rounding. With the linear update
+  // P is then factored once a step (for the next sigma points) instead of after predict() as well.
+  bool surelyDefinite() const noexcept {
+    if constexpr (N == 2) {
+      const double q = P_(0, 0) * P_(1, 1);  // in the normal range: P00 and P11 of one sign, not 0
+      return (P_(0, 0) > 0.0) & (q >= 4.0 * std::numeric_limits<double>::min()) &
+             (q <= std::numeric_limits<double>::max()) & (P_(1, 0) * P_(1, 0) < 0.25 * q);
+    } else {
+      return false;
+    }
   }
 
   // An outlier: P goes back to before the last predict() (see update()).
@@ -340,8 +393,9 @@ class Ukf {
     return UkfStatus::OutlierRejected;
   }
 
-  // Floors the eigenvalues of P at a small fraction of its scale.
-  UkfStatus repair() noexcept {
+  // Floors the eigenvalues of P at a small fraction of its scale. Cold, as hardReset(): out of line,
+  // so that the step's own code stays small.
+  [[gnu::cold, gnu::noinline]] UkfStatus repair() noexcept {
     Eigen::SelfAdjointEigenSolver<Mat> es(P_);
     if (es.info() != Eigen::Success) return hardReset();
     Vec ev = es.eigenvalues();
@@ -353,7 +407,7 @@ class Ukf {
     return UkfStatus::CovarianceRepaired;
   }
 
-  UkfStatus hardReset() noexcept {
+  [[gnu::cold, gnu::noinline]] UkfStatus hardReset() noexcept {
     if (!x_.allFinite()) x_.setZero();
     setP(P0_);
     return UkfStatus::Reset;
@@ -367,9 +421,8 @@ class Ukf {
   Mat P_last_ = Mat::Identity();  // P before the last predict (held on an outlier)
   Mat spread_ = Mat::Zero();      // gamma L, L P's Cholesky factor, while factored_
   bool factored_ = false;
+  bool definite_ = false;         // P known positive definite (factor() succeeds), not yet factored
   double nis_ = 0.0, gate_stat_ = 0.0;
-  Sigmas X_ = Sigmas::Zero();
-  Sigmas Xp_ = Sigmas::Zero();
   MSigmas Z_ = MSigmas::Zero();
   MVec z_pred_ = MVec::Zero();
   MVec innovation_ = MVec::Zero();

@@ -132,13 +132,16 @@ class BoucWenStep {
       travel_[i] = detail::boucWenTravel(c_[i], v_);
     }
   }
-  double operator()(double h, double f_h, double Ts) const noexcept {
-    if (moving_) {
-      const double side = detail::boucWenSide(h, a_);
-      const int i = side > 0.0 ? 1 : 0;
-      h = detail::boucWenAdvance(*p_, h, s_, v_, a_, side, c_[i], travel_[i]);
-    }
-    return detail::boucWenFinish(h, f_h, Ts);
+  double operator()(double h, double f_h, double Ts) const noexcept { return finish(advance(h), f_h, Ts); }
+  // The two parts of operator(): the hysteresis over the increment (f_h not yet added), and f_h added.
+  double advance(double h) const noexcept {
+    if (!moving_) return h;
+    const double side = detail::boucWenSide(h, a_);
+    const int i = side > 0.0 ? 1 : 0;
+    return detail::boucWenAdvance(*p_, h, s_, v_, a_, side, c_[i], travel_[i]);
+  }
+  static double finish(double h_advanced, double f_h, double Ts) noexcept {
+    return detail::boucWenFinish(h_advanced, f_h, Ts);
   }
 
  private:

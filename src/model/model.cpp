@@ -192,7 +192,7 @@ void Model::init(State& st, double u0, const StepContext& c) const noexcept {
   }
 }
 
-double Model::inputStage(State& st, double u, const StepContext& c) const noexcept {
+double Model::inputChain(State& st, double u, const StepContext& c) const noexcept {
   for (int i = 0; i < n_input_; ++i) {
     const auto& s = effects_[static_cast<size_t>(i)];
     u = s.impl->step(eff_params_.data() + s.param_offset, st.s.data() + s.state_offset, u, c);
@@ -200,7 +200,7 @@ double Model::inputStage(State& st, double u, const StepContext& c) const noexce
   return u;
 }
 
-double Model::outputStage(State& st, double y, const StepContext& c) const noexcept {
+double Model::outputChain(State& st, double y, const StepContext& c) const noexcept {
   for (size_t i = static_cast<size_t>(n_input_); i < effects_.size(); ++i) {
     const auto& s = effects_[i];
     y = s.impl->step(eff_params_.data() + s.param_offset, st.s.data() + s.state_offset, y, c);
@@ -208,8 +208,7 @@ double Model::outputStage(State& st, double y, const StepContext& c) const noexc
   return y;
 }
 
-double Model::outputPeek(const State& st, double y, const StepContext& c) const noexcept {
-  if (!hasOutputEffects()) return y;
+double Model::outputPeekChain(const State& st, double y, const StepContext& c) const noexcept {
   double tmp[kMaxModelStates];
   const int n = out_state_end_ - out_state_begin_;
   std::memcpy(tmp, st.s.data() + out_state_begin_, sizeof(double) * static_cast<size_t>(n));

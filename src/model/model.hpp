@@ -64,13 +64,20 @@ class Model {
   // State at rest under the constant command u0 (and load in c).
   void init(State& st, double u0, const StepContext& c) const noexcept;
   // Runs the input effects on command u, returns the effective input.
-  double inputStage(State& st, double u, const StepContext& c) const noexcept;
+  // (The stages are inline so that a model without effects of a stage, the paper's, costs no call.)
+  double inputStage(State& st, double u, const StepContext& c) const noexcept {
+    return n_input_ > 0 ? inputChain(st, u, c) : u;
+  }
   // Core output for effective input and hysteresis state.
   double coreOutput(double u_eff, double h) const noexcept { return boucWenOutput(core_, u_eff, h); }
   // Runs the output effects on y_core, advancing their states.
-  double outputStage(State& st, double y_core, const StepContext& c) const noexcept;
+  double outputStage(State& st, double y_core, const StepContext& c) const noexcept {
+    return hasOutputEffects() ? outputChain(st, y_core, c) : y_core;
+  }
   // Same without touching st (for sigma points and predictions).
-  double outputPeek(const State& st, double y_core, const StepContext& c) const noexcept;
+  double outputPeek(const State& st, double y_core, const StepContext& c) const noexcept {
+    return hasOutputEffects() ? outputPeekChain(st, y_core, c) : y_core;
+  }
   // The output effects' states an estimator carries itself (Effect::numFilterStates of the output
   // effects, in chain order, at most kMaxFilterStates): how many, and where each is in State::s.
   int numFilterStates() const { return n_filter_; }
@@ -100,6 +107,9 @@ class Model {
     int state_offset = 0;  // into State::s
   };
   void relayout();
+  double inputChain(State& st, double u, const StepContext& c) const noexcept;
+  double outputChain(State& st, double y, const StepContext& c) const noexcept;
+  double outputPeekChain(const State& st, double y, const StepContext& c) const noexcept;
 
   BoucWenParams core_{};
   std::vector<Slot> effects_;
