@@ -187,11 +187,18 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
                      const std::vector<std::string>& names, int round, const ResidualReport& rr, const std::string& tag,
                      ident::FitMethod method, Search search = Search::Full) {
     std::vector<CandidateResult> results(names.size());
+    // The structures with the most parameters (the slowest fits) first, so that the workers finish
+    // together; each result keeps its place and its seed.
+    std::vector<size_t> order(names.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t a, size_t b) { return structures[a].numParams() > structures[b].numParams(); });
     std::atomic<size_t> next{0};
     std::mutex log_mu;
     const int workers = std::min<int>(threads, static_cast<int>(names.size()));
     auto worker = [&] {
-      for (size_t i = next++; i < names.size(); i = next++) {
+      for (size_t k = next++; k < names.size(); k = next++) {
+        const size_t i = order[k];
         const auto ct = std::chrono::steady_clock::now();
         const model::Model& structure = structures[i];
         ident::FitSettings fs = ident::FitSettings::forMethod(method);
@@ -403,10 +410,20 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       p.rmse_train = c.rmse_train;
       p.rmse_val = c.rmse_val;
       p.explains = std::max(0.0, 1.0 - (c.rmse_val * c.rmse_val) / std::max(fin.rmse_val * fin.rmse_val, 1e-300));
-      p.regime = mostImprovedRegime(res.final_residual, analyze(train, simulate(c.model, train)));
       p.meaning = model::findProbe(c.effect)->meaning;
       p.model = c.model;
       res.probes.push_back(std::move(p));
+    }
+    // Where each probe acts: its residual's breakdown on all the training samples, one probe per worker.
+    {
+      std::atomic<size_t> next{0};
+      auto worker = [&] {
+        for (size_t i = next++; i < res.probes.size(); i = next++)
+          res.probes[i].regime = mostImprovedRegime(res.final_residual, analyze(train, simulate(res.probes[i].model, train)));
+      };
+      std::vector<std::thread> ts;
+      for (int w = 0; w < std::min<int>(threads, static_cast<int>(res.probes.size())); ++w) ts.emplace_back(worker);
+      for (auto& t : ts) t.join();
     }
     std::stable_sort(res.probes.begin(), res.probes.end(),
                      [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
