@@ -40,9 +40,13 @@ constexpr double kScreenTolerance = 1e-5;
 // them - and kFullProbes probes), and the better fit is kept.
 enum class Search { Quick, Full };
 constexpr int kQuickStarts = 2;
-constexpr int kQuickIterations = 12;
+constexpr int kQuickIterations = 10;
+constexpr int kQuickShortIterations = 8;
 constexpr size_t kFullSearches = 2;
-constexpr size_t kFullProbes = 1;
+constexpr size_t kFullProbes = 0;
+// Two searches of one structure whose validated errors differ by less than this fraction found the
+// same basin.
+constexpr double kAgree = 2e-3;
 
 // A validated error below this multiple of the sensor noise leaves nothing to explain: the ladder
 // stops adding effects and the probes are not run.
@@ -147,6 +151,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     ps.lm_warm_starts = 0;
     // The screening fit was polished by Nelder-Mead; on all samples Levenberg-Marquardt alone moves it.
     ps.refine_evals = 0;
+    ps.lm_tolerance = 1e-7;
     const auto rt = std::chrono::steady_clock::now();
     auto f = ident::fit(m, train, ps, {}, &m);
     log("  refitted on all " + std::to_string(train.size()) + " training samples: train " + fmt("%.5g", f.rmse) + " (" +
@@ -216,6 +221,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         if (search == Search::Quick) {
           fs.lm_warm_starts = kQuickStarts;
           fs.lm_iterations = kQuickIterations;
+          fs.lm_short_iterations = kQuickShortIterations;
           fs.lm_keep = 1;
           fs.refine_evals = 0;
         }
@@ -264,8 +270,11 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       std::vector<std::string> top;
       for (size_t i = 0; i < full_n; ++i) top.push_back(results[i].effect);
       const auto full = fitOnTop(base_model, top, round, rr, "full: " + tag, method, Search::Full);
-      for (size_t i = 0; i < full.size(); ++i)
+      for (size_t i = 0; i < full.size(); ++i) {
+        const bool agree = std::fabs(full[i].rmse_val - results[i].rmse_val) <= kAgree * results[i].rmse_val;
         if (full[i].rmse_val < results[i].rmse_val) results[i] = full[i];
+        results[i].confirmed = agree;
+      }
       std::stable_sort(results.begin(), results.end(), byVal);
     }
     return results;
@@ -309,10 +318,11 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         break;
       }
     }
-    if (s.method == ident::FitMethod::MultiStart) {
+    if (s.method == ident::FitMethod::MultiStart && !results.front().confirmed) {
       // Levenberg-Marquardt from a few starts can end in a wrong basin of the new effect (a mass-spring's
       // frequency) where the GA, searching its whole range, does not: the round's best is searched
-      // again by the GA, and the better fit kept.
+      // again by the GA, and the better fit kept - unless its quick and full searches, from different
+      // starts, already ended in the same place.
       model::Model st = cur.model;
       st.addEffect(results.front().effect);
       const auto g = fitEach({st}, cur.model, {results.front().effect}, round, rr, "GA: ", ident::FitMethod::Ga);

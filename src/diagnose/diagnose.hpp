@@ -39,6 +39,9 @@ struct CandidateResult {
   Evidence evidence;
   model::Model model;
   double seconds = 0;
+  // Searched quickly and in full, from different starts, with validated errors within kAgree of each
+  // other: the two searches found the same basin.
+  bool confirmed = false;
 };
 
 struct Rung {

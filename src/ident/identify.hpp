@@ -38,7 +38,8 @@ struct FitSettings {
   // With a start model: LM also from this many points that keep it and spread the parameters of the
   // effects it lacks over their ranges (Latin hypercube).
   int lm_warm_starts = 4;
-  // Of each group of starts, this many of the short runs (the best) go on to the end.
+  // Every start first runs this many iterations; of each group of starts the lm_keep best go on to the end.
+  int lm_short_iterations = 8;
   int lm_keep = 2;
 
   // The defaults of a method: the GA's as above; the multi-start method with fewer spread starts
