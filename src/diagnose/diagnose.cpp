@@ -40,6 +40,10 @@ constexpr double kScreenTolerance = 1e-5;
 // them - and kFullProbes probes), and the better fit is kept.
 enum class Search { Quick, Full };
 constexpr int kQuickStarts = 2;
+// ... but a new structure with few parameters gets kQuickCover / (their number) starts: the cost of a
+// threshold, a knee or a delay is flat away from the right value, and LM finds that only from a start
+// near it (one dead band's threshold: eight starts, one per eighth of its range).
+constexpr int kQuickCover = 8;
 constexpr int kQuickIterations = 10;
 constexpr int kQuickShortIterations = 8;
 constexpr size_t kFullSearches = 2;
@@ -219,7 +223,8 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         if (method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
         if (method == ident::FitMethod::Ga) fs.refine_evals = 200;
         if (search == Search::Quick) {
-          fs.lm_warm_starts = kQuickStarts;
+          const int n_new = std::max(1, structure.numParams() - base_model.numParams());
+          fs.lm_warm_starts = std::max(kQuickStarts, kQuickCover / n_new);
           fs.lm_iterations = kQuickIterations;
           fs.lm_short_iterations = kQuickShortIterations;
           fs.lm_keep = 1;
@@ -391,6 +396,19 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
             (best == fits.size() || fits[i].rmse_val < fits[best].rmse_val))
           best = i;
     if (best == fits.size()) break;
+    // The smaller structure was fitted from where the larger one left its parameters; above the noise
+    // it is searched again by the GA (the better fit kept) and refitted on all the training samples,
+    // as a rung that adds an effect.
+    if (!(fits[best].rmse_val < kAtNoise * noise)) {
+      const auto g = fitEach({structures[best]}, cur.model, {labels[best]}, s.max_effects + 3, res.baseline_residual,
+                             "GA: ", ident::FitMethod::Ga);
+      if (g.front().rmse_val < fits[best].rmse_val) fits[best] = g.front();
+      if (step > 1) {
+        const auto f = refitOnAll(fits[best].model);
+        const double rv_all = v.rmse(f.model);
+        if (rv_all <= fits[best].rmse_val) fits[best].model = f.model, fits[best].rmse_train = f.rmse, fits[best].rmse_val = rv_all;
+      }
+    }
     const double rv = fits[best].rmse_val;
     Rung pruned{{}, fits[best].rmse_train, rv, fits[best].model, {}, {}};
     for (const auto& e : cur.effects)
