@@ -42,7 +42,8 @@ enum class Search { Quick, Full };
 constexpr int kQuickStarts = 2;
 // ... but a new structure with few parameters gets kQuickCover / (their number) starts: the cost of a
 // threshold, a knee or a delay is flat away from the right value, and LM finds that only from a start
-// near it (one dead band's threshold: eight starts, one per eighth of its range).
+// near it (one dead band's threshold: eight starts, one per eighth of its range). Not for the probes:
+// they say what kind of structure is missing, to the few percent their ranking needs.
 constexpr int kQuickCover = 8;
 constexpr int kQuickIterations = 10;
 constexpr int kQuickShortIterations = 8;
@@ -194,7 +195,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   // (structures[i] is labelled names[i]); in parallel, one fit per worker.
   auto fitEach = [&](const std::vector<model::Model>& structures, const model::Model& base_model,
                      const std::vector<std::string>& names, int round, const ResidualReport& rr, const std::string& tag,
-                     ident::FitMethod method, Search search = Search::Full) {
+                     ident::FitMethod method, Search search = Search::Full, int quick_cover = kQuickCover) {
     std::vector<CandidateResult> results(names.size());
     // The structures with the most parameters (the slowest fits) first, so that the workers finish
     // together; each result keeps its place and its seed.
@@ -224,7 +225,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         if (method == ident::FitMethod::Ga) fs.refine_evals = 200;
         if (search == Search::Quick) {
           const int n_new = std::max(1, structure.numParams() - base_model.numParams());
-          fs.lm_warm_starts = std::max(kQuickStarts, kQuickCover / n_new);
+          fs.lm_warm_starts = std::max(kQuickStarts, quick_cover / n_new);
           fs.lm_iterations = kQuickIterations;
           fs.lm_short_iterations = kQuickShortIterations;
           fs.lm_keep = 1;
@@ -255,20 +256,22 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   // Each name added to base_model.
   auto fitOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
                       const ResidualReport& rr, const std::string& tag, ident::FitMethod method,
-                      Search search = Search::Full) {
+                      Search search = Search::Full, int quick_cover = kQuickCover) {
     std::vector<model::Model> structures;
     for (const auto& n : names) {
       structures.push_back(base_model);
       structures.back().addEffect(n);
     }
-    return fitEach(structures, base_model, names, round, rr, tag, method, search);
+    return fitEach(structures, base_model, names, round, rr, tag, method, search, quick_cover);
   };
   // Every name on top of base_model searched quickly, the `full` best (by validated RMSE) again
   // in full; the better fit of each kept, best first. With the GA every fit is a full search.
   auto searchOnTop = [&](const model::Model& base_model, const std::vector<std::string>& names, int round,
-                         const ResidualReport& rr, const std::string& tag, ident::FitMethod method, size_t full_n) {
+                         const ResidualReport& rr, const std::string& tag, ident::FitMethod method, size_t full_n,
+                         int quick_cover) {
     const bool staged = method == ident::FitMethod::MultiStart && names.size() > full_n;
-    auto results = fitOnTop(base_model, names, round, rr, tag, method, staged ? Search::Quick : Search::Full);
+    auto results =
+        fitOnTop(base_model, names, round, rr, tag, method, staged ? Search::Quick : Search::Full, quick_cover);
     const auto byVal = [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; };
     std::stable_sort(results.begin(), results.end(), byVal);
     if (staged) {
@@ -310,7 +313,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     const ResidualReport rr = round == 1 ? res.baseline_residual : analyze(train, simulate(cur.model, train));
     log("round " + std::to_string(round) + ": trying " + std::to_string(todo.size()) + " effects on top of " +
         join(cur.effects));
-    std::vector<CandidateResult> results = searchOnTop(cur.model, todo, round, rr, "", s.method, kFullSearches);
+    std::vector<CandidateResult> results = searchOnTop(cur.model, todo, round, rr, "", s.method, kFullSearches, kQuickCover);
     // An effect that holds its alternative as a special case (force_loop is mass_spring with friction
     // in the force balance) goes before it only when what it adds lowers the validated RMSE by
     // min_gain too, as any effect must to be added; otherwise it ranks right behind the alternative.
@@ -431,7 +434,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     // A probe says what kind of structure is missing, it is not a model: LM from starts spread over its
     // parameters (lm_warm_starts) around the final model, whatever the method.
     const auto fits = searchOnTop(fin.model, names, s.max_effects + 1, res.final_residual, "probe ",
-                                  ident::FitMethod::MultiStart, kFullProbes);
+                                  ident::FitMethod::MultiStart, kFullProbes, 0);
     for (const auto& c : fits) {
       ProbeResult p;
       p.probe = c.effect;
