@@ -10,8 +10,6 @@
 #include <mutex>
 #include <stdexcept>
 #include <thread>
-#include <tuple>
-#include <utility>
 
 #include "io/model_file.hpp"
 #include "model/probe.hpp"
@@ -68,19 +66,6 @@ struct Validation {
   const io::Measurement* data;
   size_t from;
   double rmse(const model::Model& m) const { return ident::rmseFrom(m, *data, from); }
-  // Held out (from > 0: the training record is data's first `from` samples): the training RMSE too,
-  // from the same simulation - the same numbers as simulating the training record on its own.
-  std::pair<double, double> trainAndVal(const model::Model& m, const io::Measurement& train) const {
-    if (from != train.size()) return {ident::rmseFrom(m, train), rmse(m)};
-    std::vector<double> y(data->size());
-    const auto* load = data->column("load");
-    m.simulate(data->u.data(), load ? load->data() : nullptr, y.size(), data->Ts, y.data());
-    double st = 0, sv = 0;
-    for (size_t i = 0; i < from; ++i) st += (y[i] - data->y[i]) * (y[i] - data->y[i]);
-    for (size_t i = from; i < y.size(); ++i) sv += (y[i] - data->y[i]) * (y[i] - data->y[i]);
-    return {from ? std::sqrt(st / static_cast<double>(from)) : 0.0,
-            y.size() > from ? std::sqrt(sv / static_cast<double>(y.size() - from)) : 0.0};
-  }
 };
 
 std::vector<double> simulate(const model::Model& m, const io::Measurement& d) {
@@ -253,12 +238,8 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         CandidateResult& c = results[i];
         c.effect = names[i];
         c.model = f.model;
-        if (screen.size() == train.size()) {
-          c.rmse_train = f.rmse;
-          c.rmse_val = v.rmse(f.model);
-        } else {
-          std::tie(c.rmse_train, c.rmse_val) = v.trainAndVal(f.model, train);
-        }
+        c.rmse_train = screen.size() == train.size() ? f.rmse : ident::rmseFrom(f.model, train);
+        c.rmse_val = v.rmse(f.model);
         c.evidence = effectEvidence(names[i], rr);
         c.seconds = seconds(ct);
         std::lock_guard<std::mutex> lk(log_mu);
