@@ -46,7 +46,6 @@ constexpr int kQuickStarts = 2;
 // they say what kind of structure is missing, to the few percent their ranking needs.
 constexpr int kQuickCover = 8;
 constexpr int kQuickIterations = 10;
-constexpr int kQuickShortIterations = 8;
 constexpr size_t kFullSearches = 2;
 constexpr size_t kFullProbes = 0;
 // Two searches of one structure whose validated errors differ by less than this fraction found the
@@ -59,6 +58,18 @@ constexpr double kAtNoise = 1.5;
 
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// fn(0) ... fn(n - 1), each index once, on up to `threads` workers.
+template <class Fn>
+void onWorkers(size_t n, int threads, Fn&& fn) {
+  std::atomic<size_t> next{0};
+  auto worker = [&] {
+    for (size_t i = next++; i < n; i = next++) fn(i);
+  };
+  std::vector<std::thread> ts;
+  for (int w = 0; w < std::min<int>(threads, static_cast<int>(n)); ++w) ts.emplace_back(worker);
+  for (auto& t : ts) t.join();
 }
 
 // Where the validation error is measured.
@@ -163,6 +174,13 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
         fmt("%.1f", seconds(rt)) + " s)");
     return f;
   };
+  // A fit taken into the ladder: refitted on all the training samples, the refit kept unless it
+  // validates worse.
+  auto refitIfBetter = [&](CandidateResult& c) {
+    const auto f = refitOnAll(c.model);
+    const double rv = v.rmse(f.model);
+    if (rv <= c.rmse_val) c.model = f.model, c.rmse_train = f.rmse, c.rmse_val = rv;
+  };
 
   // Baseline: the reference model, searched on the screening record and refitted on all of it.
   log("fitting the reference model (Bouc-Wen) on " + std::to_string(train.size()) + " samples ...");
@@ -203,54 +221,47 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
     for (size_t i = 0; i < order.size(); ++i) order[i] = i;
     std::stable_sort(order.begin(), order.end(),
                      [&](size_t a, size_t b) { return structures[a].numParams() > structures[b].numParams(); });
-    std::atomic<size_t> next{0};
     std::mutex log_mu;
     const int workers = std::min<int>(threads, static_cast<int>(names.size()));
-    auto worker = [&] {
-      for (size_t k = next++; k < names.size(); k = next++) {
-        const size_t i = order[k];
-        const auto ct = std::chrono::steady_clock::now();
-        const model::Model& structure = structures[i];
-        ident::FitSettings fs = ident::FitSettings::forMethod(method);
-        fs.ga.population = 32;
-        fs.ga.max_generations = 30;
-        fs.ga.stall_generations = 10;
-        fs.ga.threads = std::max(1, threads / workers);  // a single fit gets every worker
-        fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
-        fs.lm_iterations = 20;
-        fs.lm_tolerance = kScreenTolerance;
-        // The core is fitted already: the starts keep it and spread the new effect's parameters
-        // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
-        if (method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
-        if (method == ident::FitMethod::Ga) fs.refine_evals = 200;
-        if (search == Search::Quick) {
-          const int n_new = std::max(1, structure.numParams() - base_model.numParams());
-          fs.lm_warm_starts = std::max(kQuickStarts, quick_cover / n_new);
-          fs.lm_iterations = kQuickIterations;
-          fs.lm_short_iterations = kQuickShortIterations;
-          fs.lm_keep = 1;
-          fs.refine_evals = 0;
-        }
-        // The GA's second opinion on a round's best (method lm) searches the new effect's ranges
-        // itself: no Levenberg-Marquardt starts spread over the whole box after it.
-        if (method == ident::FitMethod::Ga && s.method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
-        const auto f = ident::fit(structure, screen, fs, {}, &base_model);
-        CandidateResult& c = results[i];
-        c.effect = names[i];
-        c.model = f.model;
-        c.rmse_train = screen.size() == train.size() ? f.rmse : ident::rmseFrom(f.model, train);
-        c.rmse_val = v.rmse(f.model);
-        c.evidence = effectEvidence(names[i], rr);
-        c.seconds = seconds(ct);
-        std::lock_guard<std::mutex> lk(log_mu);
-        const std::string label = tag + names[i];
-        log("  " + label + std::string(label.size() < 20 ? 20 - label.size() : 0, ' ') + " train " +
-            fmt("%-10.5g", c.rmse_train) + " validation " + fmt("%-10.5g", c.rmse_val) + " (" + fmt("%.1f", c.seconds) + " s)");
+    onWorkers(names.size(), threads, [&](size_t k) {
+      const size_t i = order[k];
+      const auto ct = std::chrono::steady_clock::now();
+      const model::Model& structure = structures[i];
+      ident::FitSettings fs = ident::FitSettings::forMethod(method);
+      fs.ga.population = 32;
+      fs.ga.max_generations = 30;
+      fs.ga.stall_generations = 10;
+      fs.ga.threads = std::max(1, threads / workers);  // a single fit gets every worker
+      fs.ga.seed = s.seed * 1000003u + static_cast<std::uint64_t>(round * 97 + static_cast<int>(i));
+      fs.lm_iterations = 20;
+      fs.lm_tolerance = kScreenTolerance;
+      // The core is fitted already: the starts keep it and spread the new effect's parameters
+      // (lm_warm_starts); starts spread over the whole box would mostly refit the core.
+      if (method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
+      if (method == ident::FitMethod::Ga) fs.refine_evals = 200;
+      if (search == Search::Quick) {
+        const int n_new = std::max(1, structure.numParams() - base_model.numParams());
+        fs.lm_warm_starts = std::max(kQuickStarts, quick_cover / n_new);
+        fs.lm_iterations = kQuickIterations;
+        fs.lm_keep = 1;
+        fs.refine_evals = 0;
       }
-    };
-    std::vector<std::thread> ts;
-    for (int w = 0; w < workers; ++w) ts.emplace_back(worker);
-    for (auto& t : ts) t.join();
+      // The GA's second opinion on a round's best (method lm) searches the new effect's ranges
+      // itself: no Levenberg-Marquardt starts spread over the whole box after it.
+      if (method == ident::FitMethod::Ga && s.method == ident::FitMethod::MultiStart) fs.lm_spread_starts = 0;
+      const auto f = ident::fit(structure, screen, fs, {}, &base_model);
+      CandidateResult& c = results[i];
+      c.effect = names[i];
+      c.model = f.model;
+      c.rmse_train = screen.size() == train.size() ? f.rmse : ident::rmseFrom(f.model, train);
+      c.rmse_val = v.rmse(f.model);
+      c.evidence = effectEvidence(names[i], rr);
+      c.seconds = seconds(ct);
+      std::lock_guard<std::mutex> lk(log_mu);
+      const std::string label = tag + names[i];
+      log("  " + label + std::string(label.size() < 20 ? 20 - label.size() : 0, ' ') + " train " +
+          fmt("%-10.5g", c.rmse_train) + " validation " + fmt("%-10.5g", c.rmse_val) + " (" + fmt("%.1f", c.seconds) + " s)");
+    });
     return results;
   };
   // Each name added to base_model.
@@ -349,12 +360,9 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
                              : "no candidate lowers the validated RMSE";
       break;
     }
-    Rung next_rung{cur.effects, best.rmse_train, best.rmse_val, best.model, {}, {}};
-    {
-      const auto f = refitOnAll(best.model);
-      const double rv = v.rmse(f.model);
-      if (rv <= best.rmse_val) next_rung = Rung{cur.effects, f.rmse, rv, f.model, {}, {}};
-    }
+    CandidateResult taken = best;
+    refitIfBetter(taken);
+    Rung next_rung{cur.effects, taken.rmse_train, taken.rmse_val, taken.model, {}, {}};
     next_rung.effects.push_back(best.effect);
     res.ladder.push_back(next_rung);
     log("  -> added " + best.effect + ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " + fmt("%.5g", next_rung.rmse_val) +
@@ -406,11 +414,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       const auto g = fitEach({structures[best]}, cur.model, {labels[best]}, s.max_effects + 3, res.baseline_residual,
                              "GA: ", ident::FitMethod::Ga);
       if (g.front().rmse_val < fits[best].rmse_val) fits[best] = g.front();
-      if (step > 1) {
-        const auto f = refitOnAll(fits[best].model);
-        const double rv_all = v.rmse(f.model);
-        if (rv_all <= fits[best].rmse_val) fits[best].model = f.model, fits[best].rmse_train = f.rmse, fits[best].rmse_val = rv_all;
-      }
+      refitIfBetter(fits[best]);
     }
     const double rv = fits[best].rmse_val;
     Rung pruned{{}, fits[best].rmse_train, rv, fits[best].model, {}, {}};
@@ -446,16 +450,9 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       res.probes.push_back(std::move(p));
     }
     // Where each probe acts: its residual's breakdown on all the training samples, one probe per worker.
-    {
-      std::atomic<size_t> next{0};
-      auto worker = [&] {
-        for (size_t i = next++; i < res.probes.size(); i = next++)
-          res.probes[i].regime = mostImprovedRegime(res.final_residual, analyze(train, simulate(res.probes[i].model, train)));
-      };
-      std::vector<std::thread> ts;
-      for (int w = 0; w < std::min<int>(threads, static_cast<int>(res.probes.size())); ++w) ts.emplace_back(worker);
-      for (auto& t : ts) t.join();
-    }
+    onWorkers(res.probes.size(), threads, [&](size_t i) {
+      res.probes[i].regime = mostImprovedRegime(res.final_residual, analyze(train, simulate(res.probes[i].model, train)));
+    });
     std::stable_sort(res.probes.begin(), res.probes.end(),
                      [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
     res.probe_rung = 1.0 - res.probes.front().rmse_val / fin.rmse_val >= s.min_gain;

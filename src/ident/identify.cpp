@@ -294,9 +294,9 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
       return runs;
     };
     auto group = [&](const std::vector<std::vector<double>>& xs, std::size_t keep) {
-      std::vector<OptResult> runs = runAll(xs, multi ? s.lm_short_iterations : s.lm_iterations);
+      std::vector<OptResult> runs = runAll(xs, multi ? 8 : s.lm_iterations);
       std::stable_sort(runs.begin(), runs.end(), [](const OptResult& a, const OptResult& c) { return a.cost < c.cost; });
-      // The best few to the end: after the short runs the eventual winner is not always ahead (a
+      // The best few to the end: after eight iterations the eventual winner is not always ahead (a
       // hysteretic effect's width and the core's beta/gamma trade places before they settle).
       runs.resize(std::min(keep, runs.size()));
       if (multi) {

@@ -38,8 +38,7 @@ struct FitSettings {
   // With a start model: LM also from this many points that keep it and spread the parameters of the
   // effects it lacks over their ranges (Latin hypercube).
   int lm_warm_starts = 4;
-  // Every start first runs this many iterations; of each group of starts the lm_keep best go on to the end.
-  int lm_short_iterations = 8;
+  // Of each group of starts, the short runs of this many (the best) go on to the end.
   int lm_keep = 2;
 
   // The defaults of a method: the GA's as above; the multi-start method with fewer spread starts

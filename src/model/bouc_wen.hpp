@@ -100,18 +100,7 @@ inline double boucWenNext(const BoucWenParams& p, double h, double du, double f_
     const double a = s * p.alpha;
     const double side = detail::boucWenSide(h, a);
     const double c = p.gamma + s * side * p.beta;
-    // Where both sides' factors are series, both are computed from the increment alone and the side
-    // picks one: a simulation's next h then waits on a select, not on the series (the same values as
-    // boucWenTravel, to the bit).
-    const double cp = p.gamma + s * p.beta, cm = p.gamma - s * p.beta;
-    double travel;
-    if (std::fabs(cp * v) < detail::kSeriesLimit && std::fabs(cm * v) < detail::kSeriesLimit) {
-      const double tp = v * detail::boucWenSeries(cp * v), tm = v * detail::boucWenSeries(cm * v);
-      travel = side > 0.0 ? tp : tm;
-    } else {
-      travel = detail::boucWenTravel(c, v);
-    }
-    h = detail::boucWenAdvance(p, h, s, v, a, side, c, travel);
+    h = detail::boucWenAdvance(p, h, s, v, a, side, c, detail::boucWenTravel(c, v));
   }
   return detail::boucWenFinish(h, f_h, Ts);
 }

@@ -257,15 +257,9 @@ void Model::simulate(const double* u, const double* load, size_t n, double Ts, d
   c.Ts = Ts;
   c.load = load ? load[0] : 0.0;
   init(st, u[0], c);
-  // step() written out on one context: step() copies its context, and that copy, a 16-byte load over
-  // the two 8-byte stores just made to it, could not be forwarded from them (a stall every sample).
   for (size_t i = 0; i < n; ++i) {
     c.load = load ? load[i] : 0.0;
-    const double ue = inputStage(st, u[i], c);
-    c.u_eff = ue;
-    y[i] = outputStage(st, coreOutput(ue, st.h), c);
-    st.h = boucWenNext(core_, st.h, ue - st.u_eff_prev, 0.0, c.Ts);
-    st.u_eff_prev = ue;
+    y[i] = step(st, u[i], c);
   }
 }
 
