@@ -98,16 +98,13 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   cp.u_eff = ue_prev_;
   const int nf = nf_;
   ActiveModelStep out;
-  const model::BoucWenStep bw(p, du);  // the same increment for every sigma point
+  const model::BoucWenStep bw(p, du, ukf.x()(0));  // the same increment for every sigma point
   UkfStatus s1;
   if constexpr (Vec::RowsAtCompileTime == kCore) {
-    // h' = BW(h) + f_h Ts: the Bouc-Wen part reads h alone, so the sigma points that differ from the
-    // mean only in f_h share the mean's (Ukf::predictShared). The next state is built from its two
-    // values: a copy of x with one entry overwritten is stored and reloaded whole (a store-forwarding
-    // stall per sigma point).
-    s1 = ukf.template predictShared<1>([&](const Eigen::Matrix<double, 1, 1>& h) { return bw.advance(h(0)); },
-                                       [&](const Vec& x, double h_adv) { return Vec(bw.finish(h_adv, x(1), Ts), x(1)); },
-                                       Q<F>());
+    // h' = BW(h) + f_h Ts, f_h' = f_h: the Bouc-Wen part reads h alone, so the sigma points that differ
+    // from the mean only in f_h share the mean's (Ukf::predictDriven).
+    s1 = ukf.predictDriven([&](double h) { return bw.advance(h); },
+                           [&](double h_adv, double f_h) { return bw.finish(h_adv, f_h, Ts); }, Q<F>());
   } else {
     s1 = ukf.predict(
         [&](const Vec& x) {

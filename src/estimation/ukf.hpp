@@ -133,6 +133,42 @@ class Ukf {
     return predicted(Xp, Q, st);
   }
 
+  // predictShared<1>() for N = 2 whose second state is a random walk, x' = [next(g(x_0), x_1), x_1]: a
+  // state driven by a costly g of itself and an unknown input (the paper's joint [h, f_h], eq. (9)).
+  // The same operations in the same order as predictShared<1>(g, [x, gv] -> (next(gv, x_1), x_1), Q),
+  // so the same numbers to the bit (tests/unit/test_ukf.cpp), written out in scalars: no sigma-point
+  // matrices are stored and read back, and the second state's rows are the sigma points themselves.
+  // g: double -> double; next: (double g, double x_1) -> double.
+  template <class G, class Next>
+  UkfStatus predictDriven(G&& g, Next&& next, const Mat& Q) noexcept {
+    static_assert(N == 2, "the joint state [x_0, x_1]");
+    UkfStatus st = UkfStatus::Ok;
+    const bool drawn = factorOrRepair(st);
+    P_last_ = P_;
+    if (!drawn) return UkfStatus::Reset;
+    // Sigma points as sigmaPoints(): x +- spread_.col(j); spread_(0, 1) is 0 (a lower factor).
+    const double h = x_(0), f = x_(1);
+    const double h1 = h + spread_(0, 0), f1 = f + spread_(1, 0), h2 = h + spread_(0, 1), f2 = f + spread_(1, 1);
+    const double h3 = h - spread_(0, 0), f3 = f - spread_(1, 0), f4 = f - spread_(1, 1);
+    (void)h2;  // = h: shares g(h)
+    const double g0 = g(h);
+    const Vec X0(next(g0, f), f);
+    // predicted() on [h, f] pairs (two-wide packets): d_i = X_i' - X_0', the mean and the covariance's
+    // columns sum_i (Wi d_i) d_i[c], each element computed as predicted() computes it.
+    const Vec d1 = Vec(next(g(h1), f1), f1) - X0, d2 = Vec(next(g0, f2), f2) - X0,
+              d3 = Vec(next(g(h3), f3), f3) - X0, d4 = Vec(next(g0, f4), f4) - X0;
+    const double w = wi_;
+    const Vec w1 = w * d1, w2 = w * d2, w3 = w * d3, w4 = w * d4;
+    x_ = X0 + w * ((((Vec::Zero() + d1) + d2) + d3) + d4);
+    const Vec m = x_ - X0;
+    Mat P;
+    for (int c = 0; c < 2; ++c)
+      P.col(c) = ((((((Vec::Zero() + w1 * d1(c)) + w2 * d2(c)) + w3 * d3(c)) + w4 * d4(c)) +
+                  (central_ * m) * m(c)) + Q.col(c));
+    setP(P);
+    return worst(st, guard());
+  }
+
  private:
   // The rest of predict() from the transformed sigma points Xp.
   UkfStatus predicted(const Sigmas& Xp, const Mat& Q, UkfStatus st) noexcept {
@@ -236,29 +272,48 @@ class Ukf {
     for (int j = 1; j < N; ++j) hx += Hm(j) * x_(j);
     z_pred_(0) = z0 + hx;
     if (!std::isfinite(z)) return worst(st, UkfStatus::MeasurementRejected);
-    Vec C;
-    for (int r = 0; r < N; ++r) {
-      C(r) = P_(r, 0) * Hm(0);
-      for (int j = 1; j < N; ++j) C(r) += P_(r, j) * Hm(j);
+    if constexpr (N == 2) {
+      // The same operations as below on two-wide packets (one division for both gains, one for both
+      // statistics), and x and P stored whole: two scalar stores read back as one packet stall the load.
+      const Vec C = P_.col(0) * Hm(0) + P_.col(1) * Hm(1);
+      const double s = (Hm(0) * C(0) + Hm(1) * C(1)) + R;
+      if (s <= 0.0) return worst(st, hardReset());
+      const double nu = z - z_pred_(0);
+      innovation_(0) = nu;
+      const double d = s + widen;
+      const Vec q = Vec(nu, nu).cwiseQuotient(Vec(s, d));
+      nis_ = nu * q(0);
+      gate_stat_ = nu * (std::fabs(d) > std::numeric_limits<double>::min() ? q(1) : 0.0);
+      if (gate > 0.0 && !(gate_stat_ <= gate)) return worst(st, holdOutlier());
+      const Vec K = C / s, KS = K * s;
+      x_ += K * nu;
+      P_.col(0) -= KS * K(0);
+      P_.col(1) -= KS * K(1);
+    } else {
+      Vec C;
+      for (int r = 0; r < N; ++r) {
+        C(r) = P_(r, 0) * Hm(0);
+        for (int j = 1; j < N; ++j) C(r) += P_(r, j) * Hm(j);
+      }
+      double s = Hm(0) * C(0);
+      for (int j = 1; j < N; ++j) s += Hm(j) * C(j);
+      s += R;
+      if (s <= 0.0) return worst(st, hardReset());
+      const double nu = z - z_pred_(0);
+      innovation_(0) = nu;
+      nis_ = nu * (nu / s);
+      const double d = s + widen;
+      gate_stat_ = nu * (std::fabs(d) > std::numeric_limits<double>::min() ? nu / d : 0.0);
+      if (gate > 0.0 && !(gate_stat_ <= gate)) return worst(st, holdOutlier());
+      double K[N], KS[N];
+      for (int r = 0; r < N; ++r) {
+        K[r] = C(r) / s;
+        KS[r] = K[r] * s;
+      }
+      for (int r = 0; r < N; ++r) x_(r) += K[r] * nu;
+      for (int c = 0; c < N; ++c)
+        for (int r = 0; r < N; ++r) P_(r, c) -= KS[r] * K[c];
     }
-    double s = Hm(0) * C(0);
-    for (int j = 1; j < N; ++j) s += Hm(j) * C(j);
-    s += R;
-    if (s <= 0.0) return worst(st, hardReset());
-    const double nu = z - z_pred_(0);
-    innovation_(0) = nu;
-    nis_ = nu * (nu / s);
-    const double d = s + widen;
-    gate_stat_ = nu * (std::fabs(d) > std::numeric_limits<double>::min() ? nu / d : 0.0);
-    if (gate > 0.0 && !(gate_stat_ <= gate)) return worst(st, holdOutlier());
-    double K[N], KS[N];
-    for (int r = 0; r < N; ++r) {
-      K[r] = C(r) / s;
-      KS[r] = K[r] * s;
-      x_(r) += K[r] * nu;
-    }
-    for (int c = 0; c < N; ++c)
-      for (int r = 0; r < N; ++r) P_(r, c) -= KS[r] * K[c];
     factored_ = definite_ = false;
     return worst(st, guard());
   }
@@ -353,22 +408,35 @@ class Ukf {
     return true;
   }
 
-  // Symmetric, finite, positive definite - or repaired.
+  // Symmetric, finite, positive definite - or repaired. The common case (x finite, a 2 x 2 P that
+  // surelyDefinite() accepts, which implies P finite) costs a few comparisons; the rest is out of line.
   UkfStatus guard() noexcept {
-    // v - v is 0 for a finite v and NaN otherwise: one test for all (as Eigen's allFinite()).
+    factored_ = false;
+    if constexpr (N == 2) {
+      const double p10 = 0.5 * (P_(1, 0) + P_(0, 1));
+      P_.col(0) = Vec(P_(0, 0), p10);  // whole columns, as in updateLinear()
+      P_.col(1) = Vec(p10, P_(1, 1));
+      // v - v is 0 for a finite v and NaN otherwise: one test for all (as Eigen's allFinite()).
+      if ((x_(0) - x_(0) + (x_(1) - x_(1)) == 0.0) & surelyDefinite()) {
+        definite_ = true;  // factor() will succeed: it runs when sigma points need it
+        return UkfStatus::Ok;
+      }
+      return guardCold();
+    } else {
+      for (int c = 0; c < N; ++c)
+        for (int r = c + 1; r < N; ++r) P_(r, c) = P_(c, r) = 0.5 * (P_(r, c) + P_(c, r));
+      return guardRest();
+    }
+  }
+  [[gnu::cold, gnu::noinline]] UkfStatus guardCold() noexcept { return guardRest(); }
+  // guard() after symmetrising: non-finite x or P resets, a P that cannot be factored is repaired.
+  UkfStatus guardRest() noexcept {
     double zero = 0.0;
     for (int r = 0; r < N; ++r) {
       zero += x_(r) - x_(r);
       for (int c = 0; c < N; ++c) zero += P_(r, c) - P_(r, c);
     }
     if (!(zero == 0.0)) return hardReset();
-    for (int c = 0; c < N; ++c)
-      for (int r = c + 1; r < N; ++r) P_(r, c) = P_(c, r) = 0.5 * (P_(r, c) + P_(c, r));
-    factored_ = false;
-    if (surelyDefinite()) {  // factor() will succeed: it runs when sigma points need it
-      definite_ = true;
-      return UkfStatus::Ok;
-    }
     if (factor()) return UkfStatus::Ok;
     return repair();
   }

@@ -56,6 +56,17 @@ inline double boucWenTravel(double c, double v) noexcept {
 // Side of h = 0 whose equation applies; at h = 0 the side that the flow (a) enters.
 inline double boucWenSide(double h, double a) noexcept { return h > 0.0 ? 1.0 : h < 0.0 ? -1.0 : a > 0.0 ? 1.0 : -1.0; }
 
+// The rest of an increment that crossed h = 0: at the input travel v0 = log(1 + x) / c, x = -c h / a
+// (> -1 here; -h / a for c = 0); the rest follows the other side's equation from h = 0. Out of line:
+// it runs once per crossing, and inlined at every step it only makes the step's code longer.
+[[gnu::noinline]] inline double boucWenCrossed(const BoucWenParams& p, double h, double s, double v, double a,
+                                               double side, double c) noexcept {
+  const double x = -c * h / a;
+  const double v0 = x == 0.0 ? -h / a : std::log1p(x) / c;
+  const double c2 = p.gamma - s * side * p.beta;
+  return a * boucWenTravel(c2, std::max(v - v0, 0.0));
+}
+
 // The exact step from h over the input travel v in direction s (a = s alpha) on the given side, whose
 // c and travel factor boucWenTravel(c, v) the caller has computed.
 inline double boucWenAdvance(const BoucWenParams& p, double h, double s, double v, double a, double side, double c,
@@ -64,12 +75,7 @@ inline double boucWenAdvance(const BoucWenParams& p, double h, double s, double 
   if (rate == 0.0) return h;      // at a fixed point h stays (also keeps 0 * inf from a diverging c away)
   const double h1 = h + rate * travel;
   if (!(side * h1 < 0.0)) return h1;
-  // Crossed h = 0: at the input travel v0 = log(1 + x) / c, x = -c h / a (> -1 here; -h / a for c = 0);
-  // the rest of the increment follows the other side's equation from h = 0.
-  const double x = -c * h / a;
-  const double v0 = x == 0.0 ? -h / a : std::log1p(x) / c;
-  const double c2 = p.gamma - s * side * p.beta;
-  return a * boucWenTravel(c2, std::max(v - v0, 0.0));
+  return boucWenCrossed(p, h, s, v, a, side, c);
 }
 
 // f_h Ts added; a diverging parameter set (beta + gamma < 0) kept finite so a fitness can reject it,
@@ -106,38 +112,41 @@ inline double boucWenNext(const BoucWenParams& p, double h, double du, double f_
 }
 
 // boucWenNext for one increment du applied to several states (the estimator's sigma points), to the
-// bit: the travel factors of both sides of h = 0 depend on du alone and are computed once, so a state
-// costs a few multiplications and its h no longer waits on the series.
+// bit: c and the travel factor depend on du and the side of h = 0 alone, so they are computed once for
+// the side of a typical state h_hint (the sigma points' mean: they lie on its side but near h = 0), and
+// a state costs a few multiplications; a state on the other side computes its own.
 class BoucWenStep {
  public:
-  BoucWenStep(const BoucWenParams& p, double du) noexcept : p_(&p), moving_(du != 0.0) {
+  BoucWenStep(const BoucWenParams& p, double du, double h_hint = 0.0) noexcept : p_(&p), moving_(du != 0.0) {
     if (!moving_) return;
     s_ = du > 0.0 ? 1.0 : -1.0;
     v_ = std::fabs(du);
     a_ = s_ * p.alpha;
-    for (int i = 0; i < 2; ++i) {
-      const double side = i == 0 ? -1.0 : 1.0;
-      c_[i] = p.gamma + s_ * side * p.beta;
-      travel_[i] = detail::boucWenTravel(c_[i], v_);
-    }
+    side_ = detail::boucWenSide(h_hint, a_);
+    c_[0] = p.gamma - s_ * p.beta;
+    c_[1] = p.gamma + s_ * p.beta;
+    travel_ = detail::boucWenTravel(c_[side_ > 0.0 ? 1 : 0], v_);
   }
   double operator()(double h, double f_h, double Ts) const noexcept { return finish(advance(h), f_h, Ts); }
   // The two parts of operator(): the hysteresis over the increment (f_h not yet added), and f_h added.
   double advance(double h) const noexcept {
     if (!moving_) return h;
     const double side = detail::boucWenSide(h, a_);
-    const int i = side > 0.0 ? 1 : 0;
-    return detail::boucWenAdvance(*p_, h, s_, v_, a_, side, c_[i], travel_[i]);
+    const double c = c_[side > 0.0 ? 1 : 0];
+    const double travel = side == side_ ? travel_ : otherTravel(c);
+    return detail::boucWenAdvance(*p_, h, s_, v_, a_, side, c, travel);
   }
   static double finish(double h_advanced, double f_h, double Ts) noexcept {
     return detail::boucWenFinish(h_advanced, f_h, Ts);
   }
 
  private:
+  [[gnu::noinline]] double otherTravel(double c) const noexcept { return detail::boucWenTravel(c, v_); }
   const BoucWenParams* p_;
   bool moving_;
-  double s_ = 0.0, v_ = 0.0, a_ = 0.0;
-  double c_[2] = {0.0, 0.0}, travel_[2] = {0.0, 0.0};  // side -1, +1
+  double s_ = 0.0, v_ = 0.0, a_ = 0.0, side_ = 0.0;
+  double c_[2] = {0.0, 0.0};  // side -1, +1
+  double travel_ = 0.0;       // of side_
 };
 
 // The continuous model's condition for h to stay bounded for every input from h = 0. On each side of

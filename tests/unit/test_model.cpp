@@ -207,7 +207,7 @@ TEST(BoucWen, SlowInputMatchesContinuousModel) {
 
 // BoucWenStep, the estimator's form for many states and one increment, equals boucWenNext to the bit:
 // random parameter sets (also diverging ones and alpha = 0), increments of both signs and zero, states
-// on both sides of h = 0, at 0, far out and NaN.
+// on both sides of h = 0, at 0, far out and NaN, with the side hint on either side.
 TEST(BoucWen, StepForManyStatesEqualsBoucWenNextToTheBit) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> U(-1.0, 1.0);
@@ -215,7 +215,7 @@ TEST(BoucWen, StepForManyStatesEqualsBoucWenNextToTheBit) {
     BoucWenParams p{1.0, 0.0, 0.0, 3.0 * U(rng), 2.0 * U(rng), 2.0 * U(rng)};
     if (set % 17 == 0) p.alpha = 0.0;
     for (double du : {0.0, 1e-6, -1e-6, 0.01 * U(rng), 0.3 * U(rng), 5.0 * U(rng), 1e3, -1e3}) {
-      const BoucWenStep step(p, du);
+      const BoucWenStep step(p, du, set % 2 == 0 ? U(rng) : 0.0);
       for (double h : {0.0, -0.0, 1e-9, -1e-9, U(rng), 3.0 * U(rng), 1e9, -1e9, double(NAN)}) {
         const double f_h = set % 3 == 0 ? 0.0 : U(rng);
         const double want = boucWenNext(p, h, du, f_h, 1e-3), got = step(h, f_h, 1e-3);

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -120,5 +121,42 @@ TEST(Ukf, LinearUpdateEqualsTheSigmaPointUpdate) {
     EXPECT_NEAR(a.predictedMeasurement()(0), b.predictedMeasurement()(0), 1e-9) << k;
     EXPECT_LT((a.x() - b.x()).norm(), 1e-7 * (1.0 + a.x().norm())) << k;
     EXPECT_LT((a.P() - b.P()).norm(), 1e-6 * (1.0 + a.P().norm())) << k;
+  }
+}
+
+// predictDriven, the written-out predict of the joint [state, random-walk input], equals
+// predictShared<1> (and so predict()) to the bit: random states and covariances, a nonlinear g with a
+// kink at 0 (as Bouc-Wen's sides), a clamp in next, and the status, including a covariance that
+// must be repaired and a non-finite state.
+TEST(Ukf, DrivenPredictEqualsSharedPredictToTheBit) {
+  using F = Ukf<2, 1>;
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  const auto g = [](double h) { return h > 0.0 ? h - 0.3 * h * h : 1.7 * h + std::sin(h); };
+  const auto next = [](double gv, double f) { return std::clamp(gv + 1e-3 * f, -2.0, 2.0); };
+  for (int k = 0; k < 500; ++k) {
+    F::Vec x(2.5 * U(rng), 20.0 * U(rng));
+    const double c = (k % 7 == 0 ? 1.5 : 0.99) * U(rng), s0 = 1e-3 + std::fabs(U(rng)), s1 = 0.1 + 10.0 * std::fabs(U(rng));
+    F::Mat P;
+    P << s0 * s0, c * s0 * s1, c * s0 * s1, s1 * s1;  // |c| > 1: indefinite, repaired
+    if (k % 50 == 0) x(0) = NAN;
+    F::Mat Q;
+    Q << 0.1 * std::fabs(U(rng)), 0.0, 0.0, 0.2 * std::fabs(U(rng));
+    F a, b;
+    a.reset(x, P);
+    b.reset(x, P);
+    for (int step = 0; step < 3; ++step) {
+      const auto sa = a.predictShared<1>([&](const Eigen::Matrix<double, 1, 1>& h) { return g(h(0)); },
+                                         [&](const F::Vec& v, double gv) { return F::Vec(next(gv, v(1)), v(1)); }, Q);
+      const auto sb = b.predictDriven(g, next, Q);
+      ASSERT_EQ(sa, sb) << k;
+      for (int i = 0; i < 2; ++i) {
+        EXPECT_EQ(std::isnan(a.x()(i)), std::isnan(b.x()(i)));
+        if (!std::isnan(a.x()(i))) {
+          EXPECT_EQ(a.x()(i), b.x()(i)) << k << " step " << step;
+        }
+        for (int j = 0; j < 2; ++j) EXPECT_EQ(a.P()(i, j), b.P()(i, j)) << k << " step " << step;
+      }
+    }
   }
 }
