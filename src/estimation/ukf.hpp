@@ -159,14 +159,18 @@ class Ukf {
               d3 = Vec(next(g(h3), f3), f3) - X0, d4 = Vec(next(g0, f4), f4) - X0;
     const double w = wi_;
     const Vec w1 = w * d1, w2 = w * d2, w3 = w * d3, w4 = w * d4;
-    x_ = X0 + w * ((((Vec::Zero() + d1) + d2) + d3) + d4);
+    // Sums as pairs of pairs (their latency carries P from step to step), and P symmetric as computed:
+    // P10 once, for both sides (Q symmetric), so guard() has nothing to symmetrise.
+    x_ = X0 + w * ((d1 + d2) + (d3 + d4));
     const Vec m = x_ - X0;
-    Mat P;
-    for (int c = 0; c < 2; ++c)
-      P.col(c) = ((((((Vec::Zero() + w1 * d1(c)) + w2 * d2(c)) + w3 * d3(c)) + w4 * d4(c)) +
-                  (central_ * m) * m(c)) + Q.col(c));
-    setP(P);
-    return worst(st, guard());
+    const Vec diag = ((w1.cwiseProduct(d1) + w2.cwiseProduct(d2)) + (w3.cwiseProduct(d3) + w4.cwiseProduct(d4))) +
+                     (central_ * m).cwiseProduct(m) + Q.diagonal();
+    const double p10 = ((w1(1) * d1(0) + w2(1) * d2(0)) + (w3(1) * d3(0) + w4(1) * d4(0))) + (central_ * m(1)) * m(0) +
+                       Q(1, 0);
+    P_.col(0) = Vec(diag(0), p10);
+    P_.col(1) = Vec(p10, diag(1));
+    factored_ = definite_ = false;
+    return worst(st, guardSymmetric());
   }
 
  private:
@@ -275,8 +279,10 @@ class Ukf {
     if constexpr (N == 2) {
       // The same operations as below on two-wide packets (one division for both gains, one for both
       // statistics), and x and P stored whole: two scalar stores read back as one packet stall the load.
-      const Vec C = P_.col(0) * Hm(0) + P_.col(1) * Hm(1);
-      const double s = (Hm(0) * C(0) + Hm(1) * C(1)) + R;
+      // The paper's H = [k (1 - rho), 0] skips the zero column (the same numbers for a finite P).
+      const bool one = Hm(1) == 0.0;
+      const Vec C = one ? Vec(P_.col(0) * Hm(0)) : Vec(P_.col(0) * Hm(0) + P_.col(1) * Hm(1));
+      const double s = (one ? Hm(0) * C(0) : Hm(0) * C(0) + Hm(1) * C(1)) + R;
       if (s <= 0.0) return worst(st, hardReset());
       const double nu = z - z_pred_(0);
       innovation_(0) = nu;
@@ -287,8 +293,13 @@ class Ukf {
       if (gate > 0.0 && !(gate_stat_ <= gate)) return worst(st, holdOutlier());
       const Vec K = C / s, KS = K * s;
       x_ += K * nu;
-      P_.col(0) -= KS * K(0);
-      P_.col(1) -= KS * K(1);
+      // P - (K s) K', symmetric as computed (see predictDriven()).
+      const Vec diag = P_.diagonal() - KS.cwiseProduct(K);
+      const double p10 = P_(1, 0) - KS(1) * K(0);
+      P_.col(0) = Vec(diag(0), p10);
+      P_.col(1) = Vec(p10, diag(1));
+      factored_ = definite_ = false;
+      return worst(st, guardSymmetric());
     } else {
       Vec C;
       for (int r = 0; r < N; ++r) {
@@ -411,11 +422,17 @@ class Ukf {
   // Symmetric, finite, positive definite - or repaired. The common case (x finite, a 2 x 2 P that
   // surelyDefinite() accepts, which implies P finite) costs a few comparisons; the rest is out of line.
   UkfStatus guard() noexcept {
-    factored_ = false;
     if constexpr (N == 2) {
       const double p10 = 0.5 * (P_(1, 0) + P_(0, 1));
       P_.col(0) = Vec(P_(0, 0), p10);  // whole columns, as in updateLinear()
       P_.col(1) = Vec(p10, P_(1, 1));
+    }
+    return guardSymmetric();
+  }
+  // guard() for a P that is symmetric already (2 x 2) or is symmetrised here (larger).
+  UkfStatus guardSymmetric() noexcept {
+    factored_ = false;
+    if constexpr (N == 2) {
       // v - v is 0 for a finite v and NaN otherwise: one test for all (as Eigen's allFinite()).
       if ((x_(0) - x_(0) + (x_(1) - x_(1)) == 0.0) & surelyDefinite()) {
         definite_ = true;  // factor() will succeed: it runs when sigma points need it
