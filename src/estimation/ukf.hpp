@@ -12,11 +12,13 @@
 // with M degrees of freedom for a consistent filter): beyond the gate it is not used.
 // predict() and update() are noexcept and allocation-free; they return a status, never throw.
 // Cost: the step runs at 1 kHz beside the controller, so the small factorisations are written out
-// (cholesky(), the scalar measurement's solves) instead of Eigen's LLT/LDLT, whose dynamic-size
+// (factor(), the scalar measurement's solves) instead of Eigen's LLT/LDLT, whose dynamic-size
 // blocks cost more than the arithmetic at these sizes; each does Eigen's operations in Eigen's order,
 // so the results are the same to the bit. The factor guard() computes is kept for the next sigma points;
 // a 2 x 2 P that passes a cheaper test implying the factor exists is factored only when sigma points
-// need it (surelyDefinite()).
+// need it (surelyDefinite()). The paper's 2-state filter has its own written-out predict
+// (predictDriven()) and update (updateLinear()): equal to the generic ones up to rounding, with P
+// symmetric as computed, since P's chain from step to step is the step's longest latency.
 #pragma once
 
 #include <Eigen/Cholesky>
