@@ -111,35 +111,12 @@ class Ukf {
     return predicted(Xp, Q, st);
   }
 
-  // predict() for a transition f(x) = next(x, g(x_1..x_K)) whose costly part g reads only the first K
-  // components (K <= N). P's factor is lower triangular, so the sigma points x +- gamma L.col(j) of the
-  // columns j >= K have the first K components of x itself (x + 0 is x): g of the central point serves
-  // them, and g runs on 2K + 1 points instead of 2N + 1, with the same numbers as predict(f, Q).
-  // g: Eigen::Matrix<double, K, 1> (const&) -> any type; next: (Vec (const&), that type) -> Vec.
-  template <int K, class G, class Next>
-  UkfStatus predictShared(G&& g, Next&& next, const Mat& Q) noexcept {
-    static_assert(K >= 1 && K <= N, "a leading part of the state");
-    using Head = Eigen::Matrix<double, K, 1>;
-    UkfStatus st = UkfStatus::Ok;
-    Sigmas X, Xp;
-    const bool drawn = sigmaPoints(st, X);
-    P_last_ = P_;
-    if (!drawn) return UkfStatus::Reset;
-    const auto g0 = g(Head(X.col(0).template head<K>()));
-    Xp.col(0) = next(static_cast<const Vec&>(X.col(0)), g0);
-    for (int i = 0; i < N; ++i)
-      for (int j : {1 + i, 1 + N + i}) {
-        const Vec& Xj = static_cast<const Vec&>(X.col(j));
-        Xp.col(j) = i < K ? next(Xj, g(Head(Xj.template head<K>()))) : next(Xj, g0);
-      }
-    return predicted(Xp, Q, st);
-  }
-
-  // predictShared<1>() for N = 2 whose second state is a random walk, x' = [next(g(x_0), x_1), x_1]: a
-  // state driven by a costly g of itself and an unknown input (the paper's joint [h, f_h], eq. (9)).
-  // The same operations in the same order as predictShared<1>(g, [x, gv] -> (next(gv, x_1), x_1), Q),
-  // so the same numbers to the bit (tests/unit/test_ukf.cpp), written out in scalars: no sigma-point
-  // matrices are stored and read back, and the second state's rows are the sigma points themselves.
+  // predict() for N = 2 whose second state is a random walk, x' = [next(g(x_0), x_1), x_1]: a state
+  // driven by a costly g of itself and an unknown input (the paper's joint [h, f_h], eq. (9)). P's
+  // factor is lower triangular, so the sigma points x +- gamma L.col(1) have x_0 itself and share g of
+  // the central point: g runs on 3 points instead of 5. Written out on two-wide [x_0, x_1] packets, the
+  // sums in pairs and P symmetric as computed (P10 once; Q symmetric): P's chain from step to step runs
+  // through here. Equal to predict() up to rounding, statuses included (tests/unit/test_ukf.cpp).
   // g: double -> double; next: (double g, double x_1) -> double.
   template <class G, class Next>
   UkfStatus predictDriven(G&& g, Next&& next, const Mat& Q) noexcept {
@@ -150,13 +127,12 @@ class Ukf {
     if (!drawn) return UkfStatus::Reset;
     // Sigma points as sigmaPoints(): x +- spread_.col(j); spread_(0, 1) is 0 (a lower factor).
     const double h = x_(0), f = x_(1);
-    const double h1 = h + spread_(0, 0), f1 = f + spread_(1, 0), h2 = h + spread_(0, 1), f2 = f + spread_(1, 1);
+    const double h1 = h + spread_(0, 0), f1 = f + spread_(1, 0), f2 = f + spread_(1, 1);
     const double h3 = h - spread_(0, 0), f3 = f - spread_(1, 0), f4 = f - spread_(1, 1);
-    (void)h2;  // = h: shares g(h)
     const double g0 = g(h);
     const Vec X0(next(g0, f), f);
-    // predicted() on [h, f] pairs (two-wide packets): d_i = X_i' - X_0', the mean and the covariance's
-    // columns sum_i (Wi d_i) d_i[c], each element computed as predicted() computes it.
+    // predicted() on [h, f] pairs: d_i = X_i' - X_0', the mean X_0' + Wi sum d_i and the covariance
+    // sum_i Wi d_i d_i' + (b - a^2) m m' + Q.
     const Vec d1 = Vec(next(g(h1), f1), f1) - X0, d2 = Vec(next(g0, f2), f2) - X0,
               d3 = Vec(next(g(h3), f3), f3) - X0, d4 = Vec(next(g0, f4), f4) - X0;
     const double w = wi_;

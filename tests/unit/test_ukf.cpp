@@ -124,11 +124,11 @@ TEST(Ukf, LinearUpdateEqualsTheSigmaPointUpdate) {
   }
 }
 
-// predictDriven, the written-out predict of the joint [state, random-walk input], equals
-// predictShared<1> (and so predict()) up to rounding (it sums in another order and computes P10 once):
+// predictDriven, the written-out predict of the joint [state, random-walk input], equals predict() up
+// to rounding (it shares g of the mean, sums in another order and computes P10 once):
 // random states and covariances, a nonlinear g with a kink at 0 (as Bouc-Wen's sides), a clamp in
 // next, and the status, including a covariance that must be repaired and a non-finite state.
-TEST(Ukf, DrivenPredictEqualsSharedPredict) {
+TEST(Ukf, DrivenPredictEqualsPredict) {
   using F = Ukf<2, 1>;
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> U(-1.0, 1.0);
@@ -146,8 +146,7 @@ TEST(Ukf, DrivenPredictEqualsSharedPredict) {
     a.reset(x, P);
     b.reset(x, P);
     for (int step = 0; step < 3; ++step) {
-      const auto sa = a.predictShared<1>([&](const Eigen::Matrix<double, 1, 1>& h) { return g(h(0)); },
-                                         [&](const F::Vec& v, double gv) { return F::Vec(next(gv, v(1)), v(1)); }, Q);
+      const auto sa = a.predict([&](const F::Vec& v) { return F::Vec(next(g(v(0)), v(1)), v(1)); }, Q);
       const auto sb = b.predictDriven(g, next, Q);
       ASSERT_EQ(sa, sb) << k;
       const double scale = 1.0 + a.P().cwiseAbs().maxCoeff();
