@@ -101,10 +101,9 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   const model::BoucWenStep bw(p, du, ukf.x()(0));  // the same increment for every sigma point
   UkfStatus s1;
   if constexpr (Vec::RowsAtCompileTime == kCore) {
-    // h' = BW(h) + f_h Ts, f_h' = f_h: the Bouc-Wen part reads h alone, so the sigma points that differ
-    // from the mean only in f_h share the mean's (Ukf::predictDriven).
-    s1 = ukf.predictDriven([&](double h) { return bw.advance(h); },
-                           [&](double h_adv, double f_h) { return bw.finish(h_adv, f_h, Ts); }, Q<F>());
+    // h' = BW(h) + f_h Ts (clamped as boucWenFinish), f_h' = f_h: the Bouc-Wen part reads h alone and
+    // f_h enters linearly (Ukf::predictDriven).
+    s1 = ukf.predictDriven([&](double h) { return bw.advance(h); }, Ts, model::detail::kHLimit, Q<F>());
   } else {
     s1 = ukf.predict(
         [&](const Vec& x) {

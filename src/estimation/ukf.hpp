@@ -89,6 +89,7 @@ class Ukf {
     wm0_ = lambda_ / (n + lambda_);
     wi_ = 1.0 / (2.0 * (n + lambda_));
     central_ = s.beta - s.alpha * s.alpha;  // Wc0 - Wm0 - 1 + ... reduces to this (see predict())
+    wg_ = wi_ * gamma_;
   }
 
   void reset(const Vec& x0, const Mat& P0) noexcept {
@@ -111,47 +112,63 @@ class Ukf {
     return predicted(Xp, Q, st);
   }
 
-  // predict() for N = 2 whose second state is a random walk, x' = [next(g(x_0), x_1), x_1]: a state
-  // driven by a costly g of itself and an unknown input (the paper's joint [h, f_h], eq. (9)). P's
-  // factor is lower triangular, so the sigma points x +- gamma L.col(1) have x_0 itself and share g of
-  // the central point: g runs on 3 points instead of 5. Written out on two-wide [x_0, x_1] packets, the
-  // sums in pairs and P symmetric as computed (P10 once; Q symmetric): P's chain from step to step runs
-  // through here. Equal to predict() up to rounding, statuses included (tests/unit/test_ukf.cpp).
-  // g: double -> double; next: (double g, double x_1) -> double.
-  template <class G, class Next>
-  UkfStatus predictDriven(G&& g, Next&& next, const Mat& Q) noexcept {
+  // predict() for N = 2 of a state driven by a costly g of itself and a random-walk input that enters
+  // linearly: x' = [lim(g(x_0) + b x_1), x_1], lim the clamp to +-limit (NaN passes) - the paper's
+  // joint [h, f_h], eq. (9). With P's lower factor L, the sigma points are x +- gamma L.col(j): the
+  // pair of L.col(1) has x_0 itself, so g runs on 3 points, and where no point reaches the clamp the
+  // pair's share of the sums is known in closed form (gamma^2 Wi = 1/2, L10^2 + L11^2 = P11):
+  //   a_+- = g(x_0 +- gamma L00) - g(x_0),  w = Wi gamma L10,  m = Wi (a_+ + a_-)
+  //   x'   = [g(x_0) + b x_1 + m, x_1]
+  //   P00' = Wi (a_+^2 + a_-^2) + 2 b w (a_+ - a_-) + b^2 P11 + (b - a^2) m^2 + Q00
+  //   P10' = w (a_+ - a_-) + b P11 + Q10,  P11' = P11 + Q11.
+  // It needs L00 and L10 only: no second square root, and P11's chain is one addition. A P that must
+  // be repaired is factored as for predict(); a point at the clamp takes predict()'s way (cold). Equal
+  // to predict() up to rounding, statuses included (tests/unit/test_ukf.cpp). g: double -> double.
+  template <class G>
+  UkfStatus predictDriven(G&& g, double b, double limit, const Mat& Q) noexcept {
     static_assert(N == 2, "the joint state [x_0, x_1]");
     UkfStatus st = UkfStatus::Ok;
-    const bool drawn = factorOrRepair(st);
+    const bool drawn = definite_ || factorOrRepair(st);  // definite_: factor() would succeed
     P_last_ = P_;
     if (!drawn) return UkfStatus::Reset;
-    // Sigma points as sigmaPoints(): x +- spread_.col(j); spread_(0, 1) is 0 (a lower factor).
-    const double h = x_(0), f = x_(1);
-    const double h1 = h + spread_(0, 0), f1 = f + spread_(1, 0), f2 = f + spread_(1, 1);
-    const double h3 = h - spread_(0, 0), f3 = f - spread_(1, 0), f4 = f - spread_(1, 1);
-    const double g0 = g(h);
-    const Vec X0(next(g0, f), f);
-    // predicted() on [h, f] pairs: d_i = X_i' - X_0', the mean X_0' + Wi sum d_i and the covariance
-    // sum_i Wi d_i d_i' + (b - a^2) m m' + Q.
-    const Vec d1 = Vec(next(g(h1), f1), f1) - X0, d2 = Vec(next(g0, f2), f2) - X0,
-              d3 = Vec(next(g(h3), f3), f3) - X0, d4 = Vec(next(g0, f4), f4) - X0;
-    const double w = wi_;
-    const Vec w1 = w * d1, w2 = w * d2, w3 = w * d3, w4 = w * d4;
-    // Sums as pairs of pairs (their latency carries P from step to step), and P symmetric as computed:
-    // P10 once, for both sides (Q symmetric), so guard() has nothing to symmetrise.
-    x_ = X0 + w * ((d1 + d2) + (d3 + d4));
-    const Vec m = x_ - X0;
-    const Vec diag = ((w1.cwiseProduct(d1) + w2.cwiseProduct(d2)) + (w3.cwiseProduct(d3) + w4.cwiseProduct(d4))) +
-                     (central_ * m).cwiseProduct(m) + Q.diagonal();
-    const double p10 = ((w1(1) * d1(0) + w2(1) * d2(0)) + (w3(1) * d3(0) + w4(1) * d4(0))) + (central_ * m(1)) * m(0) +
-                       Q(1, 0);
-    P_.col(0) = Vec(diag(0), p10);
-    P_.col(1) = Vec(p10, diag(1));
+    const double h = x_(0), f = x_(1), p00 = P_(0, 0), p10 = P_(1, 0), p11 = P_(1, 1);
+    const double l00 = std::sqrt(p00), l10 = p10 / l00;  // as factor()
+    const double o = gamma_ * l00, e = gamma_ * l10;
+    const double g0 = g(h), gp = g(h + o), gm = g(h - o);
+    const double x0 = g0 + b * f;
+    // No point at the clamp: the three computed, and the pair x_0' +- b gamma L11 (L11^2 <= P11).
+    const double room = limit - std::fabs(x0), bg = b * gamma_;
+    if (!((std::fabs(gp + b * (f + e)) <= limit) & (std::fabs(gm + b * (f - e)) <= limit) & (room >= 0.0) &
+          (bg * bg * p11 <= room * room)))
+      return drivenByPoints(g, b, limit, Q, st);
+    const double ap = gp - g0, am = gm - g0, w = wg_ * l10, dw = w * (ap - am);
+    const double m = wi_ * (ap + am);
+    x_ = Vec(x0 + m, f);
+    const double p00n = ((wi_ * (ap * ap + am * am) + (2.0 * b) * dw) + (b * b * p11 + (central_ * m) * m)) + Q(0, 0);
+    const double p10n = (dw + b * p11) + Q(1, 0);
+    P_.col(0) = Vec(p00n, p10n);  // whole columns, symmetric as computed (Q symmetric)
+    P_.col(1) = Vec(p10n, p11 + Q(1, 1));
     factored_ = definite_ = false;
     return worst(st, guardSymmetric());
   }
 
  private:
+  // predictDriven() by its five sigma points, as predict(): where a point reaches the clamp, or x is
+  // not finite.
+  template <class G>
+  [[gnu::cold, gnu::noinline]] UkfStatus drivenByPoints(G& g, double b, double limit, const Mat& Q,
+                                                        UkfStatus st) noexcept {
+    Sigmas X, Xp;
+    if (!sigmaPoints(st, X)) return UkfStatus::Reset;  // P is definite here: not taken
+    for (int i = 0; i < kSigma; ++i) {
+      double v = g(X(0, i)) + b * X(1, i);
+      if (std::fabs(v) > limit) v = std::copysign(limit, v);
+      Xp(0, i) = v;
+      Xp(1, i) = X(1, i);
+    }
+    return predicted(Xp, Q, st);
+  }
+
   // The rest of predict() from the transformed sigma points Xp.
   UkfStatus predicted(const Sigmas& Xp, const Mat& Q, UkfStatus st) noexcept {
     // About the central point: P = sum_i Wi d_i d_i' + (b - a^2) m m', d_i = X_i - X_0, m = x - X_0 -
@@ -478,6 +495,7 @@ class Ukf {
 
   double lambda_ = 0, gamma_ = 0, wm0_ = 0, wi_ = 0;
   double central_ = 0;  // b - a^2: weight of the mean offset in the covariance about X_0
+  double wg_ = 0;       // Wi gamma (predictDriven())
   Vec x_ = Vec::Zero();
   Mat P_ = Mat::Identity();
   Mat P0_ = Mat::Identity();

@@ -82,11 +82,13 @@ inline double boucWenAdvance(const BoucWenParams& p, double h, double s, double 
   return boucWenCrossed(p, h, s, v, a, side, c);
 }
 
-// f_h Ts added; a diverging parameter set (beta + gamma < 0) kept finite so a fitness can reject it,
-// NaN passed through so the caller's health checks see it.
+// Bound of h: a diverging parameter set (beta + gamma < 0) is kept finite so a fitness can reject it.
+constexpr double kHLimit = 1e9;
+
+// f_h Ts added, h clamped to +-kHLimit, NaN passed through so the caller's health checks see it.
 inline double boucWenFinish(double h, double f_h, double Ts) noexcept {
   h += f_h * Ts;
-  if (std::fabs(h) > 1e9) h = std::copysign(1e9, h);
+  if (std::fabs(h) > kHLimit) h = std::copysign(kHLimit, h);
   return h;
 }
 }  // namespace detail
@@ -131,17 +133,16 @@ class BoucWenStep {
     c_[1] = p.gamma + s_ * p.beta;
     travel_ = detail::boucWenTravel(c_[side_ > 0.0 ? 1 : 0], v_);
   }
-  double operator()(double h, double f_h, double Ts) const noexcept { return finish(advance(h), f_h, Ts); }
-  // The two parts of operator(): the hysteresis over the increment (f_h not yet added), and f_h added.
+  double operator()(double h, double f_h, double Ts) const noexcept {
+    return detail::boucWenFinish(advance(h), f_h, Ts);
+  }
+  // The hysteresis over the increment, f_h not yet added.
   double advance(double h) const noexcept {
     if (!moving_) return h;
     const double side = detail::boucWenSide(h, a_);
     const double c = c_[side > 0.0 ? 1 : 0];
     const double travel = side == side_ ? travel_ : otherTravel(c);
     return detail::boucWenAdvance(*p_, h, s_, v_, a_, side, c, travel);
-  }
-  static double finish(double h_advanced, double f_h, double Ts) noexcept {
-    return detail::boucWenFinish(h_advanced, f_h, Ts);
   }
 
  private:

@@ -125,15 +125,18 @@ TEST(Ukf, LinearUpdateEqualsTheSigmaPointUpdate) {
 }
 
 // predictDriven, the written-out predict of the joint [state, random-walk input], equals predict() up
-// to rounding (it shares g of the mean, sums in another order and computes P10 once):
-// random states and covariances, a nonlinear g with a kink at 0 (as Bouc-Wen's sides), a clamp in
-// next, and the status, including a covariance that must be repaired and a non-finite state.
+// to rounding: random states and covariances, a nonlinear g with a kink at 0 (as Bouc-Wen's sides),
+// points at the clamp (predict()'s way) and points clear of it (the closed form), and the status,
+// including a covariance that must be repaired and a non-finite state. predict()'s own rounding sets
+// the tolerance: its d_2 + d_4, zero in exact arithmetic, is a few ulp of x_0' that Wi ~ 1.7e5 scales
+// (the closed form is checked against exact sums in the next test).
 TEST(Ukf, DrivenPredictEqualsPredict) {
   using F = Ukf<2, 1>;
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> U(-1.0, 1.0);
   const auto g = [](double h) { return h > 0.0 ? h - 0.3 * h * h : 1.7 * h + std::sin(h); };
   const auto next = [](double gv, double f) { return std::clamp(gv + 1e-3 * f, -2.0, 2.0); };
+  int clear = 0;  // steps whose points are all clear of the clamp (the closed form)
   for (int k = 0; k < 500; ++k) {
     F::Vec x(2.5 * U(rng), 20.0 * U(rng));
     const double c = (k % 7 == 0 ? 1.5 : 0.99) * U(rng), s0 = 1e-3 + std::fabs(U(rng)), s1 = 0.1 + 10.0 * std::fabs(U(rng));
@@ -145,19 +148,66 @@ TEST(Ukf, DrivenPredictEqualsPredict) {
     F a, b;
     a.reset(x, P);
     b.reset(x, P);
+    const double tol = 1e-8;
     for (int step = 0; step < 3; ++step) {
       const auto sa = a.predict([&](const F::Vec& v) { return F::Vec(next(g(v(0)), v(1)), v(1)); }, Q);
-      const auto sb = b.predictDriven(g, next, Q);
+      const auto sb = b.predictDriven(g, 1e-3, 2.0, Q);
       ASSERT_EQ(sa, sb) << k;
       const double scale = 1.0 + a.P().cwiseAbs().maxCoeff();
       for (int i = 0; i < 2; ++i) {
         EXPECT_EQ(std::isnan(a.x()(i)), std::isnan(b.x()(i)));
         if (!std::isnan(a.x()(i))) {
-          EXPECT_NEAR(a.x()(i), b.x()(i), 1e-12 * (1.0 + std::fabs(a.x()(i)))) << k << " step " << step;
+          EXPECT_NEAR(a.x()(i), b.x()(i), tol * (1.0 + std::fabs(a.x()(i)))) << k << " step " << step;
         }
-        for (int j = 0; j < 2; ++j) EXPECT_NEAR(a.P()(i, j), b.P()(i, j), 1e-12 * scale) << k << " step " << step;
+        for (int j = 0; j < 2; ++j) EXPECT_NEAR(a.P()(i, j), b.P()(i, j), tol * scale) << k << " step " << step;
       }
       EXPECT_EQ(b.P()(0, 1), b.P()(1, 0));  // symmetric as computed
+      if (sa == UkfStatus::Ok && std::fabs(a.x()(0)) < 1.5) ++clear;  // sigma points within 2e-3 of x_0
+    }
+  }
+  EXPECT_GT(clear, 300);
+}
+
+// predictDriven's closed form against the unscented transform's sums done in long double on the same
+// sigma points: g's values are the filter's (double), everything after them to ~1e-19 relative.
+// Random states, covariances, slopes b and correlations, all clear of the clamp.
+TEST(Ukf, DrivenPredictMatchesExactSums) {
+  using F = Ukf<2, 1>;
+  using LD = long double;
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  const auto g = [](double h) { return h > 0.0 ? h - 0.3 * h * h : 1.7 * h + std::sin(h); };
+  for (int k = 0; k < 2000; ++k) {
+    const double h = 2.0 * U(rng), f = 30.0 * U(rng), bs = k % 3 == 0 ? 1e-3 : 0.5 * U(rng);
+    const double c = 0.999 * U(rng), s0 = 1e-4 + std::fabs(U(rng)), s1 = 0.01 + 10.0 * std::fabs(U(rng));
+    F::Mat P, Q;
+    P << s0 * s0, c * s0 * s1, c * s0 * s1, s1 * s1;
+    Q << 0.1 * std::fabs(U(rng)), 0.0, 0.0, 0.2 * std::fabs(U(rng));
+    F b;
+    b.reset(F::Vec(h, f), P);
+    ASSERT_EQ(b.predictDriven(g, bs, 1e6, Q), UkfStatus::Ok) << k;
+
+    // The sigma points as the filter draws them: x_0 +- gamma L00 in double, the rest exact.
+    const double gam = std::sqrt(2.0 + b.lambda()), l00 = std::sqrt(P(0, 0));
+    const LD wi = b.wi(), central = LD(2.0) - LD(1e-6) * LD(1e-6) * LD(1e6);  // beta - alpha^2, alpha = 1e-3
+    const LD l10 = LD(P(1, 0)) / LD(l00), l11 = std::sqrt(LD(P(1, 1)) - l10 * l10);
+    const double o = gam * l00;
+    const LD g0 = g(h), gp = g(h + o), gm = g(h - o), e = LD(gam) * l10, e2 = LD(gam) * l11;
+    // d_i = X_i' - X_0', each formed exactly (X_0' itself is far larger than the d_i).
+    const LD d[4][2] = {{(gp - g0) + bs * e, e}, {bs * e2, e2}, {(gm - g0) - bs * e, -e}, {-bs * e2, -e2}};
+    LD m[2], Pr[2][2];
+    for (int r = 0; r < 2; ++r) m[r] = wi * (((d[0][r] + d[1][r]) + d[2][r]) + d[3][r]);
+    const LD mean[2] = {g0 + bs * LD(f) + m[0], LD(f) + m[1]};
+    for (int r = 0; r < 2; ++r)
+      for (int q = 0; q < 2; ++q) {
+        LD sum = 0;
+        for (int i = 0; i < 4; ++i) sum += wi * d[i][r] * d[i][q];
+        Pr[r][q] = sum + central * m[r] * m[q] + LD(Q(r, q));
+      }
+    const double scale = 1.0 + std::max(std::fabs(double(Pr[0][0])), std::fabs(double(Pr[1][1])));
+    for (int r = 0; r < 2; ++r) {
+      EXPECT_NEAR(b.x()(r), double(mean[r]), 1e-13 * (1.0 + std::fabs(double(mean[r])))) << k;
+      for (int q = 0; q < 2; ++q) EXPECT_NEAR(b.P()(r, q), double(Pr[r][q]), 1e-13 * scale) << k;
     }
   }
 }
