@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <thread>
 
+#include "model/staged_simulation.hpp"
+
 namespace pamc::ident {
 
 namespace {
@@ -208,6 +210,8 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
   }
   if (s.refine && s.lm_iterations > 0) {
     std::vector<std::vector<double>> pb(static_cast<size_t>(threads));
+    // A Jacobian column reruns only the stages its parameter acts in (model::StagedSimulation).
+    std::vector<model::StagedSimulation> sims(static_cast<size_t>(threads));
     ResidualFn resid = [&](const std::vector<double>& x, std::vector<double>& e, int w) {
       auto& m = models[static_cast<size_t>(w)];
       auto& p = pb[static_cast<size_t>(w)];
@@ -217,7 +221,7 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
         return;
       }
       m.setParams(p);
-      m.simulate(d.u.data(), lp, d.size(), d.Ts, e.data());
+      sims[static_cast<size_t>(w)].run(m, d.u.data(), lp, d.size(), d.Ts, e.data());
       for (size_t i = 0; i < e.size(); ++i) e[i] -= d.y[i];
     };
     // Short LM runs from the best and the GA's distinct runners-up, then the best of them to the end:

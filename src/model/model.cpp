@@ -11,6 +11,7 @@ Model::Model(const Model& o) : core_(o.core_), eff_params_(o.eff_params_) {
     effects_.push_back(Slot{makeEffect(s.impl->name()), s.param_offset, s.state_offset});
   }
   n_input_ = o.n_input_;
+  in_params_ = o.in_params_;
   out_state_begin_ = o.out_state_begin_;
   out_state_end_ = o.out_state_end_;
   n_filter_ = o.n_filter_;
@@ -77,10 +78,14 @@ void Model::addEffect(const std::string& name) {
 void Model::relayout() {
   int off = 0;
   n_input_ = 0;
+  in_params_ = 0;
   out_state_begin_ = -1;
   n_filter_ = 0;
   for (auto& s : effects_) {
-    if (s.impl->stage() == Stage::Input) ++n_input_;
+    if (s.impl->stage() == Stage::Input) {
+      ++n_input_;
+      in_params_ += static_cast<int>(s.impl->params().size());
+    }
     if (s.impl->stage() == Stage::Output && out_state_begin_ < 0) out_state_begin_ = off;
     s.state_offset = off;
     const int n = s.impl->numStates();
@@ -170,20 +175,27 @@ void Model::setParams(const std::vector<double>& p) {
 
 void Model::init(State& st, double u0, const StepContext& c) const noexcept {
   st.h = 0.0;
+  st.u_eff_prev = initInput(st, u0, c);
+  initOutput(st, st.u_eff_prev, c);
+}
+
+double Model::initInput(State& st, double u0, const StepContext& c) const noexcept {
   double x = u0;
-  size_t i = 0;
-  for (; i < effects_.size() && effects_[i].impl->stage() == Stage::Input; ++i) {
-    const auto& s = effects_[i];
+  for (int i = 0; i < n_input_; ++i) {
+    const auto& s = effects_[static_cast<size_t>(i)];
     s.impl->init(eff_params_.data() + s.param_offset, st.s.data() + s.state_offset, x, c);
     double tmp[kMaxEffectStates];
     std::memcpy(tmp, st.s.data() + s.state_offset, sizeof(double) * static_cast<size_t>(s.impl->numStates()));
     x = s.impl->step(eff_params_.data() + s.param_offset, tmp, x, c);
   }
-  st.u_eff_prev = x;
+  return x;
+}
+
+void Model::initOutput(State& st, double x, const StepContext& c) const noexcept {
   StepContext co = c;
   co.u_eff = x;
-  double y = coreOutput(x, st.h);
-  for (; i < effects_.size(); ++i) {
+  double y = coreOutput(x, 0.0);
+  for (size_t i = static_cast<size_t>(n_input_); i < effects_.size(); ++i) {
     const auto& s = effects_[i];
     s.impl->init(eff_params_.data() + s.param_offset, st.s.data() + s.state_offset, y, co);
     double tmp[kMaxEffectStates];
@@ -266,6 +278,54 @@ void Model::simulate(const double* u, const double* load, size_t n, double Ts, d
     }
   } else {
     for (size_t i = 0; i < n; ++i) y[i] = step(st, u[i], c);
+  }
+}
+
+// The stages of simulate(): the same calls with the same arguments, a stage at a time (step() gives
+// the input effects the context without u_eff, the output effects the one with it).
+double Model::simulateInput(const double* u, const double* load, size_t n, double Ts, double* u_eff) const noexcept {
+  if (n == 0) return 0.0;
+  State st;
+  StepContext c;
+  c.Ts = Ts;
+  c.load = load ? load[0] : 0.0;
+  const double rest = initInput(st, u[0], c);
+  if (load) {
+    for (size_t i = 0; i < n; ++i) {
+      c.load = load[i];
+      u_eff[i] = inputStage(st, u[i], c);
+    }
+  } else {
+    for (size_t i = 0; i < n; ++i) u_eff[i] = inputStage(st, u[i], c);
+  }
+  return rest;
+}
+
+void Model::simulateCore(double u_eff_rest, const double* u_eff, size_t n, double Ts, double* y_core) const noexcept {
+  double h = 0.0, prev = u_eff_rest;
+  for (size_t i = 0; i < n; ++i) {
+    y_core[i] = coreOutput(u_eff[i], h);
+    h = boucWenNext(core_, h, u_eff[i] - prev, 0.0, Ts);
+    prev = u_eff[i];
+  }
+}
+
+void Model::simulateOutput(double u_eff_rest, const double* u_eff, const double* y_core, const double* load, size_t n,
+                           double Ts, double* y_out) const noexcept {
+  if (n == 0) return;
+  if (!hasOutputEffects()) {
+    if (y_out != y_core) std::memmove(y_out, y_core, sizeof(double) * n);
+    return;
+  }
+  State st;
+  StepContext c;
+  c.Ts = Ts;
+  c.load = load ? load[0] : 0.0;
+  initOutput(st, u_eff_rest, c);
+  for (size_t i = 0; i < n; ++i) {
+    if (load) c.load = load[i];
+    c.u_eff = u_eff[i];
+    y_out[i] = outputChain(st, y_core[i], c);
   }
 }
 

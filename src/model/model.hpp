@@ -92,8 +92,19 @@ class Model {
   // modelling-error input of eq. (4) (0 for the reference model).
   double step(State& st, double u, const StepContext& c, double f_h = 0.0) const noexcept;
 
-  // Simulates a whole record from rest at u[0]. `load` may be empty.
+  // Simulates a whole record from rest at u[0]. `load` may be null.
   void simulate(const double* u, const double* load, size_t n, double Ts, double* y_out) const noexcept;
+  // simulate() stage by stage over the whole record, each stage from the one before: the input
+  // effects' output u_eff (simulateInput returns u_eff at rest), the core's output y_core, the output
+  // effects' output y. The chain is feed-forward, so the three give simulate()'s numbers to the bit;
+  // StagedSimulation keeps the first two to rerun only the stages a parameter acts in.
+  double simulateInput(const double* u, const double* load, size_t n, double Ts, double* u_eff) const noexcept;
+  void simulateCore(double u_eff_rest, const double* u_eff, size_t n, double Ts, double* y_core) const noexcept;
+  void simulateOutput(double u_eff_rest, const double* u_eff, const double* y_core, const double* load, size_t n,
+                      double Ts, double* y_out) const noexcept;
+  // Where the stages' parameters are in params(): the core's [0, kBoucWenParams), the input effects'
+  // [kBoucWenParams, inputParamsEnd()), the output effects' from there on.
+  int inputParamsEnd() const noexcept { return kBoucWenParams + in_params_; }
   std::vector<double> simulate(const std::vector<double>& u, double Ts,
                                const std::vector<double>& load = {}) const;
 
@@ -110,11 +121,16 @@ class Model {
   double inputChain(State& st, double u, const StepContext& c) const noexcept;
   double outputChain(State& st, double y, const StepContext& c) const noexcept;
   double outputPeekChain(const State& st, double y, const StepContext& c) const noexcept;
+  // The two halves of init(): the input effects at rest under u0 (returns their output), and the output
+  // effects at rest under the core's output for u_eff x at h = 0.
+  double initInput(State& st, double u0, const StepContext& c) const noexcept;
+  void initOutput(State& st, double x, const StepContext& c) const noexcept;
 
   BoucWenParams core_{};
   std::vector<Slot> effects_;
   std::vector<double> eff_params_;
   int n_input_ = 0;
+  int in_params_ = 0;        // parameters of the input effects (the first in eff_params_)
   int out_state_begin_ = 0;  // first state index of the output effects
   int out_state_end_ = 0;
   int n_filter_ = 0;

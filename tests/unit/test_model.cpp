@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "model/model.hpp"
+#include "model/staged_simulation.hpp"
 
 using namespace pamc::model;
 
@@ -351,4 +352,73 @@ TEST(Effects, ChainOrderDoesNotDependOnInsertionOrder) {
   b.addEffect("mass_spring");
   EXPECT_EQ(a.effectNames(), b.effectNames());
   EXPECT_EQ(a.effectNames().front(), "pressure_lag");  // input stage first
+}
+
+// StagedSimulation reruns only the stages a parameter acts in: on random structures from the whole
+// catalogue (with a load column), with random parameters within their bounds and an input of slow
+// drifts and large jumps, every run - a new point, each one-parameter change as Levenberg-Marquardt's
+// Jacobian columns make them, a change of several - equals Model::simulate() to the bit, and a column
+// of a core or an output parameter does not rerun the input effects.
+TEST(StagedSimulation, EqualsSimulateToTheBitAndRerunsOnlyLaterStages) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  const size_t n = 3000;
+  std::vector<double> u(n), load(n);
+  double v = 2.0;
+  for (size_t i = 0; i < n; ++i) {
+    v += i % 400 == 0 ? 6.0 * (U(rng) - 0.5) : 0.02 * (U(rng) - 0.5);
+    u[i] = std::clamp(v, -4.0, 8.0);
+    load[i] = i < n / 2 ? 0.0 : 30.0 + 10.0 * U(rng);
+  }
+  const auto& cat = catalogue();
+  int columns_core = 0, columns_output = 0, columns_input = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    Model m({4.0 + 4.0 * U(rng), 0.5 + 0.4 * U(rng), 15.0, 1.0, 0.3 + 0.5 * U(rng), 0.1 + 0.3 * U(rng)});
+    for (const auto& e : cat) {
+      if (U(rng) < 0.6) continue;
+      try {
+        m.addEffect(e.name);
+      } catch (const std::exception&) {  // an alternative to one taken, or too many states
+      }
+    }
+    std::vector<double> p = m.params();
+    const auto specs = m.paramSpecs();
+    for (size_t i = kBoucWenParams; i < p.size(); ++i) p[i] = specs[i].lo + (specs[i].hi - specs[i].lo) * U(rng);
+    m.setParams(p);
+    StagedSimulation sim;
+    std::vector<double> y(n), ref(n);
+    const double* lp = trial % 2 == 0 ? load.data() : nullptr;
+    auto check = [&](const char* what) {
+      sim.run(m, u.data(), lp, n, 1e-3, y.data());
+      m.simulate(u.data(), lp, n, 1e-3, ref.data());
+      for (size_t i = 0; i < n; ++i) {
+        if (std::isnan(ref[i])) ASSERT_TRUE(std::isnan(y[i])) << m.describe() << " " << what << " sample " << i;
+        else ASSERT_EQ(y[i], ref[i]) << m.describe() << " " << what << " sample " << i;
+      }
+    };
+    check("first run");
+    EXPECT_EQ(sim.lastStart(), 0);
+    for (int it = 0; it < 2; ++it) {
+      const std::vector<double> base = m.params();
+      for (size_t k = 0; k < base.size(); ++k) {
+        std::vector<double> q = base;
+        q[k] *= 1.0 + 1e-3;
+        q[k] += 1e-4;
+        m.setParams(q);
+        check("column");
+        const int want = k < static_cast<size_t>(kBoucWenParams) ? 1 : k < static_cast<size_t>(m.inputParamsEnd()) ? 0 : 2;
+        EXPECT_EQ(sim.lastStart(), want) << m.describe() << " parameter " << k;
+        (want == 1 ? columns_core : want == 2 ? columns_output : columns_input)++;
+      }
+      std::vector<double> q = base;  // a trial step: every parameter a little
+      for (size_t k = kBoucWenParams; k < q.size(); ++k) q[k] = specs[k].lo + (specs[k].hi - specs[k].lo) * U(rng);
+      q[0] *= 1.01;
+      m.setParams(q);
+      check("new point");
+      EXPECT_EQ(sim.lastStart(), m.inputParamsEnd() > kBoucWenParams ? 0 : 1);
+    }
+  }
+  EXPECT_GT(columns_core, 100);
+  EXPECT_GT(columns_output, 20);
+  EXPECT_GT(columns_input, 20);
 }
