@@ -55,6 +55,8 @@ constexpr double kAgree = 2e-3;
 // A validated error below this multiple of the sensor noise leaves nothing to explain: the ladder
 // stops adding effects and the probes are not run.
 constexpr double kAtNoise = 1.5;
+// A validation error whose mean square is at least this much its mean's: an offset between the records.
+constexpr double kOffsetShare = 0.8;
 
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -437,6 +439,12 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
   }
   const Rung& fin = res.ladder.back();
   res.final_residual = analyze(train, simulate(fin.model, train));
+  {
+    const auto yv = simulate(fin.model, *v.data);
+    double sum = 0.0;
+    for (size_t i = v.from; i < yv.size(); ++i) sum += v.data->y[i] - yv[i];
+    res.val_offset = yv.size() > v.from ? sum / static_cast<double>(yv.size() - v.from) : 0.0;
+  }
   // Probes: when the catalogue leaves the validated error above the noise, which kind of structure
   // explains what is left, and where.
   if (s.probes && !(fin.rmse_val < kAtNoise * noise)) {
@@ -482,7 +490,24 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
              fmt("%.4g", fin.rmse_val) + " (" + fmt("%.1f", res.ladder.front().rmse_val / std::max(fin.rmse_val, 1e-300)) +
              "x lower). Stopped: " + stop_reason + ".";
   }
-  if (noise > 0 && fin.rmse_train < 2.0 * noise)
+  // A model at the noise on the training record and far from it on the validation record: the records
+  // differ in what one record cannot show. Mostly a constant offset there: they start in different states.
+  const bool val_off = noise > 0 && fin.rmse_train < 2.0 * noise && !(fin.rmse_val < kAtNoise * noise);
+  if (val_off) {
+    v_text += " The remaining training error (" + fmt("%.3g", fin.rmse_train) + ") is at the sensor noise level (" +
+              fmt("%.3g", noise) + " rms), but the validated error is " + fmt("%.0f", fin.rmse_val / noise) +
+              "x it: the model holds on the training record and not on the validation record.";
+    const double share = res.val_offset * res.val_offset / std::max(fin.rmse_val * fin.rmse_val, 1e-300);
+    if (share >= kOffsetShare)
+      v_text += " There it is off by a nearly constant " + fmt("%.3g", res.val_offset) + " (" + fmt("%.0f", 100 * share) +
+                " % of its mean square): the records start in different states - a warm-up or a drift already under "
+                "way at one of them, or a sensor zero that moved between them - which a fit on one record cannot tell "
+                "from the model's own offset and gain. Record from a known start (a cold muscle, a zeroed sensor), or "
+                "validate on a later part of the same record (without --validate).";
+    else
+      v_text += " Something differs between the records that the training record does not show: its levels or rates, "
+                "or a slow change between the recordings.";
+  } else if (noise > 0 && fin.rmse_train < 2.0 * noise)
     v_text += " The remaining training error (" + fmt("%.3g", fin.rmse_train) + ") is at the sensor noise level (" +
               fmt("%.3g", noise) + " rms): nothing systematic is left to explain.";
   else if (noise > 0)
@@ -495,7 +520,7 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       v_text += " The probe " + p.probe + " explains " + fmt("%.0f", 100 * p.explains) +
                 " % of what is left (validated RMSE " + fmt("%.4g", fin.rmse_val) + " -> " + fmt("%.4g", p.rmse_val) +
                 "), most of it at " + p.regime + ": " + p.meaning + ". It is a probe, not part of the model.";
-    else
+    else if (!val_off)
       v_text += " No probe explains what is left either (the best, " + p.probe + ", " + fmt("%.0f", 100 * p.explains) +
                 " %): it may be noise that is not white, or structure none of the probes has.";
   }
@@ -510,6 +535,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
   j["validation_samples"] = r.val_samples;
   j["validation"] = r.validation;
   j["baseline"] = {{"rmse_train", r.ladder.front().rmse_train}, {"rmse_val", r.ladder.front().rmse_val}};
+  j["validation_offset"] = r.val_offset;  // mean of measured - final model there
   nlohmann::json c = nlohmann::json::array();
   if (!r.rounds.empty())
     for (const auto& x : r.rounds.front())

@@ -71,6 +71,7 @@ struct DiagnoseResult {
   std::vector<ProbeResult> probes;  // best first; empty when the catalogue reached the noise
   bool probe_rung = false;          // the best probe lowers the validated RMSE by min_gain or more
   ResidualReport baseline_residual, final_residual;  // on the training data
+  double val_offset = 0;            // mean of measured - final model on the validation data
   std::string verdict;
   double seconds = 0;
 };
