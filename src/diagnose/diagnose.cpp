@@ -502,8 +502,8 @@ DiagnoseResult diagnose(const io::Measurement& data, const io::Measurement* val,
       v_text += " There it is off by a nearly constant " + fmt("%.3g", res.val_offset) + " (" + fmt("%.0f", 100 * share) +
                 " % of its mean square): the records start in different states - a warm-up or a drift already under "
                 "way at one of them, or a sensor zero that moved between them - which a fit on one record cannot tell "
-                "from the model's own offset and gain. Record from a known start (a cold muscle, a zeroed sensor), or "
-                "validate on a later part of the same record (without --validate).";
+                "from the model's own offset and gain. Record from a known start (a cold muscle, a zeroed sensor)" +
+                std::string(val ? ", or validate on a later part of the same record (without --validate)." : ".");
     else
       v_text += " Something differs between the records that the training record does not show: its levels or rates, "
                 "or a slow change between the recordings.";

@@ -106,6 +106,7 @@ TEST(Diagnose, AnOffsetBetweenTheRecordsIsNamed) {
   EXPECT_EQ(r.ladder.back().effects, std::vector<std::string>{"warm_up"}) << r.verdict;
   EXPECT_NEAR(r.val_offset, -0.186, 0.01) << r.verdict;
   EXPECT_NE(r.verdict.find("start in different states"), std::string::npos) << r.verdict;
+  EXPECT_NE(r.verdict.find("without --validate"), std::string::npos) << r.verdict;  // a validation file was given
   EXPECT_EQ(r.verdict.find("nothing systematic is left"), std::string::npos) << r.verdict;
   EXPECT_NEAR(diagnose::toJson(r)["validation_offset"].get<double>(), r.val_offset, 1e-12);
 }
