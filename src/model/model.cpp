@@ -290,13 +290,9 @@ double Model::simulateInput(const double* u, const double* load, size_t n, doubl
   c.Ts = Ts;
   c.load = load ? load[0] : 0.0;
   const double rest = initInput(st, u[0], c);
-  if (load) {
-    for (size_t i = 0; i < n; ++i) {
-      c.load = load[i];
-      u_eff[i] = inputStage(st, u[i], c);
-    }
-  } else {
-    for (size_t i = 0; i < n; ++i) u_eff[i] = inputStage(st, u[i], c);
+  for (size_t i = 0; i < n; ++i) {
+    if (load) c.load = load[i];  // read by reference here: no copy waits for the store (see simulate())
+    u_eff[i] = inputStage(st, u[i], c);
   }
   return rest;
 }

@@ -7,7 +7,8 @@
 // skips the input effects, one of an output effect skips the core as well. A run that changes more
 // than one parameter (a new point: the start, a trial step) is kept; a run that changes one is not,
 // so every column of an iteration finds its point's stages. The same numbers as Model::simulate() to
-// the bit (tests/unit/test_model.cpp). One per worker: it allocates on its first run.
+// the bit (tests/unit/test_model.cpp). One per worker; for offline fits only: it allocates (its stage
+// buffers on the first run of a record length, the parameter vector on every run).
 #pragma once
 
 #include <cstddef>
