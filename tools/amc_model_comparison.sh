@@ -24,7 +24,7 @@ declare -A LABEL=(
 echo "| emulator | diagnosed effects | AMC form | model | horizon | triangle 0.05 Hz max/RMSE | sine 0.05 Hz max/RMSE | sine 0.1 Hz max/RMSE | rms(du) [V] |"
 echo "|---|---|---|---|---|---|---|---|---|"
 for p in lag120 lag40_delay30 lag40_creep; do
-  echo "{\"effects\":{$off,${PLANT[$p]}},\"stroke\":{\"enabled\":false}}" > "$p.json"
+  echo "{\"kind\":\"model\",\"effects\":{$off,${PLANT[$p]}},\"stroke\":{\"enabled\":false}}" > "$p.json"
   "$P" emulate --plant "$p.json" --input random:1:-3:3 --duration 60 --out "$p.train.csv" > /dev/null
   "$P" emulate --plant "$p.json" --input random:2:-3:3 --duration 40 --out "$p.val.csv" > /dev/null
   "$P" fit "$p.train.csv" --out "$p.plain.json" --quiet > /dev/null

@@ -52,7 +52,7 @@ echo "| hidden effect | named first | effects added | validated RMSE before -> a
 echo "|---|---|---|---|---|---|---|"
 for e in ${ONLY:-$order}; do
   j="$off"; [ -n "${E[$e]}" ] && j="$off,${E[$e]}"
-  echo "{\"core\":$core,\"effects\":{$j},\"stroke\":{\"enabled\":false}}" > "h_$e.json"
+  echo "{\"kind\":\"model\",\"core\":$core,\"effects\":{$j},\"stroke\":{\"enabled\":false}}" > "h_$e.json"
   L1=(); L2=(); [ "$e" = load ] && L1=(--load random:7:0:40) && L2=(--load random:8:0:40)
   "$P" emulate --plant "h_$e.json" --input $train --duration 40 --out "tr_$e.csv" "${L1[@]}" > /dev/null
   "$P" emulate --plant "h_$e.json" --input $val --duration 30 --out "va_$e.csv" "${L2[@]}" > /dev/null

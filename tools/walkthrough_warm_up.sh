@@ -9,7 +9,7 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 P="$root/build/src/pamc"
 W="${1:-$(mktemp -d)}"; mkdir -p "$W"; cd "$W"
 cat > warm.json <<'JSON'
-{"effects": {"pressure_lag": {"enabled": true, "tau": 0.05, "slew": 1000}, "load": {"enabled": false},
+{"kind": "model", "effects": {"pressure_lag": {"enabled": true, "tau": 0.05, "slew": 1000}, "load": {"enabled": false},
              "saturation": {"enabled": false}, "friction_hysteresis": {"enabled": false}, "mass_spring": {"enabled": false},
              "warm_up": {"enabled": true, "tau": 20, "gain": 0.1, "shift": 0.5}},
  "stroke": {"enabled": false}}

@@ -47,14 +47,15 @@ class CalibrateCommand final : public Command {
     cmd_->add_option("--forms", forms_, "eq. (17) readings to try: printed, increment (comma list)")->capture_default_str();
     cmd_->add_option("--eso-tau", eso_tau_, "comma list of first-order ESO time constants to try [s]")->capture_default_str();
     cmd_->add_option("--eso-wo", eso_wo_, "comma list of first-order ESO bandwidths to try [rad/s]")->capture_default_str();
-    cmd_->add_option("--plant", plant_, "start from this emulator configuration (JSON) instead of the defaults");
+    cmd_->add_option("--plant", plant_, "start from this plant file (JSON, \"kind\": \"model\") instead of the model plant's defaults");
     cmd_->add_option("--work", work_, "directory for every candidate's runs")->capture_default_str();
     cmd_->add_option("--out", out_, "also write the table (Markdown) to this file");
   }
 
   int run() override {
     sim::CalibrationSettings s;
-    if (!plant_.empty()) s.base.plant = plant::PlantConfig::fromFile(plant_);
+    // The calibration varies the model plant's pressure lag (docs/CALIBRATION.md).
+    s.base.plant = plant_.empty() ? plant::PlantConfig::modelDefaults() : plant::PlantConfig::fromFile(plant_);
     s.lag_tau_s = numbers("--lag", lag_);
     s.ki = numbers("--ki", ki_);
     s.eso_tau = numbers("--eso-tau", eso_tau_);

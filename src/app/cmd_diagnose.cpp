@@ -31,6 +31,7 @@ class DiagnoseCommand final : public Command {
                      "searched again by the GA) or ga (the paper's GA first for every fit: slower; docs/PERFORMANCE.md)")
         ->capture_default_str()
         ->check(CLI::IsMember({"lm", "ga"}));
+    addOutputFormOption(cmd_, dg_form);
     cmd_->add_flag("--no-probes", dg_no_probes, "do not try the probes when the catalogue leaves the error above the noise");
     cmd_->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
   }
@@ -46,6 +47,7 @@ class DiagnoseCommand final : public Command {
     ds.method = ident::fitMethodFromString(dg_method);
     ds.log = progressLine;
     ds.probes = !dg_no_probes;
+    ds.output_form = outputFormOf(dg_form);
     const auto r = diagnose::diagnose(d, dg_val.empty() ? nullptr : &v, ds);
     std::printf("\nFirst round (on top of the reference model), best first:\n");
     if (!r.rounds.empty())
@@ -88,6 +90,7 @@ class DiagnoseCommand final : public Command {
  private:
   std::string dg_data, dg_val, dg_report, dg_json, dg_cands, dg_method = "lm";
   bool dg_no_probes = false;
+  std::string dg_form = "aligned";
   diagnose::DiagnoseSettings ds;
 };
 

@@ -32,6 +32,7 @@ class FitCommand final : public Command {
         ->capture_default_str()
         ->check(CLI::Range(1, 100000));
     cmd_->add_option("--threads", fs_.ga.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
+    addOutputFormOption(cmd_, form_);
     cmd_->add_flag("--quiet", quiet_, "no progress on stderr");
   }
   int run() override {
@@ -48,6 +49,7 @@ class FitCommand final : public Command {
   io::Measurement m = io::readMeasurementCsv(data, &warnings);
   printWarnings(warnings);
   model::Model structure;
+  structure.setOutputForm(outputFormOf(form_));
   for (const auto& e : splitList(effects)) structure.addEffect(e);
   if (!quiet)
     std::fprintf(stderr, "fitting %s (%d parameters) to %zu samples of %s, Ts = %g s\n", structure.describe().c_str(),
@@ -89,6 +91,7 @@ class FitCommand final : public Command {
   std::string data_, out_, effects_, method_ = "auto";
   ident::FitSettings fs_;
   bool quiet_ = false;
+  std::string form_ = "aligned";
 };
 
 }  // namespace

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "model/model.hpp"
+
 namespace pamc::app {
 
 class Command {
@@ -46,6 +48,10 @@ inline const CommandFactory kCommands[] = {
     makeExperimentsCommand, makeCalibrateCommand, makeFitCommand,        makeCompareCommand, makeDiagnoseCommand,
     makeEmulateCommand,     makePlantCommand,     makeEffectsCommand,    makeRigCommand,     makeControllerCommand,
     makeEmulatorCommand,    makeDecodeCommand,    makeMonitorCommand};
+
+// --output-form: the form a model is fitted in (model::OutputForm), the same option wherever a model is fitted.
+CLI::Option* addOutputFormOption(CLI::App* cmd, std::string& form);
+model::OutputForm outputFormOf(const std::string& form);
 
 std::vector<std::string> splitList(const std::string& s);
 void progressLine(const std::string& m);

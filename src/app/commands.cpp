@@ -21,4 +21,19 @@ void printWarnings(std::vector<std::string>& warnings) {
   warnings.clear();
 }
 
+CLI::Option* addOutputFormOption(CLI::App* cmd, std::string& form) {
+  return cmd
+      ->add_option("--output-form", form,
+                   "aligned: y_k from the hysteresis state after u_k's increment (the continuous model's timing); "
+                   "printed: eq. (6) as printed, y_k from h before it, one sample behind (docs/MODEL.md)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"aligned", "printed"}));
+}
+
+model::OutputForm outputFormOf(const std::string& form) {
+  model::OutputForm f = model::OutputForm::Aligned;
+  model::parseOutputForm(form, f);
+  return f;
+}
+
 }  // namespace pamc::app

@@ -30,6 +30,8 @@ struct DiagnoseSettings {
   // When the catalogue leaves the validated error above the noise, fit the probes (model/probe.hpp)
   // on top of the final model and report which kind of structure explains what is left.
   bool probes = true;
+  // The form every model is fitted in (model::OutputForm): the aligned output unless asked otherwise.
+  model::OutputForm output_form = model::OutputForm::Aligned;
   std::function<void(const std::string&)> log;
 };
 

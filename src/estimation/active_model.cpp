@@ -87,7 +87,11 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   c.load = load;
   const model::BoucWenParams& p = model_.core();
   const double Ts = Ts_;
-  const double du = du_pending_;
+  // The effective command of this sample. Aligned form: its own increment drives h_k, from which y_k
+  // is formed; printed form (eq. 6 as printed): the last sample's increment, y_k from h before u_k's.
+  const double ue = model_.inputStage(st_, u, c);
+  c.u_eff = ue;
+  const double du = model_.aligned() ? ue - st_.u_eff_prev : du_pending_;
 
   // Eq. (9): F(X) = [h + (BW(u_delta, h) + f_h) Ts, f_h], and the filter states s of the output
   // effects advanced by the last sample's output stage, driven by that sample's core output.
@@ -117,8 +121,6 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
         Q<F>());
   }
 
-  const double ue = model_.inputStage(st_, u, c);
-  c.u_eff = ue;
   // Eq. (9): H(X) = k rho u + b + k (1 - rho) h, then the output effects (not advanced), their
   // filter states taken from X.
   const auto& st = st_;
@@ -240,15 +242,17 @@ double ActiveModel::predictAhead(const double* in_flight, int n_in_flight, doubl
   model::Model::State s = st_;
   double h = this->h();
   const double f = fh();
+  const bool aligned = model_.aligned();
   double du = du_pending_;
   double y = y_post_;
   for (int i = 0; i < horizon; ++i) {
-    h = model::boucWenNext(model_.core(), h, du, f, Ts_);
+    if (!aligned) h = model::boucWenNext(model_.core(), h, du, f, Ts_);
     const double ue = model_.inputStage(s, i < n_in_flight ? in_flight[i] : u_hold, c);
     c.u_eff = ue;
-    y = model_.outputStage(s, model_.coreOutput(ue, h), c);
     du = ue - s.u_eff_prev;
     s.u_eff_prev = ue;
+    if (aligned) h = model::boucWenNext(model_.core(), h, du, f, Ts_);
+    y = model_.outputStage(s, model_.coreOutput(ue, h), c);
   }
   return y;
 }

@@ -129,7 +129,7 @@ class ActiveModel {
   int nf_ = 0;               // filter states in use (model_.numFilterStates())
   unsigned divergences_ = 0;
   double y_post_ = 0.0;      // last posterior output
-  double du_pending_ = 0.0;  // u_eff(k-1) - u_eff(k-2): drives h_k = F(h_{k-1})
+  double du_pending_ = 0.0;  // u_eff(k-1) - u_eff(k-2): drives h_k = F(h_{k-1}) in the printed form
   unsigned resets_ = 0;
   int outlier_run_ = 0;      // outliers in a row
   unsigned outliers_total_ = 0;

@@ -37,6 +37,7 @@ nlohmann::json modelToJson(const model::Model& m) {
   j["format"] = "pamc-model/1";
   const auto& p = m.core();
   j["core"] = {{"k", p.k}, {"rho", p.rho}, {"b", p.b}, {"alpha", p.alpha}, {"beta", p.beta}, {"gamma", p.gamma}};
+  j["output_form"] = model::outputFormName(m.outputForm());
   nlohmann::json e = nlohmann::json::array();
   for (int i = 0; i < m.numEffects(); ++i) {
     nlohmann::json ps = nlohmann::json::object();
@@ -73,6 +74,13 @@ model::Model modelFromJson(const nlohmann::json& j, const std::string& where) {
     if (!known) fail("core: unknown parameter '" + it.key() + "'");
   }
   model::Model m(p);
+  // A file from before the field was fitted in eq. (6)'s printed form, and is run in it.
+  model::OutputForm form = model::OutputForm::Printed;
+  if (j.contains("output_form")) {
+    if (!j["output_form"].is_string() || !model::parseOutputForm(j["output_form"].get<std::string>(), form))
+      fail("'output_form' must be \"aligned\" or \"printed\"");
+  }
+  m.setOutputForm(form);
   if (j.contains("effects")) {
     if (!j["effects"].is_array()) fail("'effects' must be an array");
     for (const auto& e : j["effects"]) {

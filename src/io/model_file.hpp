@@ -1,5 +1,6 @@
 // Model files (JSON): the reference model's parameters, its effects and how it was fitted.
 //   {"format": "pamc-model/1", "core": {"k":..,"rho":..,"b":..,"alpha":..,"beta":..,"gamma":..},
+//    "output_form": "aligned" | "printed" (model::OutputForm; a file without it is read as printed),
 //    "effects": [{"name": "pressure_lag", "params": {"tau": 0.05, "slew": 1000}}, ...],
 //    "fit": {...free-form provenance...}}
 #pragma once

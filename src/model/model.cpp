@@ -6,7 +6,16 @@
 
 namespace pamc::model {
 
-Model::Model(const Model& o) : core_(o.core_), eff_params_(o.eff_params_) {
+const char* outputFormName(OutputForm f) noexcept { return f == OutputForm::Aligned ? "aligned" : "printed"; }
+
+bool parseOutputForm(const std::string& name, OutputForm& out) noexcept {
+  if (name == "aligned") out = OutputForm::Aligned;
+  else if (name == "printed") out = OutputForm::Printed;
+  else return false;
+  return true;
+}
+
+Model::Model(const Model& o) : core_(o.core_), form_(o.form_), eff_params_(o.eff_params_) {
   for (const auto& s : o.effects_) {
     effects_.push_back(Slot{makeEffect(s.impl->name()), s.param_offset, s.state_offset});
   }
@@ -256,6 +265,11 @@ double Model::step(State& st, double u, const StepContext& c0, double f_h) const
   StepContext c = c0;
   const double ue = inputStage(st, u, c);
   c.u_eff = ue;
+  if (aligned()) {
+    st.h = boucWenNext(core_, st.h, ue - st.u_eff_prev, f_h, c.Ts);
+    st.u_eff_prev = ue;
+    return outputStage(st, coreOutput(ue, st.h), c);
+  }
   const double y = outputStage(st, coreOutput(ue, st.h), c);
   st.h = boucWenNext(core_, st.h, ue - st.u_eff_prev, f_h, c.Ts);
   st.u_eff_prev = ue;
@@ -299,6 +313,14 @@ double Model::simulateInput(const double* u, const double* load, size_t n, doubl
 
 void Model::simulateCore(double u_eff_rest, const double* u_eff, size_t n, double Ts, double* y_core) const noexcept {
   double h = 0.0, prev = u_eff_rest;
+  if (aligned()) {
+    for (size_t i = 0; i < n; ++i) {
+      h = boucWenNext(core_, h, u_eff[i] - prev, 0.0, Ts);
+      prev = u_eff[i];
+      y_core[i] = coreOutput(u_eff[i], h);
+    }
+    return;
+  }
   for (size_t i = 0; i < n; ++i) {
     y_core[i] = coreOutput(u_eff[i], h);
     h = boucWenNext(core_, h, u_eff[i] - prev, 0.0, Ts);

@@ -21,6 +21,17 @@ constexpr int kMaxModelStates = 600;
 // two and creep's one fit).
 constexpr int kMaxFilterStates = 3;
 
+// Which hysteresis state the output of sample k is formed from (docs/MODEL.md, "The output in step with
+// the hysteresis"). Aligned: Y_k from h_k after u_k's increment, so the static term k rho u_k and the
+// hysteresis term see the same input, as in the continuous model and in the paper's eq. (17). Printed:
+// eq. (6) as printed, Y_k from h_k before u_k's increment: the hysteresis term one sample behind the
+// static term (a model error of k (1 - rho) dh at every input step). A model runs in the form it was
+// fitted in; model files record it (files without it are read as printed, the form they were fitted in).
+enum class OutputForm { Aligned, Printed };
+const char* outputFormName(OutputForm f) noexcept;
+// "aligned" or "printed"; false for anything else.
+bool parseOutputForm(const std::string& name, OutputForm& out) noexcept;
+
 class Model {
  public:
   struct State {
@@ -43,6 +54,9 @@ class Model {
 
   const BoucWenParams& core() const { return core_; }
   BoucWenParams& core() { return core_; }
+  OutputForm outputForm() const noexcept { return form_; }
+  void setOutputForm(OutputForm f) noexcept { form_ = f; }
+  bool aligned() const noexcept { return form_ == OutputForm::Aligned; }
 
   int numEffects() const { return static_cast<int>(effects_.size()); }
   const Effect& effect(int i) const { return *effects_[static_cast<size_t>(i)].impl; }
@@ -89,7 +103,8 @@ class Model {
   // Copies the output effects' states (all that outputWith reads of a State) from one State to another.
   void copyOutputStates(const State& from, State& to) const noexcept;
   // One whole sample: returns y_k for command u_k and advances st to k+1. f_h is the
-  // modelling-error input of eq. (4) (0 for the reference model).
+  // modelling-error input of eq. (4) (0 for the reference model). Aligned: h takes u_k's increment
+  // (and f_h Ts) first and y_k is formed from it; printed: y_k from h before it.
   double step(State& st, double u, const StepContext& c, double f_h = 0.0) const noexcept;
 
   // Simulates a whole record from rest at u[0]. `load` may be null.
@@ -127,6 +142,7 @@ class Model {
   void initOutput(State& st, double x, const StepContext& c) const noexcept;
 
   BoucWenParams core_{};
+  OutputForm form_ = OutputForm::Aligned;
   std::vector<Slot> effects_;
   std::vector<double> eff_params_;
   int n_input_ = 0;

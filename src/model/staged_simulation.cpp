@@ -5,7 +5,8 @@ namespace pamc::model {
 void StagedSimulation::run(const Model& m, const double* u, const double* load, size_t n, double Ts, double* y_out) {
   p_ = m.params();
   const size_t in_end = static_cast<size_t>(m.inputParamsEnd());
-  const bool same = key_.size() == p_.size() && u == u_ && load == load_ && n == n_ && Ts == Ts_;
+  const bool same = key_.size() == p_.size() && u == u_ && load == load_ && n == n_ && Ts == Ts_ &&
+                    m.outputForm() == form_;
   int changed = 0;
   bool input = !same, core = !same;
   if (same) {
@@ -39,6 +40,7 @@ void StagedSimulation::run(const Model& m, const double* u, const double* load, 
     key_ = p_;
     u_ = u, load_ = load, n_ = n, Ts_ = Ts;
     rest_ = rest;
+    form_ = m.outputForm();
   }
 }
 

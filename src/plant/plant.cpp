@@ -55,7 +55,13 @@ void onlyKeys(const nlohmann::json& j, const std::set<std::string>& keys, const 
 }
 
 void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
-  onlyKeys(j, {"Ts", "core", "effects", "stroke", "sensor", "valve", "seed"}, where);
+  onlyKeys(j, {"kind", "Ts", "core", "output_form", "effects", "stroke", "sensor", "valve", "seed"}, where);
+  if (j.contains("output_form")) {
+    model::OutputForm f{};
+    if (!j["output_form"].is_string() || !model::parseOutputForm(j["output_form"].get<std::string>(), f))
+      fail(where, "'output_form' must be \"aligned\" or \"printed\"");
+    c.truth.setOutputForm(f);
+  }
   if (j.contains("Ts")) {
     c.Ts = num(j["Ts"], "Ts", where);
     if (!(c.Ts >= 1e-5 && c.Ts <= 1.0)) fail(where, "'Ts' must be between 1e-5 and 1 s");
@@ -76,6 +82,7 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
     if (!e.is_object()) fail(where, "'effects' must be an object of effect name -> settings");
     // Rebuild the effect list: listed effects keep the old values unless overridden.
     model::Model m(c.truth.core());
+    m.setOutputForm(c.truth.outputForm());
     std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> keep;
     for (int i = 0; i < c.truth.numEffects(); ++i) {
       const auto& eff = c.truth.effect(i);
@@ -148,17 +155,68 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
     c.seed = j["seed"].get<std::uint64_t>();
   }
 }
+
+// The physics plant's sample time, command range, sensor and seed in the fields every kind has.
+void mirrorPhysics(PlantConfig& c) {
+  const auto& p = c.physics;
+  c.Ts = p.Ts;
+  c.u_min = p.u_min;
+  c.u_max = p.u_max;
+  c.stroke_limits = p.stroke_limits;
+  c.stroke_min_mm = p.stroke_min_mm;
+  c.stroke_max_mm = p.stroke_max_mm;
+  c.sensor_noise = p.noise_std_mm > 0.0;
+  c.noise_std_mm = p.noise_std_mm;
+  c.quantization = p.quantum_mm > 0.0;
+  c.quantum_mm = p.quantum_mm > 0.0 ? p.quantum_mm : c.quantum_mm;
+  c.pressure_max_bar = p.regulator.setpoint_bar_per_V * 10.0;
+  c.seed = p.seed;
+}
+
+PlantKind kindOf(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object() || !j.contains("kind")) return PlantKind::Physics;
+  const auto& k = j["kind"];
+  if (k == "physics") return PlantKind::Physics;
+  if (k == "model") return PlantKind::Model;
+  fail(where, "'kind' must be \"physics\" or \"model\"");
+}
 }  // namespace
 
+const char* plantKindName(PlantKind k) noexcept { return k == PlantKind::Physics ? "physics" : "model"; }
+
 PlantConfig PlantConfig::defaults() {
+  PlantConfig c = modelDefaults();
+  c.kind = PlantKind::Physics;
+  c.physics = physics::PhysicsConfig::defaults();
+  mirrorPhysics(c);
+  return c;
+}
+
+PlantConfig PlantConfig::modelDefaults() {
   PlantConfig c;
+  c.kind = PlantKind::Model;
   apply(c, nlohmann::json::parse(kDefaultJson), "built-in plant defaults");
   return c;
 }
 
 PlantConfig PlantConfig::fromJson(const nlohmann::json& j, const std::string& where) {
+  if (kindOf(j, where) == PlantKind::Model) {
+    PlantConfig c = modelDefaults();
+    apply(c, j, where);
+    return c;
+  }
   PlantConfig c = defaults();
-  apply(c, j, where);
+  try {
+    c.physics = physics::PhysicsConfig::fromJson(j, where);
+  } catch (const std::invalid_argument& e) {
+    std::string what = e.what();
+    // A model plant's file without its kind: say what it would take.
+    if (j.is_object() && (j.contains("core") || j.contains("effects") || j.contains("sensor")) &&
+        !j.contains("kind"))
+      what += " (a plant file of the model kind says \"kind\": \"model\")";
+    throw std::invalid_argument(what);
+  }
+  mirrorPhysics(c);
   return c;
 }
 
@@ -176,7 +234,16 @@ PlantConfig PlantConfig::fromFile(const std::string& path) {
 
 nlohmann::json PlantConfig::toJson() const {
   nlohmann::json j;
+  if (kind == PlantKind::Physics) {
+    physics::PhysicsConfig p = physics;
+    p.Ts = Ts;
+    j = p.toJson();
+    j["kind"] = "physics";
+    return j;
+  }
+  j["kind"] = "model";
   j["Ts"] = Ts;
+  j["output_form"] = model::outputFormName(truth.outputForm());
   const auto& p = truth.core();
   j["core"] = {{"k", p.k}, {"rho", p.rho}, {"b", p.b}, {"alpha", p.alpha}, {"beta", p.beta}, {"gamma", p.gamma}};
   nlohmann::json e = nlohmann::json::object();
@@ -204,9 +271,22 @@ nlohmann::json PlantConfig::toJson() const {
   return j;
 }
 
-Plant::Plant(const PlantConfig& cfg) : cfg_(cfg), rng_(cfg.seed) { reset(0.0); }
+Plant::Plant(const PlantConfig& cfg) : cfg_(cfg), rng_(cfg.seed) {
+  if (cfg_.kind == PlantKind::Physics) {
+    physics::PhysicsConfig p = cfg_.physics;
+    p.Ts = cfg_.Ts;  // the sample time it is stepped at (a bus's SYNC period)
+    if (!cfg_.sensor_noise) p.noise_std_mm = 0.0;
+    if (!cfg_.quantization) p.quantum_mm = 0.0;
+    physics_ = std::make_unique<physics::PhysicsPlant>(p);
+  }
+  reset(0.0);
+}
 
 void Plant::reset(double u0, double force_N) noexcept {
+  if (physics_) {
+    physics_->reset(u0, force_N);
+    return;
+  }
   model::StepContext c;
   c.Ts = cfg_.Ts;
   c.load = force_N;
@@ -218,6 +298,7 @@ void Plant::reset(double u0, double force_N) noexcept {
 }
 
 double Plant::step(double u, double force_N) noexcept {
+  if (physics_) return physics_->step(u, force_N);
   model::StepContext c;
   c.Ts = cfg_.Ts;
   c.load = force_N;
@@ -230,6 +311,7 @@ double Plant::step(double u, double force_N) noexcept {
 }
 
 double Plant::measure() noexcept {
+  if (physics_) return physics_->measure();
   double y = y_;
   if (cfg_.sensor_noise && cfg_.noise_std_mm > 0) y += cfg_.noise_std_mm * noise_(rng_);
   if (cfg_.quantization) y = std::round(y / cfg_.quantum_mm) * cfg_.quantum_mm;
@@ -237,6 +319,7 @@ double Plant::measure() noexcept {
 }
 
 double Plant::pressure_bar() const noexcept {
+  if (physics_) return physics_->pressure_bar();
   const double frac = (st_.u_eff_prev - cfg_.u_min) / (cfg_.u_max - cfg_.u_min);
   return std::clamp(frac, 0.0, 1.0) * cfg_.pressure_max_bar;
 }

@@ -1,22 +1,36 @@
-// The plant emulator: a PAM truth model built from the same model code as everything else
-// (Bouc-Wen core plus physical effects), with the parts only a real rig has: hard stroke limits,
-// a pressure reading, sensor noise and 0.001 mm quantisation. Every effect is on or off with its
-// parameters from a JSON config file; the defaults are calibrated (docs/CALIBRATION.md) so that
-// a Bouc-Wen fit is imperfect the way the paper's is.
+// The plant emulator: what `pamc emulate`, the emulator node, the in-process rig and the paper's
+// experiments run against. Two kinds, named in the plant file's "kind":
+//  - "physics" (the default): the independent continuous-time simulation of the rig in src/physics
+//    (pressure regulator, muscle force map, braid friction, payload, end stops, sensor), which shares no
+//    code with the model it is used to judge (docs/PHYSICS.md);
+//  - "model": the PAM model itself (Bouc-Wen core plus physical effects from the catalogue) with the parts
+//    only a rig has - stroke limits, a pressure reading, sensor noise and 0.001 mm quantisation - for
+//    tests that need data of a known structure in the model's own terms (docs/CALIBRATION.md).
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "model/model.hpp"
+#include "physics/physics_plant.hpp"
 
 namespace pamc::plant {
 
+enum class PlantKind { Physics, Model };
+const char* plantKindName(PlantKind k) noexcept;
+
 struct PlantConfig {
-  double Ts = 1e-3;             // integration step = sample time [s]
+  PlantKind kind = PlantKind::Physics;
+  // Kind physics: the whole configuration of the continuous-time plant. Ts is the sample time the plant
+  // is stepped at for either kind (a bus with another SYNC period sets it); the physics plant's own
+  // Ts, command range, sensor and seed are read into the fields below when a file is read.
+  physics::PhysicsConfig physics;
+  double Ts = 1e-3;             // sample time [s]
+  // Kind model:
   model::Model truth;           // core + effects
   bool stroke_limits = true;
   double stroke_min_mm = 0.0;
@@ -29,8 +43,12 @@ struct PlantConfig {
   double pressure_max_bar = 8.0;      // regulator output at the top of the range
   std::uint64_t seed = 1;
 
+  // The default plant: the physics plant with its defaults.
   static PlantConfig defaults();
-  // Defaults overridden by a JSON document; throws std::invalid_argument naming the bad key.
+  // Kind model with its built-in defaults (today's emulator, calibrated in docs/CALIBRATION.md).
+  static PlantConfig modelDefaults();
+  // The defaults of the kind the document names ("kind": "physics" when it names none) overridden by
+  // it; throws std::invalid_argument naming the bad key.
   static PlantConfig fromJson(const nlohmann::json& j, const std::string& where);
   static PlantConfig fromFile(const std::string& path);
   nlohmann::json toJson() const;
@@ -48,12 +66,14 @@ class Plant {
   double step(double u, double force_N = 0.0) noexcept;
   // What the position sensor reads now (noise, quantisation) [mm].
   double measure() noexcept;
-  double position() const noexcept { return y_; }
-  // Muscle pressure: the effective command after the input effects, scaled to the regulator.
+  double position() const noexcept { return physics_ ? physics_->position() : y_; }
+  // Muscle pressure: the physics plant's; the model's effective command after the input effects, scaled
+  // to the regulator.
   double pressure_bar() const noexcept;
 
  private:
   PlantConfig cfg_;
+  std::unique_ptr<physics::PhysicsPlant> physics_;  // kind physics
   model::Model::State st_;
   double y_ = 0.0;
   std::mt19937_64 rng_;

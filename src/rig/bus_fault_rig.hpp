@@ -164,7 +164,7 @@ struct Rig {
     c.ctrl.kp = o.kp;
     c.ctrl.ki = o.ki;
     c.ctrl.kc = o.kc;
-    c.ctrl.model = plant::PlantConfig::defaults().truth;
+    c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
     c.has_trajectory = true;
     c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
     c.preroll_s = o.preroll_s;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 #include <sys/stat.h>
 
@@ -39,6 +40,8 @@ double distanceToPaper(const nlohmann::json& s) {
 
 std::vector<CalibrationRow> runCalibration(const CalibrationSettings& s) {
   std::vector<CalibrationRow> rows;
+  if (s.base.plant.kind != plant::PlantKind::Model)
+    throw std::invalid_argument("calibrate varies the pressure lag of a model plant: give a plant file with \"kind\": \"model\"");
   ::mkdir(s.work_dir.c_str(), 0755);
   const std::vector<double> eso_tau = s.eso_tau.empty() ? std::vector<double>{s.base.ctrl.eso_tau} : s.eso_tau;
   const std::vector<double> eso_wo = s.eso_wo.empty() ? std::vector<double>{s.base.ctrl.eso_wo} : s.eso_wo;

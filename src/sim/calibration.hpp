@@ -15,8 +15,14 @@
 
 namespace pamc::sim {
 
+inline ExperimentSettings modelPlantBase() {
+  ExperimentSettings e;
+  e.plant = plant::PlantConfig::modelDefaults();
+  return e;
+}
+
 struct CalibrationSettings {
-  ExperimentSettings base;            // plant and controller defaults the candidates vary
+  ExperimentSettings base = modelPlantBase();  // plant (of kind model) and controller defaults the candidates vary
   std::vector<double> lag_tau_s;      // pressure_lag tau of the emulator [s]
   std::vector<double> ki;             // PI integral gain [V/(mm s)]
   std::vector<bool> amc_as_printed;   // eq. (17) as printed / as an increment

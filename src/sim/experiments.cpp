@@ -81,7 +81,7 @@ std::string gainsText(const control::ControllerConfig& c) {
 // The emulator's effects that are on, with their parameters, in one line.
 std::string plantText(const plant::PlantConfig& p) {
   const nlohmann::json j = p.toJson();
-  std::string t;
+  std::string t = p.kind == plant::PlantKind::Physics ? "physics plant" : "";
   size_t line_start = 0;
   for (const auto& [name, e] : j.at("effects").items()) {
     if (!e.value("enabled", false)) continue;

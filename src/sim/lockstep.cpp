@@ -79,6 +79,23 @@ Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const Close
   return std::move(loop.record());
 }
 
+namespace {
+// One open-loop sample: the command held for a sample, then the sensor read at its end.
+void openLoopSample(plant::Plant& plant, Record& r, double t, double uk, double F) {
+  plant.step(uk, F);
+  r.t.push_back(t);
+  r.yd.push_back(NAN);
+  r.y.push_back(plant.measure());
+  r.y_true.push_back(plant.position());
+  r.u.push_back(uk);
+  r.u_n.push_back(uk);
+  r.u_c.push_back(0.0);
+  r.y_hat.push_back(NAN);
+  r.force.push_back(F);
+  r.p.push_back(plant.pressure_bar());
+}
+}  // namespace
+
 Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s, const Trajectory* force_N) {
   const double Ts = plant.config().Ts;
   const auto n = static_cast<size_t>(std::llround(duration_s / Ts));
@@ -87,21 +104,18 @@ Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duratio
   plant.reset(u.at(0.0), force_N ? force_N->at(0.0) : 0.0);
   for (size_t k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * Ts;
-    const double uk = u.at(t);
-    const double F = force_N ? force_N->at(t) : 0.0;
-    plant.step(uk, F);
-    const double y = plant.measure();
-    r.t.push_back(t);
-    r.yd.push_back(NAN);
-    r.y.push_back(y);
-    r.y_true.push_back(plant.position());
-    r.u.push_back(uk);
-    r.u_n.push_back(uk);
-    r.u_c.push_back(0.0);
-    r.y_hat.push_back(NAN);
-    r.force.push_back(F);
-    r.p.push_back(plant.pressure_bar());
+    openLoopSample(plant, r, t, u.at(t), force_N ? force_N->at(t) : 0.0);
   }
+  return r;
+}
+
+Record runOpenLoopSamples(plant::Plant& plant, const std::vector<double>& u, const std::vector<double>* force_N) {
+  Record r;
+  if (u.empty()) return r;
+  r.reserve(u.size());
+  plant.reset(u[0], force_N ? (*force_N)[0] : 0.0);
+  for (size_t k = 0; k < u.size(); ++k)
+    openLoopSample(plant, r, static_cast<double>(k) * plant.config().Ts, u[k], force_N ? (*force_N)[k] : 0.0);
   return r;
 }
 

@@ -88,6 +88,8 @@ Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const Close
 // Open loop: command u(t) straight to the valve; row k holds u_k and the position measured at
 // the end of the sample it was held for.
 Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s, const Trajectory* force_N = nullptr);
+// The same for a command given sample by sample (a recorded input replayed); force_N may be null.
+Record runOpenLoopSamples(plant::Plant& plant, const std::vector<double>& u, const std::vector<double>* force_N = nullptr);
 
 struct TrackingStats {
   double rmse = 0, max_abs = 0;

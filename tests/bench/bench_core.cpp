@@ -59,7 +59,7 @@ BENCHMARK(BM_UkfStep);
 // The emulator's whole model: pressure lag, load, saturation, friction and the 6 Hz mass-spring, whose
 // position and velocity are in the filter's state (X = [h, f_h, y_ms, v_ms]).
 static void BM_UkfStepWholeModel(benchmark::State& state) {
-  ukfStep(state, plant::PlantConfig::defaults().truth, 0.8, 18.0, 11.0);
+  ukfStep(state, plant::PlantConfig::modelDefaults().truth, 0.8, 18.0, 11.0);
 }
 BENCHMARK(BM_UkfStepWholeModel);
 
@@ -86,7 +86,7 @@ BENCHMARK(BM_AmcCycle);
 // amplitude, frequency and offset). Counters: rmse_mm on the fitted record, val_rmse_mm on the other.
 namespace {
 io::Measurement emulatorRecord(const control::Trajectory& u, double seconds) {
-  plant::Plant p;
+  plant::Plant p(plant::PlantConfig::modelDefaults());
   const auto r = sim::runOpenLoopInput(p, u, seconds);
   io::Measurement d;
   d.t = r.t;
@@ -129,7 +129,7 @@ static void BM_SimulationSpeed(benchmark::State& state) {
   run.preroll_s = 0.0;
   for (auto _ : state) {
     auto c = control::makeController(control::Kind::PiAmc, cfg);
-    plant::Plant p;
+    plant::Plant p(plant::PlantConfig::modelDefaults());
     auto rec = sim::runClosedLoop(*c, p, run, -2.0);
     benchmark::DoNotOptimize(rec);
   }

@@ -57,6 +57,26 @@ check "unknown effect lists known ones" grep -q "known: pressure_lag" "$work/err
 check "fit exits 0" test $? -eq 0
 check "fit prints RMSE" grep -q "^RMSE" "$work/fit.txt"
 check "fit writes the model" grep -q '"pamc-model/1"' "$work/m.json"
+check "fit records the output form" grep -q '"output_form": "aligned"' "$work/m.json"
+"$PAMC" fit "$work/d.csv" --generations 15 --out "$work/mp.json" --quiet --output-form printed > /dev/null
+check "fit --output-form printed is recorded" grep -q '"output_form": "printed"' "$work/mp.json"
+"$PAMC" fit "$work/d.csv" --output-form sideways 2> "$work/err_form.txt" > /dev/null
+check "a bad output form exits non-zero" test $? -ne 0
+
+# A recorded command replayed through the plant; the record's sample time must be the plant's.
+"$PAMC" emulate --input-from "$work/d.csv" --out "$work/replay.csv" > /dev/null
+check "emulate --input-from replays every sample" test "$(wc -l < "$work/replay.csv")" -eq "$(wc -l < "$work/d.csv")"
+printf 't,u,y\n0,1,2\n0.002,1,2\n0.004,1,2\n' > "$work/slow.csv"
+"$PAMC" emulate --input-from "$work/slow.csv" --out "$work/replay2.csv" 2> "$work/err_replay.txt" > /dev/null
+check "emulate --input-from: another sample time exits non-zero" test $? -ne 0
+check "emulate --input-from: the error names the file and both sample times" \
+  grep -q "slow.csv: sample time 0.002 s, the plant's is 0.001 s" "$work/err_replay.txt"
+check "emulate --input-from: no output on error" test ! -e "$work/replay2.csv"
+# A plant file of the model kind without its kind: told what it takes.
+echo '{"core":{"k":6}}' > "$work/oldplant.json"
+"$PAMC" emulate --plant "$work/oldplant.json" --duration 1 --out "$work/op.csv" 2> "$work/err_plant.txt" > /dev/null
+check "a model plant file without its kind exits non-zero" test $? -ne 0
+check "... and is told to say its kind" grep -q '"kind": "model"' "$work/err_plant.txt"
 
 "$PAMC" experiments --only nonsense --out "$work/x" 2> "$work/err5.txt" > /dev/null
 check "unknown experiment exits non-zero" test $? -ne 0

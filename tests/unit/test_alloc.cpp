@@ -89,7 +89,7 @@ class AllocationFree : public ::testing::TestWithParam<control::Kind> {};
 TEST_P(AllocationFree, TenThousandCyclesOnTheEmulator) {
   if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   control::ControllerConfig cfg;
-  cfg.model = plant::PlantConfig::defaults().truth;  // any model with effects exercises the most code
+  cfg.model = plant::PlantConfig::modelDefaults().truth;  // any model with effects exercises the most code
   auto ctrl = control::makeController(GetParam(), cfg);
   plant::Plant plant;  // default: every effect on
   plant.reset(0.0);
@@ -112,7 +112,7 @@ TEST_P(AllocationFree, TenThousandCyclesOnTheEmulator) {
 TEST(Allocation, ForceLoopCyclesAllocateNothing) {
   if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const auto pc = plant::PlantConfig::fromJson(
-      nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},"force_loop":{"enabled":true,"zmax":0.6}}})"), "test");
+      nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},"force_loop":{"enabled":true,"zmax":0.6}}})"), "test");
   control::ControllerConfig cfg;
   cfg.model = pc.truth;
   auto ctrl = control::makeController(control::Kind::PiAmc, cfg);
@@ -152,7 +152,7 @@ TEST(Allocation, RigCyclesOnTheBusAllocateNothing) {
   c.gains_from_config = true;
   c.ctrl.amc_horizon = 20;
   c.ctrl.amc_inverse = 0.2;
-  c.ctrl.model = plant::PlantConfig::defaults().truth;
+  c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
   c.has_trajectory = true;
   c.trajectory = control::Trajectory::triangle(0.5, 5.0, 25.0);
   c.preroll_s = 0.2;

@@ -135,7 +135,7 @@ control::ControllerConfig controllerConfig(const Spec& s) {
   // fitted with ki 1.3, comes back from a valve or a stuck-sensor fault with ki 0.15 more slowly than
   // backBound() allows: docs/RELIABILITY.md.)
   if (s.ki < 1.0) c.eso_order = 2;
-  const auto truth = plant::PlantConfig::defaults().truth;
+  const auto truth = plant::PlantConfig::modelDefaults().truth;
   c.model = s.full_model ? truth : model::Model(truth.core());
   if (s.gate_nis >= 0.0) c.ukf.gate_nis = s.gate_nis;
   return c;
@@ -147,7 +147,7 @@ control::ControllerConfig controllerConfig(const Spec& s) {
 Trace simulate(const Spec& s, Checks* checks = nullptr, long run = 0) {
   const auto cfg = controllerConfig(s);
   auto ctrl = control::makeController(s.kind, cfg);
-  auto pc = plant::PlantConfig::defaults();
+  auto pc = plant::PlantConfig::modelDefaults();
   pc.seed = s.plant_seed;
   plant::Plant plant(pc);
   // The faults, injected through the loop's hooks: on the position the controller is given, and on
@@ -491,7 +491,7 @@ TEST(BadDataProperty, CleanDataNeverReachesTheGate) {
       // The largest NIS on this trajectory, from a third run that watches the filter.
       s.gate_nis = -1.0;
       auto ctrl = control::makeController(s.kind, controllerConfig(s));
-      plant::Plant p;
+      plant::Plant p(plant::PlantConfig::modelDefaults());
       p.reset(0.0);
       ctrl->activate(0.0, p.measure());
       std::array<double, 3> pipe{0, 0, 0};
@@ -515,7 +515,7 @@ namespace {
 // The emulator's pressure is made fast (40 ms) so that the core alone predicts it within 0.1 mm over a
 // 20-sample spike: the test is about the gate, not about the model's error.
 plant::PlantConfig fastPressure() {
-  auto c = plant::PlantConfig::defaults();
+  auto c = plant::PlantConfig::modelDefaults();
   c.truth.setEffectParam("pressure_lag", "tau", 0.04);
   return c;
 }
@@ -525,7 +525,7 @@ struct FilterBench {
   long k = 0;
   double y_true = 0.0;
   FilterBench() {
-    am.configure(model::Model(plant::PlantConfig::defaults().truth.core()), estimation::ActiveModelSettings{}, kTs);
+    am.configure(model::Model(plant::PlantConfig::modelDefaults().truth.core()), estimation::ActiveModelSettings{}, kTs);
     plant.reset(0.0);
     am.reset(0.0);
   }
@@ -719,7 +719,7 @@ NodeRun runNode(control::Kind kind, bool whole_model, const std::function<void(l
   c.ctrl.kp = 0.1;
   c.ctrl.ki = 1.5;
   c.ctrl.kc = 0.06;
-  const auto truth = plant::PlantConfig::defaults().truth;
+  const auto truth = plant::PlantConfig::modelDefaults().truth;
   c.ctrl.model = whole_model ? truth : model::Model(truth.core());
   c.has_trajectory = true;
   c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);

@@ -28,7 +28,7 @@ io::Measurement measurementOf(const Run& r) {
 // A reference model identified on the emulator once for all tests of this file.
 const model::Model& identified() {
   static const model::Model m = [] {
-    plant::Plant p;
+    plant::Plant p(plant::PlantConfig::modelDefaults());
     const auto r = sim::runOpenLoopInput(p, control::Trajectory::sine(0.1, 2.9, 0.2), 20.0);
     const io::Measurement d = measurementOf(r);
     ident::FitSettings s;
@@ -42,7 +42,7 @@ sim::Record run(control::Kind kind, const sim::ClosedLoopRun& run, const control
   control::ControllerConfig cfg = base;
   cfg.model = identified();
   auto c = control::makeController(kind, cfg);
-  plant::Plant p;
+  plant::Plant p(plant::PlantConfig::modelDefaults());
   control::InverseStatic inv;
   inv.build(cfg.model, cfg.u_min, cfg.u_max, cfg.Ts);
   return sim::runClosedLoop(*c, p, run, inv(run.reference.at(0)));
@@ -179,7 +179,7 @@ TEST(Config, RejectsBadSettings) {
 // identified on the same open-loop record; same gains, automatic horizon).
 namespace {
 plant::PlantConfig laggingPlant() {
-  return plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"effects":{"pressure_lag":{"enabled":true,"tau":0.12,"slew":1000},
+  return plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"pressure_lag":{"enabled":true,"tau":0.12,"slew":1000},
       "load":{"enabled":false},"saturation":{"enabled":false},"friction_hysteresis":{"enabled":false},
       "mass_spring":{"enabled":false}},"stroke":{"enabled":false}})"),
                                       "test plant");

@@ -95,6 +95,16 @@ TEST(ModelFile, RoundTripWithEffects) {
   const auto r = io::readModelFile(path);
   EXPECT_EQ(r.params(), m.params());
   EXPECT_EQ(r.effectNames(), m.effectNames());
+  EXPECT_EQ(r.outputForm(), model::OutputForm::Aligned);
+  // The form a model was fitted in is kept; a file without the field is read as printed.
+  m.setOutputForm(model::OutputForm::Printed);
+  io::writeModelFile(path, m);
+  EXPECT_EQ(io::readModelFile(path).outputForm(), model::OutputForm::Printed);
+  auto j = io::modelToJson(m);
+  j.erase("output_form");
+  EXPECT_EQ(io::modelFromJson(j, "old.json").outputForm(), model::OutputForm::Printed);
+  j["output_form"] = "sideways";
+  EXPECT_THROW(io::modelFromJson(j, "bad.json"), io::InputError);
 }
 
 TEST(ModelFile, BadFilesGiveOneLineErrors) {
@@ -115,21 +125,21 @@ TEST(ModelFile, BadFilesGiveOneLineErrors) {
 }
 
 TEST(PlantConfig, OverridesAndErrors) {
-  const auto c = plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},
+  const auto c = plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},
       "pressure_lag":{"tau":0.1}}, "sensor":{"noise":false}})"), "p.json");
   EXPECT_FALSE(c.truth.hasEffect("mass_spring"));
   EXPECT_TRUE(c.truth.hasEffect("pressure_lag"));
   EXPECT_FALSE(c.sensor_noise);
-  EXPECT_THROW(plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"sensr":{}})"), "p.json"), std::invalid_argument);
-  EXPECT_THROW(plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"effects":{"pressure_lag":{"tou":1}}})"), "p.json"),
+  EXPECT_THROW(plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","sensr":{}})"), "p.json"), std::invalid_argument);
+  EXPECT_THROW(plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"pressure_lag":{"tou":1}}})"), "p.json"),
                std::invalid_argument);
   // Round trip through JSON.
-  const auto d = plant::PlantConfig::fromJson(plant::PlantConfig::defaults().toJson(), "dump");
-  EXPECT_EQ(d.truth.params(), plant::PlantConfig::defaults().truth.params());
+  const auto d = plant::PlantConfig::fromJson(plant::PlantConfig::modelDefaults().toJson(), "dump");
+  EXPECT_EQ(d.truth.params(), plant::PlantConfig::modelDefaults().truth.params());
 }
 
 TEST(Plant, QuantisesToAMicrometre) {
-  plant::Plant p;
+  plant::Plant p(plant::PlantConfig::modelDefaults());
   p.reset(0.5);
   for (int i = 0; i < 100; ++i) {
     p.step(0.5);

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "model/effects/second_order.hpp"
 #include "model/model.hpp"
 #include "model/staged_simulation.hpp"
 
@@ -19,15 +20,19 @@ std::vector<double> ramp(double u0, double u1, int n) {
 }
 }  // namespace
 
-// beta = gamma = 0: h integrates alpha du exactly, one sample late (eq. 6): h_k = alpha (u_{k-1} - u_0).
+// beta = gamma = 0: h integrates alpha du exactly; aligned, in the same sample: h_k = alpha (u_k - u_0);
+// eq. (6) as printed, one sample late: h_k = alpha (u_{k-1} - u_0).
 TEST(BoucWen, LinearCaseIsExact) {
   BoucWenParams p{2.0, 0.7, 1.5, 0.8, 0.0, 0.0};
-  Model m(p);
-  const auto u = ramp(-1.0, 2.0, 301);
-  const auto y = m.simulate(u, 1e-3);
-  for (size_t k = 1; k < u.size(); ++k) {
-    const double h = 0.8 * (u[k - 1] - u[0]);
-    ASSERT_NEAR(y[k], p.k * p.rho * u[k] + p.b + p.k * (1 - p.rho) * h, 1e-12);
+  for (const auto form : {OutputForm::Aligned, OutputForm::Printed}) {
+    Model m(p);
+    m.setOutputForm(form);
+    const auto u = ramp(-1.0, 2.0, 301);
+    const auto y = m.simulate(u, 1e-3);
+    for (size_t k = 1; k < u.size(); ++k) {
+      const double h = 0.8 * ((form == OutputForm::Aligned ? u[k] : u[k - 1]) - u[0]);
+      ASSERT_NEAR(y[k], p.k * p.rho * u[k] + p.b + p.k * (1 - p.rho) * h, 1e-12) << outputFormName(form);
+    }
   }
 }
 
@@ -120,16 +125,25 @@ double continuousStep(const BoucWenParams& p, double h, double du, int n) {
   return h;
 }
 
-// Output of the continuous model sampled like eq. (6): y_k = Y(u_k, h_k), h_{k+1} = h_k carried over
-// [u_{k-1}, u_k] (Model's timing), h_0 = 0.
-std::vector<double> continuousOutput(const BoucWenParams& p, const std::vector<double>& u, int n_sub) {
+// Output of the continuous model sampled at the end of each sample, h_0 = 0: aligned, y_k = Y(u_k, h)
+// with h carried over [u_{k-1}, u_k] first (the continuous model: both terms see u_k); printed (eq. 6 as
+// printed), y_k from h before that increment.
+std::vector<double> continuousOutput(const BoucWenParams& p, const std::vector<double>& u, int n_sub,
+                                     OutputForm form = OutputForm::Aligned) {
   std::vector<double> y(u.size());
   double h = 0.0;
   for (size_t k = 0; k < u.size(); ++k) {
-    y[k] = boucWenOutput(p, u[k], h);
-    h = continuousStep(p, h, u[k] - u[k == 0 ? 0 : k - 1], n_sub);
+    const double h_next = continuousStep(p, h, u[k] - u[k == 0 ? 0 : k - 1], n_sub);
+    y[k] = boucWenOutput(p, u[k], form == OutputForm::Aligned ? h_next : h);
+    h = h_next;
   }
   return y;
+}
+
+Model inForm(const BoucWenParams& p, OutputForm f) {
+  Model m(p);
+  m.setOutputForm(f);
+  return m;
 }
 
 // Random steps of up to 6 V, held 20-300 samples, random ramps and a fast sine burst; a fixed generator
@@ -185,14 +199,31 @@ const BoucWenParams kConvergenceSets[] = {
 // matches a fine RK4 solution of the continuous h-equation far below a position sensor's resolution.
 TEST(BoucWen, ConvergesToContinuousModelOnSteps) {
   const auto u = stepRichInput(3000);
-  for (const auto& p : kConvergenceSets) {
-    const auto y = Model(p).simulate(u, 1e-3);
-    const auto ref = continuousOutput(p, u, 10000);
-    const Err e = compare(y, ref);
-    SCOPED_TRACE("k=" + std::to_string(p.k) + " rho=" + std::to_string(p.rho) + " beta=" + std::to_string(p.beta));
-    EXPECT_LT(e.max, 1e-3) << "rmse " << e.rmse;
-    EXPECT_LT(e.rmse, 1e-4);
+  for (const auto form : {OutputForm::Aligned, OutputForm::Printed}) {
+    for (const auto& p : kConvergenceSets) {
+      const auto y = inForm(p, form).simulate(u, 1e-3);
+      const auto ref = continuousOutput(p, u, 10000, form);
+      const Err e = compare(y, ref);
+      SCOPED_TRACE(std::string(outputFormName(form)) + " k=" + std::to_string(p.k) + " rho=" + std::to_string(p.rho) +
+                   " beta=" + std::to_string(p.beta));
+      EXPECT_LT(e.max, 1e-3) << "rmse " << e.rmse;
+      EXPECT_LT(e.rmse, 1e-4);
+    }
   }
+}
+
+// Why the aligned form is the default: sampled at the end of each sample, the continuous model's two
+// terms see the same input; eq. (6) as printed forms y_k from h before u_k's increment and misses the
+// continuous output by k (1 - rho) dh at every step - millimetres at a jump of volts.
+TEST(BoucWen, PrintedFormLagsTheContinuousModelAtSteps) {
+  const auto u = stepRichInput(3000);
+  const BoucWenParams p{9.0, 1.25, 18.0, 1.0, 0.35, 0.25};
+  const auto ref = continuousOutput(p, u, 10000, OutputForm::Aligned);
+  EXPECT_LT(compare(inForm(p, OutputForm::Aligned).simulate(u, 1e-3), ref).max, 1e-3);
+  EXPECT_GT(compare(inForm(p, OutputForm::Printed).simulate(u, 1e-3), ref).max, 0.5);
+  // Default: aligned.
+  EXPECT_EQ(Model(p).outputForm(), OutputForm::Aligned);
+  EXPECT_EQ(Model(p).simulate(u, 1e-3), inForm(p, OutputForm::Aligned).simulate(u, 1e-3));
 }
 
 // Slow inputs (the paper's 0.1 Hz sine, 1 kHz): per sample c |du| is a few 1e-3, the series branch of
@@ -201,8 +232,10 @@ TEST(BoucWen, SlowInputMatchesContinuousModel) {
   std::vector<double> u(20000);
   for (size_t i = 0; i < u.size(); ++i) u[i] = 2.9 * std::sin(2 * M_PI * 0.1 * static_cast<double>(i) * 1e-3) + 0.2;
   for (const auto& p : kConvergenceSets) {
-    const Err e = compare(Model(p).simulate(u, 1e-3), continuousOutput(p, u, 200));
-    EXPECT_LT(e.max, 1e-6) << "k=" << p.k;
+    for (const auto form : {OutputForm::Aligned, OutputForm::Printed}) {
+      const Err e = compare(inForm(p, form).simulate(u, 1e-3), continuousOutput(p, u, 200, form));
+      EXPECT_LT(e.max, 1e-6) << "k=" << p.k << " " << outputFormName(form);
+    }
   }
 }
 
@@ -283,6 +316,67 @@ TEST(Effects, PressureLagIsFirstOrder) {
   const auto y = m.simulate(u, 1e-3);
   // Sample k (k >= 1) has seen k samples of the step: 1 - exp(-k Ts / tau).
   for (int k : {1, 50, 100, 300}) EXPECT_NEAR(y[static_cast<size_t>(k)], 1 - std::exp(-k * 1e-3 / 0.05), 1e-12);
+}
+
+// The mass-spring's one-sample map is the exact one for an input held over the sample: against a
+// fine RK4 solution of y'' = wn^2 (in - y) - 2 zeta wn y', from under- to overdamped, slow to 100 Hz,
+// at the sample times of a record and of a decimated one.
+TEST(Effects, SecondOrderMapIsExactForAHeldInput) {
+  for (double fn : {0.5, 8.0, 40.0, 100.0})
+    for (double zeta : {0.02, 0.3, 1.0, 2.5})
+      for (double Ts : {1e-3, 1.2e-2}) {
+        double map[6];
+        secondOrderMap(fn, zeta, Ts, map);
+        const double wn = 2 * M_PI * fn;
+        // Column by column: the responses to y = 1, to v = 1 and to in = 1.
+        const double starts[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+        const double got[3][2] = {{map[0], map[2]}, {map[1], map[3]}, {map[4], map[5]}};
+        for (int c = 0; c < 3; ++c) {
+          double y = starts[c][0], v = starts[c][1];
+          const double in = starts[c][2];
+          auto f = [&](double yy, double vv) { return wn * wn * (in - yy) - 2 * zeta * wn * vv; };
+          const int n = 20000;
+          const double h = Ts / n;
+          for (int i = 0; i < n; ++i) {
+            const double k1y = v, k1v = f(y, v);
+            const double k2y = v + 0.5 * h * k1v, k2v = f(y + 0.5 * h * k1y, v + 0.5 * h * k1v);
+            const double k3y = v + 0.5 * h * k2v, k3v = f(y + 0.5 * h * k2y, v + 0.5 * h * k2v);
+            const double k4y = v + h * k3v, k4v = f(y + h * k3y, v + h * k3v);
+            y += h / 6 * (k1y + 2 * k2y + 2 * k3y + k4y);
+            v += h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
+          }
+          SCOPED_TRACE("fn " + std::to_string(fn) + " zeta " + std::to_string(zeta) + " Ts " + std::to_string(Ts));
+          EXPECT_NEAR(got[c][0], y, 1e-9 * std::max(1.0, std::fabs(y)));
+          EXPECT_NEAR(got[c][1], v, 1e-9 * std::max(1.0, std::fabs(v)));
+        }
+      }
+}
+
+// friction_hysteresis's step is exact for an input that moves monotonically within the sample: against
+// a fine RK4 solution of dz/din = a g / (1 + a g), g = 1 - sign(din) z / zmax, over big and small steps.
+TEST(Effects, FrictionHysteresisStepIsExactAlongTheInput) {
+  const double zmax = 0.7, delta = 0.25, a = zmax / delta;
+  Model m(BoucWenParams{1.0, 1.0, 0.0, 1.0, 0.0, 0.0});  // y_core = u
+  m.addEffect("friction_hysteresis");
+  m.setEffectParam("friction_hysteresis", "zmax", zmax);
+  m.setEffectParam("friction_hysteresis", "delta", delta);
+  const std::vector<double> u = {0.0, 0.3, 0.35, 1.5, 1.2, 1.19, -0.4, 0.2, 0.21, 3.0};
+  const auto y = m.simulate(u, 1e-3);
+  double z = 0.0;
+  for (size_t k = 1; k < u.size(); ++k) {
+    const double din = u[k] - u[k - 1], sgn = din > 0 ? 1.0 : -1.0;
+    auto f = [&](double zz) {
+      const double g = std::max(0.0, 1.0 - sgn * zz / zmax);
+      return a * g / (1.0 + a * g);
+    };
+    const int n = 100000;
+    const double h = din / n;
+    for (int i = 0; i < n; ++i) {
+      const double k1 = f(z), k2 = f(z + 0.5 * h * k1), k3 = f(z + 0.5 * h * k2), k4 = f(z + h * k3);
+      z += h / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
+    }
+    EXPECT_NEAR(y[k], u[k] - z, 1e-9) << "sample " << k;
+  }
 }
 
 TEST(Effects, MassSpringOvershootAndGain) {

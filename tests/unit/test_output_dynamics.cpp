@@ -104,7 +104,7 @@ FilterRun followThePlant(const plant::PlantConfig& pc, long samples) {
 // filter's model, the emulator as the plant, 200 s of a command that rings the mass-spring: P stays
 // bounded and positive definite, the estimate follows the true position, the filter never resets.
 TEST(OutputDynamics, TheFilterStaysBoundedAndFollowsTheWholeEmulatorModel) {
-  const auto pc = plant::PlantConfig::defaults();
+  const auto pc = plant::PlantConfig::modelDefaults();
   ASSERT_TRUE(pc.truth.hasEffect("mass_spring"));
   const auto r = followThePlant(pc, 200'000);
   RecordProperty("estimate_rmse_mm", std::to_string(r.rmse));
@@ -121,7 +121,7 @@ TEST(OutputDynamics, TheFilterStaysBoundedAndFollowsTheWholeEmulatorModel) {
 // friction_hysteresis still in series): the filter carries force_loop's y and v, its friction
 // follows the filter's mean; 100 s, bounded, following, no reset.
 TEST(OutputDynamics, TheFilterFollowsAModelWithFrictionInsideTheForceBalance) {
-  const auto pc = plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},
+  const auto pc = plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},
       "force_loop":{"enabled":true,"fn":6.0,"zeta":0.4,"zmax":0.6,"delta":0.3}}})"),
                                                "test");
   ASSERT_TRUE(pc.truth.hasEffect("force_loop"));
@@ -139,7 +139,7 @@ TEST(OutputDynamics, TheFilterFollowsAModelWithFrictionInsideTheForceBalance) {
 // jump by 3 V per millisecond and can see it only through the mass-spring), but bounded, and the
 // estimate stays inside the divergence guard's bound: no reset.
 TEST(OutputDynamics, ThePapersProcessNoiseIsNoisierButStaysBounded) {
-  const auto pc = plant::PlantConfig::defaults();
+  const auto pc = plant::PlantConfig::modelDefaults();
   plant::Plant plant(pc);
   estimation::ActiveModelSettings s;
   s.Q_h_lag = s.Q_h;
@@ -169,7 +169,7 @@ TEST(OutputDynamics, ThePapersProcessNoiseIsNoisierButStaysBounded) {
 // it, and its posterior still misses by more than `diverge`: the guard restarts it and reports a reset
 // (the controller node then goes to its safe state with EMCY 0x6100). Never a silent run-off.
 TEST(OutputDynamics, TheDivergenceGuardRestartsAFilterThatCannotFollow) {
-  const auto pc = plant::PlantConfig::defaults();
+  const auto pc = plant::PlantConfig::modelDefaults();
   plant::Plant plant(pc);
   estimation::ActiveModel am;
   am.configure(pc.truth, estimation::ActiveModelSettings{}, kTs);

@@ -19,6 +19,7 @@ namespace {
 const nlohmann::json& defaultRun() {
   static const nlohmann::json j = [] {
     sim::ExperimentSettings s;
+    s.plant = plant::PlantConfig::modelDefaults();  // calibrated on the model plant (docs/CALIBRATION.md)
     s.out_dir = (std::filesystem::temp_directory_path() / "pamc_test_paper").string();
     s.figures = false;
     return sim::runExperiments(s).json;

@@ -23,7 +23,7 @@ nodes::ControllerNodeConfig controllerConfig(control::Kind kind, const control::
   c.has_trajectory = true;
   c.trajectory = traj;
   c.preroll_s = 5.0;
-  c.ctrl.model = plant::PlantConfig::defaults().truth;  // a model with every effect: exercises the most
+  c.ctrl.model = plant::PlantConfig::modelDefaults().truth;  // a model with every effect: exercises the most
   return c;
 }
 
@@ -97,7 +97,7 @@ TEST(RigTiming, CommandShowsInThePositionThreeCyclesLater) {
   auto ec = emulatorConfig();
   // No inertia or friction and a fast pressure, so the first sample after the command moves visibly.
   ec.plant = plant::PlantConfig::fromJson(
-      nlohmann::json::parse(R"({"effects":{"mass_spring":{"enabled":false},"friction_hysteresis":{"enabled":false},)"
+      nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},"friction_hysteresis":{"enabled":false},)"
                             R"("pressure_lag":{"tau":0.04}}})"),
       "test");
   ec.plant.sensor_noise = false;

@@ -54,7 +54,7 @@ nodes::ControllerNodeConfig controllerFromRig(const std::string& rig_path, std::
   nodes::ControllerNodeConfig c;
   nodes::applyRig(nodes::readRigFile(rig_path), c);
   c.kind = static_cast<int>(control::Kind::PI);
-  c.ctrl.model = plant::PlantConfig::defaults().truth;
+  c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
   c.has_trajectory = true;
   c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
   c.preroll_s = 0.5;

@@ -33,7 +33,7 @@ nodes::ControllerNodeConfig controllerConfig() {
   c.kind = static_cast<int>(control::Kind::PiAmc);
   c.gains_from_config = true;
   c.ctrl.ki = 1.5;
-  c.ctrl.model = plant::PlantConfig::defaults().truth;
+  c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
   c.has_trajectory = true;
   c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
   c.preroll_s = 1.0;
@@ -286,7 +286,7 @@ TEST(SdoGuards, AnUnstableSetAtNmtStartKeepsTheRunningController) {
   EXPECT_EQ(r.writeDouble(0x2001, 5, -0.4), 0u);  // beta: beta + gamma < 0
   r.nmt(0x01);
   for (int k = 0; k < 5; ++k) r.cycle();
-  EXPECT_EQ(r.ctrl->activeParameters().model.core().beta, plant::PlantConfig::defaults().truth.core().beta);
+  EXPECT_EQ(r.ctrl->activeParameters().model.core().beta, plant::PlantConfig::modelDefaults().truth.core().beta);
   EXPECT_EQ(r.ctrl->faultCounters().sets_refused, 1u);
   EXPECT_NE(std::find(r.emcy.begin(), r.emcy.end(), 0x6100), r.emcy.end());
 }

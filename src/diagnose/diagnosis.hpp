@@ -1,0 +1,126 @@
+// The steps of one diagnosis (diagnose() runs them in order), for the files of src/diagnose only:
+//   screen     the training and validation records, the candidates, the screening record
+//   baseline   the reference model and the sensor noise the ladder stops at
+//   candidates the rounds that add the effect that lowers the validated error most
+//   prune      effects that lost their use taken out again, or replaced by a simpler alternative
+//   probes     when the catalogue stops above the noise: which kind of structure explains the rest
+//   verdict    what it all means, in words
+// The searches they share (fits of many structures on the screening record, in parallel; refits on the
+// whole training record) are in diagnose_search.cpp.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "diagnose/diagnose.hpp"
+
+namespace pamc::diagnose::detail {
+
+// How hard a candidate or probe is searched. Quick: Levenberg-Marquardt from the current model and
+// kQuickStarts starts spread over the new structure's parameters, no Nelder-Mead polish - enough to
+// rank. Full: the fit's own number of starts and the polish. Every candidate and probe is searched
+// quickly; the best of them are searched in full (kFullSearches candidates - the ladder is built from
+// them - and kFullProbes probes), and the better fit is kept.
+enum class Search { Quick, Full };
+// ... but a new structure with few parameters gets kQuickCover / (their number) starts: the cost of a
+// threshold, a knee or a delay is flat away from the right value, and LM finds that only from a start
+// near it (one dead band's threshold: eight starts, one per eighth of its range). Not for the probes:
+// they say what kind of structure is missing, to the few percent their ranking needs.
+constexpr int kQuickCover = 8;
+constexpr size_t kFullSearches = 2;
+// The best probe is searched in full as well: it is fitted on top of whatever basin the catalogue's model
+// ended in, and only a full search (with starts spread over the whole box) can move the core out of it
+// (a curved valve characteristic: the quick search explained 50 % of what was left, the full one 97 %).
+constexpr size_t kFullProbes = 1;
+// A validated error below this multiple of the sensor noise leaves nothing to explain: the ladder
+// stops adding effects and the probes are not run.
+constexpr double kAtNoise = 1.5;
+
+inline double seconds(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// fn(0) ... fn(n - 1), each index once, on up to `threads` workers.
+template <class Fn>
+void onWorkers(size_t n, int threads, Fn&& fn) {
+  std::atomic<size_t> next{0};
+  auto worker = [&] {
+    for (size_t i = next++; i < n; i = next++) fn(i);
+  };
+  std::vector<std::thread> ts;
+  for (int w = 0; w < std::min<int>(threads, static_cast<int>(n)); ++w) ts.emplace_back(worker);
+  for (auto& t : ts) t.join();
+}
+
+// Where the validation error is measured.
+struct Validation {
+  const io::Measurement* data = nullptr;
+  size_t from = 0;
+  double rmse(const model::Model& m) const { return ident::rmseFrom(m, *data, from); }
+};
+
+std::vector<double> simulate(const model::Model& m, const io::Measurement& d);
+// "a + b + c", or "(reference model)" for none.
+std::string join(const std::vector<std::string>& v);
+
+class Diagnosis {
+ public:
+  Diagnosis(const io::Measurement& data, const io::Measurement* val, const DiagnoseSettings& s);
+  DiagnoseResult run();
+
+ private:
+  // The steps, in order.
+  void screen();
+  void baseline();
+  void candidates();
+  void prune();
+  void probes();
+  void verdict();
+
+  // candidates(): the effects that can go on top of the current model; one round's search.
+  std::vector<std::string> candidatesOnTop(const model::Model& m) const;
+  std::vector<CandidateResult> searchRound(const Rung& cur, const std::vector<std::string>& todo, int round);
+  bool nearTie(const std::vector<CandidateResult>& results, const Rung& cur) const;
+  CandidateResult breakTie(std::vector<CandidateResult>& results, const Rung& cur, int round,
+                           std::vector<CandidateResult>& ahead);
+  // verdict(): the ladder in words; the records' disagreement when the model holds on one only.
+  std::string ladderText() const;
+  std::string offsetText(bool val_off) const;
+
+  // diagnose_search.cpp: fits on the screening record, refits on the whole training record.
+  ident::FitResult refitOnAll(const model::Model& m) const;
+  void refitIfBetter(CandidateResult& c) const;
+  std::vector<CandidateResult> fitEach(const std::vector<model::Model>& structures, const model::Model& base_model,
+                                       const std::vector<std::string>& names, int round, const ResidualReport& rr,
+                                       const std::string& tag, ident::FitMethod method, Search search = Search::Full,
+                                       int quick_cover = kQuickCover) const;
+  std::vector<CandidateResult> fitOnTop(const model::Model& base_model, const std::vector<std::string>& names, int round,
+                                        const ResidualReport& rr, const std::string& tag, ident::FitMethod method,
+                                        Search search = Search::Full, int quick_cover = kQuickCover) const;
+  std::vector<CandidateResult> searchOnTop(const model::Model& base_model, const std::vector<std::string>& names,
+                                           int round, const ResidualReport& rr, const std::string& tag,
+                                           ident::FitMethod method, size_t full_n, int quick_cover) const;
+  void log(const std::string& m) const {
+    if (s_.log) s_.log(m);
+  }
+
+  const io::Measurement& data_;
+  const io::Measurement* val_;
+  const DiagnoseSettings& s_;
+  std::chrono::steady_clock::time_point t0_;
+  int threads_ = 1;
+  io::Measurement train_;           // the training record
+  Validation v_;                    // where the validated error is measured
+  io::Measurement screen_;          // the training record decimated for the searches
+  size_t step_ = 1;                 // its decimation
+  std::vector<std::string> pool_;   // candidate effects
+  double noise_ = 0;                // sensor noise of the records (rms)
+  std::string stop_reason_ = "the catalogue is exhausted";
+  DiagnoseResult res_;
+};
+
+}  // namespace pamc::diagnose::detail

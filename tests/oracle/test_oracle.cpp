@@ -1,0 +1,458 @@
+// Tests of the test oracle (oracle_sim.hpp): its integrator converges, its core meets the Bouc-Wen
+// closed form, every effect shows its characteristic signature, the noise is what was configured, and
+// the pre-decided cases are well-formed. Every expectation compares with a number worked out here, not
+// with the oracle's own output, so each can fail.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+#include "oracle_sim.hpp"
+
+using namespace pamc::oracle;
+
+namespace {
+
+constexpr double Ts = 1e-3;
+
+SimOptions clean() {
+  SimOptions o;
+  o.noise_std = 0.0;
+  o.quantum = 0.0;
+  return o;
+}
+
+std::vector<double> yClean(const Core& c, const std::vector<EffectSpec>& e, const std::vector<double>& u,
+                           SimOptions o = clean(), const std::vector<double>* load = nullptr) {
+  return simulate(c, e, u, load, o).y_clean;
+}
+
+Core linearCore() {  // rho = 1: no hysteresis, y = k u + b
+  Core c;
+  c.k = 6.5;
+  c.rho = 1.0;
+  c.b = 20.0;
+  return c;
+}
+
+// n0 samples at a, then n1 at b.
+std::vector<double> step(size_t n0, double a, size_t n1, double b) {
+  std::vector<double> u(n0, a);
+  u.insert(u.end(), n1, b);
+  return u;
+}
+
+// Linear ramp from a to b over n samples (inclusive ends).
+std::vector<double> ramp(double a, double b, size_t n) {
+  std::vector<double> u(n);
+  for (size_t i = 0; i < n; ++i) u[i] = a + (b - a) * static_cast<double>(i) / static_cast<double>(n - 1);
+  return u;
+}
+
+// Time at which y first crosses `level` after sample `from` (the last before a step), interpolated between
+// the ends of the samples (sample k ends at (k + 1) Ts), from the start of the step sample.
+double crossingTime(const std::vector<double>& y, size_t from, double level) {
+  for (size_t k = from; k + 1 < y.size(); ++k) {
+    if ((y[k] - level) * (y[k + 1] - level) <= 0.0 && y[k + 1] != y[k]) {
+      const double f = (level - y[k]) / (y[k + 1] - y[k]);
+      return (static_cast<double>(k - from) + f) * Ts;
+    }
+  }
+  return NAN;
+}
+
+double maxAbsDiff(const std::vector<double>& a, const std::vector<double>& b) {
+  double m = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) m = std::max(m, std::fabs(a[i] - b[i]));
+  return m;
+}
+
+std::vector<EffectSpec> many() {
+  return {parseEffect("delay:d=0.0234"),
+          parseEffect("dead_band:threshold=-2"),
+          parseEffect("pressure_lag:tau=0.03,slew=200"),
+          parseEffect("asymmetry:gain=1.5,w_up=1,w_down=0.3"),
+          parseEffect("saturation:knee=35,width=6"),
+          parseEffect("creep:fraction=0.08,tau=2"),
+          parseEffect("friction_hysteresis:zmax=0.5,delta=0.2"),
+          parseEffect("mass_spring:fn=6,zeta=0.1"),
+          parseEffect("warm_up:tau=5,gain=0.1,shift=0.5")};
+}
+
+}  // namespace
+
+// ---- the integrator ---------------------------------------------------------------------------
+
+TEST(OracleIntegrator, TighterToleranceAndHalfStepChangeFarLessThanNoise) {
+  const auto u = makeSignal("mixed", 8.0, Ts, 7);
+  const double noise = std::sqrt(0.005 * 0.005 + 0.001 * 0.001 / 12.0);
+  for (const auto& effects : {std::vector<EffectSpec>{}, many(),
+                              std::vector<EffectSpec>{parseEffect("force_loop:fn=8,zeta=0.2,zmax=0.6,delta=0.05")}}) {
+    const auto base = yClean(Core{}, effects, u);
+    SimOptions tight = clean();
+    tight.rtol = tight.atol = 1e-12;
+    SimOptions half = clean();
+    half.max_step = 0.5e-3;
+    SimOptions tiny = clean();
+    tiny.max_step = 1e-5;  // far below what the tolerance picks: a check independent of the error estimate
+    EXPECT_LT(maxAbsDiff(base, yClean(Core{}, effects, u, tight)), 0.1 * noise);
+    EXPECT_LT(maxAbsDiff(base, yClean(Core{}, effects, u, half)), 0.1 * noise);
+    EXPECT_LT(maxAbsDiff(base, yClean(Core{}, effects, u, tiny)), 0.1 * noise);
+  }
+}
+
+// ---- the core ---------------------------------------------------------------------------------
+
+TEST(OracleCore, SlowRampFollowsTheBoucWenClosedForm) {
+  for (double alpha : {1.0, 1.3}) {
+    for (double sign : {1.0, -1.0}) {
+      Core c;  // k 6.5, rho 1.15, b 20, beta 0.5, gamma 0.2
+      c.alpha = alpha;
+      const auto u = ramp(0.0, 3.0 * sign, 30000);  // 0.1 V/s from rest at h = 0
+      const auto y = yClean(c, {}, u);
+      const double cc = c.beta + c.gamma;
+      double worst = 0.0;
+      for (size_t k = 0; k < u.size(); ++k) {
+        const double v = u[k];
+        // Loading from h = 0: dh/dv = alpha - c h for v > 0 (h > 0), alpha + c h for v < 0 (h < 0).
+        const double h = sign * (alpha / cc) * (1.0 - std::exp(-cc * std::fabs(v)));
+        const double expect = c.k * c.rho * v + c.b + c.k * (1.0 - c.rho) * h;
+        worst = std::max(worst, std::fabs(y[k] - expect));
+      }
+      EXPECT_LT(worst, 1e-6) << "alpha " << alpha << " sign " << sign;
+    }
+  }
+}
+
+TEST(OracleCore, OutputRespondsToTheCommandOfTheSameSample) {
+  const auto u = step(500, 0.0, 500, 1.0);
+  const auto y = yClean(Core{}, {}, u);
+  EXPECT_LT(std::fabs(y[499] - y[0]), 1e-9);
+  EXPECT_GT(std::fabs(y[500] - y[499]), 5.0);  // the step is complete at the end of its own sample
+}
+
+// ---- the effects ------------------------------------------------------------------------------
+
+TEST(OracleEffects, DelayShiftsTheStepResponseByDelayWithinASample) {
+  const size_t ks = 1000;
+  const auto u = step(ks, 0.0, 1000, 1.0);
+  for (double d : {0.0, 0.02, 0.0234, 0.0577}) {
+    std::vector<EffectSpec> e;
+    if (d > 0) e.push_back(parseEffect("delay:d=" + std::to_string(d)));
+    const auto y = yClean(Core{}, e, u);
+    size_t on = 0;
+    while (on < y.size() && std::fabs(y[on] - y[0]) < 1e-3) ++on;
+    ASSERT_LT(on, y.size());
+    // The delayed command switches at ks Ts + d; the first sample whose end is after it responds.
+    const double t_end = static_cast<double>(on + 1) * Ts, t_switch = static_cast<double>(ks) * Ts + d;
+    EXPECT_GE(t_end, t_switch - 1e-12) << d;
+    EXPECT_LE(t_end - t_switch, Ts + 1e-12) << d;
+  }
+}
+
+TEST(OracleEffects, PressureLagReaches63PercentAfterTau) {
+  const size_t ks = 500;
+  const auto u = step(ks, 0.0, 2000, 0.1);  // small: 1.25 V/s, far below the slew limit
+  for (double tau : {0.02, 0.08, 0.3}) {
+    const auto y = yClean(linearCore(), {parseEffect("pressure_lag:tau=" + std::to_string(tau) + ",slew=1000")}, u);
+    const double y0 = y[ks - 1], y1 = linearCore().k * 0.1 + linearCore().b;
+    const double t63 = crossingTime(y, ks - 1, y0 + (1.0 - std::exp(-1.0)) * (y1 - y0));
+    EXPECT_NEAR(t63, tau, 0.05 * tau) << tau;
+  }
+}
+
+TEST(OracleEffects, PressureLagSlewLimitsTheRate) {
+  const size_t ks = 500;
+  const auto u = step(ks, -1.0, 1000, 1.0);
+  const auto y = yClean(linearCore(), {parseEffect("pressure_lag:tau=0.002,slew=20")}, u);
+  // Mid-rise the pressure moves at the slew rate: dy/dt = k slew.
+  const double rate = (y[ks + 60] - y[ks + 40]) / (20 * Ts);
+  EXPECT_NEAR(rate, linearCore().k * 20.0, 0.02 * linearCore().k * 20.0);
+}
+
+TEST(OracleEffects, MassSpringRingsAtFn) {
+  const size_t ks = 500;
+  const auto u = step(ks, 0.0, 3000, 0.5);
+  for (double fn : {2.0, 6.0, 15.0}) {
+    const double zeta = 0.05;
+    const auto y = yClean(linearCore(), {parseEffect("mass_spring:fn=" + std::to_string(fn) + ",zeta=0.05")}, u);
+    const double yf = linearCore().k * 0.5 + linearCore().b;
+    std::vector<double> up;  // upward crossings of the final value
+    for (size_t k = ks; k + 1 < y.size(); ++k)
+      if (y[k] < yf && y[k + 1] >= yf) up.push_back(static_cast<double>(k) + (yf - y[k]) / (y[k + 1] - y[k]));
+    ASSERT_GE(up.size(), 4u) << fn;
+    const double period = (up[3] - up[0]) / 3.0 * Ts;
+    const double fn_est = 1.0 / period / std::sqrt(1.0 - zeta * zeta);
+    EXPECT_NEAR(fn_est, fn, 0.05 * fn);
+    // The first overshoot: exp(-pi zeta / sqrt(1 - zeta^2)).
+    const double peak = *std::max_element(y.begin() + ks, y.end());
+    EXPECT_NEAR((peak - yf) / (yf - y[0]), std::exp(-M_PI * zeta / std::sqrt(1 - zeta * zeta)), 0.03);
+  }
+}
+
+TEST(OracleEffects, CreepDriftsByFractionWithTau) {
+  const size_t ks = 1000;
+  const double tau = 2.0, fraction = 0.1;
+  const auto u = step(ks, 0.0, 16000, 1.0);
+  const auto y = yClean(linearCore(), {parseEffect("creep:fraction=0.1,tau=2")}, u);
+  const double k = linearCore().k;
+  // At rest at u = 0 the creep already holds fraction x b; the step adds k du now and fraction k du later.
+  EXPECT_NEAR(y[ks] - y[ks - 1], k * 1.0, 0.01);
+  EXPECT_NEAR(y.back() - y[ks - 1], (1.0 + fraction) * k, 0.01 * fraction * k);
+  const double t63 = crossingTime(y, ks - 1, y[ks - 1] + k + (1.0 - std::exp(-1.0)) * fraction * k);
+  EXPECT_NEAR(t63, tau, 0.05 * tau);
+}
+
+TEST(OracleEffects, DeadBandFreezesTheOutputBelowTheThreshold) {
+  std::vector<double> u(20000);
+  for (size_t i = 0; i < u.size(); ++i) u[i] = 3.0 * std::sin(2.0 * M_PI * 0.1 * static_cast<double>(i) * Ts);
+  const auto y = yClean(Core{}, {parseEffect("dead_band:threshold=-1")}, u);
+  const auto y_plain = yClean(Core{}, {}, u);
+  int intervals = 0;
+  for (size_t i = 0; i < u.size();) {
+    if (!(u[i] < -1.0 - 1e-6)) {
+      ++i;
+      continue;
+    }
+    // One interval below the threshold (the level of each depends on the hysteresis state on entry).
+    double lo = 1e9, hi = -1e9, lo_p = 1e9, hi_p = -1e9;
+    for (; i < u.size() && u[i] < -1.0 - 1e-6; ++i) {
+      lo = std::min(lo, y[i]), hi = std::max(hi, y[i]);
+      lo_p = std::min(lo_p, y_plain[i]), hi_p = std::max(hi_p, y_plain[i]);
+    }
+    ++intervals;
+    EXPECT_LT(hi - lo, 1e-9);     // frozen below the threshold
+    EXPECT_GT(hi_p - lo_p, 5.0);  // ... where the plain muscle moves
+  }
+  EXPECT_EQ(intervals, 2);
+  // Above it the command passes: somewhere the two agree (the first rise, before the threshold is met).
+  EXPECT_LT(std::fabs(y[1000] - y_plain[1000]), 1e-9);
+}
+
+TEST(OracleEffects, SaturationFlattensAboveTheKnee) {
+  const auto u = ramp(-3.0, 3.0, 20000);
+  const auto y = yClean(linearCore(), {parseEffect("saturation:knee=30,width=5")}, u);
+  double worst = 0.0;
+  for (size_t k = 0; k < u.size(); ++k) {
+    const double yc = 6.5 * u[k] + 20.0;
+    const double expect = yc <= 30.0 ? yc : 30.0 + 5.0 * std::tanh((yc - 30.0) / 5.0);
+    worst = std::max(worst, std::fabs(y[k] - expect));
+  }
+  EXPECT_LT(worst, 1e-6);
+  EXPECT_LT(*std::max_element(y.begin(), y.end()), 35.0);
+}
+
+TEST(OracleEffects, AsymmetryTurnsRoundOverDifferentTravels) {
+  const double gain = 2.0, wu = 1.0, wd = 0.3;
+  std::vector<double> u = ramp(0.0, 3.0, 6000), down = ramp(3.0, -3.0, 12000), up = ramp(-3.0, 3.0, 12000);
+  u.insert(u.end(), down.begin() + 1, down.end());
+  u.insert(u.end(), up.begin() + 1, up.end());
+  const auto y = yClean(linearCore(), {parseEffect("asymmetry:gain=2,w_up=1,w_down=0.3")}, u);
+  // The closed form of dz/du = 1 - z / w_up rising, 1 + z / w_down falling, along the path.
+  double z = 0.0, worst = 0.0;
+  for (size_t k = 0; k < u.size(); ++k) {
+    const double du = k ? u[k] - u[k - 1] : 0.0;
+    if (du > 0) z = wu - (wu - z) * std::exp(-du / wu);
+    if (du < 0) z = -wd + (z + wd) * std::exp(du / wd);
+    worst = std::max(worst, std::fabs(y[k] - (6.5 * u[k] + 20.0 + gain * z)));
+  }
+  EXPECT_LT(worst, 1e-6);
+  auto zOf = [&](size_t k) { return (y[k] - (6.5 * u[k] + 20.0)) / gain; };
+  // The branches at u = 0: falling, z has turned round over w_down and sits near -w_down after 3 V of
+  // travel; rising from -3 V it has come only to about w_up - (w_up + w_down) exp(-3 / w_up).
+  auto zAtZero = [&](size_t from, size_t to) {  // z where u crosses 0 between the two indices
+    for (size_t k = from; k + 1 < to; ++k)
+      if ((u[k] <= 0.0) != (u[k + 1] <= 0.0)) return zOf(k) + (zOf(k + 1) - zOf(k)) * u[k] / (u[k] - u[k + 1]);
+    return 1e9;
+  };
+  const size_t top = 5999, bottom = 6000 + 12000 - 2;
+  const double z_top = wu * (1.0 - std::exp(-3.0 / wu)), z_bottom = -wd + (z_top + wd) * std::exp(-6.0 / wd);
+  EXPECT_NEAR(zAtZero(top, bottom), -wd + (z_top + wd) * std::exp(-3.0 / wd), 1e-6);
+  EXPECT_NEAR(zAtZero(bottom, u.size()), wu - (wu - z_bottom) * std::exp(-3.0 / wu), 1e-6);
+  // Turning round: half of the swing takes w_down ln 2 of command travel after the top reversal and
+  // w_up ln 2 after the bottom one.
+  auto halfTravel = [&](size_t rev, double target) {
+    const double half = 0.5 * (zOf(rev) + target);
+    for (size_t k = rev; k + 1 < u.size(); ++k)
+      if ((zOf(k) - half) * (zOf(k + 1) - half) <= 0.0) return std::fabs(u[k + 1] - u[rev]);
+    return 1e9;
+  };
+  EXPECT_NEAR(halfTravel(top, -wd), wd * std::log(2.0), 0.05 * wd * std::log(2.0));
+  EXPECT_NEAR(halfTravel(bottom, wu), wu * std::log(2.0), 0.05 * wu * std::log(2.0));
+}
+
+TEST(OracleEffects, FrictionSticksAfterEveryReversal) {
+  const double zmax = 0.5;
+  std::vector<double> u = ramp(0.0, 3.0, 6000), down = ramp(3.0, -3.0, 12000);
+  u.insert(u.end(), down.begin() + 1, down.end());
+  const auto y = yClean(linearCore(), {parseEffect("friction_hysteresis:zmax=0.5,delta=0.1")}, u);
+  const auto y0 = yClean(linearCore(), {}, u);
+  // Rising (friction saturated at +zmax) the output runs zmax below the frictionless one, falling zmax above.
+  EXPECT_NEAR(y0[5000] - y[5000], zmax, 0.01 * zmax);
+  EXPECT_NEAR(y[6000 + 9000] - y0[6000 + 9000], zmax, 0.01 * zmax);
+  // Before the reversal the output follows the command at the full slope k; right after it, it sticks:
+  // dy/du = k / (1 + a g) with a = zmax / delta = 5, g = 2.
+  const double du = 3.0 / 5999.0;
+  const double slope_before = (y[5999] - y[5989]) / (10 * du);
+  const double slope_after = (y[6000] - y[6010]) / (10 * du);
+  EXPECT_NEAR(slope_before, 6.5, 0.02 * 6.5);
+  EXPECT_NEAR(slope_after, 6.5 / (1.0 + 5.0 * 2.0), 0.1 * 6.5 / 11.0);
+}
+
+TEST(OracleEffects, ForceLoopWithoutFrictionIsMassSpringAndWithItHoldsShort) {
+  const size_t ks = 500;
+  const auto u = step(ks, 0.0, 4000, 0.5);
+  const auto ms = yClean(linearCore(), {parseEffect("mass_spring:fn=6,zeta=0.1")}, u);
+  const auto fl0 = yClean(linearCore(), {parseEffect("force_loop:fn=6,zeta=0.1,zmax=0")}, u);
+  EXPECT_LT(maxAbsDiff(ms, fl0), 1e-7);
+  const auto fl = yClean(linearCore(), {parseEffect("force_loop:fn=6,zeta=0.1,zmax=0.4,delta=0.05")}, u);
+  const double yf = 6.5 * 0.5 + 20.0;
+  const double offset = yf - fl.back();
+  EXPECT_GT(std::fabs(offset), 1e-3);      // stuck short of the static position
+  EXPECT_LE(std::fabs(offset), 0.4 + 1e-6);  // by at most the Coulomb level
+  EXPECT_LT(std::fabs(fl.back() - fl[fl.size() - 500]), 1e-4);  // and at rest
+  // Friction takes energy out: the first overshoot is smaller than without it.
+  EXPECT_LT(*std::max_element(fl.begin(), fl.end()) - yf, *std::max_element(ms.begin(), ms.end()) - yf - 0.1);
+}
+
+TEST(OracleEffects, LoadMovesTheOutputByComplianceTimesLoad) {
+  const auto u = std::vector<double>(2000, 0.5);
+  const auto load = step(1000, 0.0, 1000, 40.0);
+  const auto y = yClean(Core{}, {parseEffect("load:compliance=0.05")}, u, clean(), &load);
+  EXPECT_NEAR(y[999] - y[1000], 0.05 * 40.0, 1e-6);
+  EXPECT_NEAR(y[0], y[999], 1e-9);
+  EXPECT_THROW(yClean(Core{}, {parseEffect("load")}, u), std::invalid_argument);  // no load column
+}
+
+TEST(OracleEffects, WarmUpShiftsAndScalesWithTheThermalTimeConstant) {
+  const size_t ks = 5000;
+  const auto u = step(ks, 0.0, 5000, 1.0);
+  const auto y = yClean(linearCore(), {parseEffect("warm_up:tau=5,gain=0.1,shift=1")}, u);
+  double worst = 0.0;
+  for (size_t k = 0; k < u.size(); ++k) {
+    const double phi = 1.0 - std::exp(-static_cast<double>(k + 1) * Ts / 5.0);
+    const double yc = 6.5 * u[k] + 20.0;
+    worst = std::max(worst, std::fabs(y[k] - (yc + phi * (0.1 * (yc - 20.0) + 1.0))));
+  }
+  EXPECT_LT(worst, 1e-6);
+}
+
+// ---- noise ------------------------------------------------------------------------------------
+
+TEST(OracleNoise, StdAtAHoldMatchesTheConfiguredOne) {
+  const std::vector<double> u(20000, 1.0);
+  for (double sd : {0.005, 0.0005, 0.02}) {
+    SimOptions o;
+    o.noise_std = sd;
+    o.noise_seed = 42;
+    const Record r = simulate(Core{}, {}, u, nullptr, o);
+    const double mean = std::accumulate(r.y.begin(), r.y.end(), 0.0) / static_cast<double>(r.y.size());
+    double ss = 0.0;
+    for (double v : r.y) ss += (v - mean) * (v - mean);
+    const double measured = std::sqrt(ss / static_cast<double>(r.y.size() - 1));
+    const double expected = std::sqrt(sd * sd + 0.001 * 0.001 / 12.0);
+    EXPECT_NEAR(r.noise(), expected, 1e-12);
+    EXPECT_NEAR(measured, expected, 0.1 * expected) << sd;
+    EXPECT_NEAR(mean, r.y_clean[0], 4.0 * expected / std::sqrt(static_cast<double>(u.size())) + 0.0005);
+    // Quantised to 0.001 mm.
+    for (size_t i = 0; i < 100; ++i) EXPECT_NEAR(r.y[i] * 1000.0, std::round(r.y[i] * 1000.0), 1e-6);
+  }
+}
+
+// ---- excitations, records, cases --------------------------------------------------------------
+
+TEST(OracleSignals, KindsStayInRangeAreSeededAndRejectBadSpecs) {
+  for (const char* spec : {"steps", "chirp:f1=5", "sine:f=0.1", "triangle", "multisine:fmax=3", "hold:level=1",
+                           "ramp:from=-3,to=3", "mixed", "steps:dur=5+chirp:f1=3+hold"}) {
+    const auto u = makeSignal(spec, 20.0, Ts, 3);
+    ASSERT_EQ(u.size(), 20000u) << spec;
+    for (double v : u) ASSERT_TRUE(v >= -3.0 - 1e-12 && v <= 3.0 + 1e-12) << spec;
+    EXPECT_EQ(u, makeSignal(spec, 20.0, Ts, 3)) << spec;
+  }
+  EXPECT_NE(makeSignal("steps", 20.0, Ts, 3), makeSignal("steps", 20.0, Ts, 4));
+  for (const char* bad : {"", "bogus", "steps:lo", "steps:foo=1", "sine:f=-1", "steps:dur=30", "chirp:f1=abc"})
+    EXPECT_THROW(makeSignal(bad, 20.0, Ts, 1), std::invalid_argument) << bad;
+  EXPECT_THROW(parseEffect("delay:dd=1"), std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("delay:d=0.3")}), std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("mass_spring"), parseEffect("force_loop")}), std::invalid_argument);
+  EXPECT_THROW(parseCore("k=1,q=2"), std::invalid_argument);
+}
+
+TEST(OracleRecords, CsvIsWrittenAtomicallyAndReadsBack) {
+  const std::vector<double> u = makeSignal("steps", 2.0, Ts, 1), load(u.size(), 3.0);
+  const Record r = simulate(Core{}, {parseEffect("load")}, u, &load, SimOptions{});
+  const std::string path = ::testing::TempDir() + "oracle_record.csv";
+  writeRecordCsv(path, r);
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "t,u,y,load");
+  size_t rows = 0;
+  double t_prev = -1.0;
+  while (std::getline(in, line)) {
+    double t, uu, y, l;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &t, &uu, &y, &l), 4);
+    if (rows) {
+      EXPECT_NEAR(t - t_prev, Ts, 1e-9);
+    }
+    EXPECT_NEAR(y, r.y[rows], 1e-6);
+    t_prev = t;
+    ++rows;
+  }
+  EXPECT_EQ(rows, u.size());
+  EXPECT_FALSE(std::ifstream(path + ".tmp").good());
+  std::remove(path.c_str());
+  EXPECT_THROW(writeRecordCsv("/nonexistent-dir/x.csv", r), std::runtime_error);
+}
+
+TEST(OracleCases, ThePreDecidedSetIsWellFormed) {
+  const auto cases = loadCases(defaultCasesPath());
+  std::set<std::string> single;
+  bool plain = false;
+  int pairs = 0;
+  for (const auto& c : cases) {
+    std::vector<std::string> hidden;
+    for (const auto& e : c.effects) hidden.push_back(e.name);
+    std::sort(hidden.begin(), hidden.end());
+    auto expected = c.expected;
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(hidden, expected) << c.name;
+    EXPECT_NO_THROW(validateEffects(c.effects)) << c.name;
+    EXPECT_TRUE(c.train.duration >= 30 && c.train.duration <= 60) << c.name;
+    EXPECT_TRUE(c.validate.duration >= 20 && c.validate.duration <= 30) << c.name;
+    EXPECT_NE(c.train.seed, c.validate.seed) << c.name;
+    EXPECT_NE(c.train.input, c.validate.input) << c.name;
+    EXPECT_NO_THROW(makeSignal(c.train.input, c.train.duration, Ts, c.train.seed)) << c.name;
+    EXPECT_NO_THROW(makeSignal(c.validate.input, c.validate.duration, Ts, c.validate.seed)) << c.name;
+    // Not the project's default core (k 5, rho 0.8, beta 0.3, gamma 0.3).
+    EXPECT_FALSE(c.core.k == 5.0 && c.core.rho == 0.8) << c.name;
+    const bool needs_load = std::count(expected.begin(), expected.end(), "load") > 0;
+    EXPECT_EQ(needs_load, !c.train.load.empty()) << c.name;
+    EXPECT_EQ(needs_load, !c.validate.load.empty()) << c.name;
+    if (expected.empty()) plain = true;
+    if (expected.size() == 1) single.insert(expected[0]);
+    if (expected.size() == 2) ++pairs;
+  }
+  EXPECT_TRUE(plain);
+  EXPECT_GE(pairs, 2);
+  for (const char* e : {"pressure_lag", "creep", "mass_spring", "delay", "dead_band", "saturation", "asymmetry",
+                        "friction_hysteresis"})
+    EXPECT_TRUE(single.count(e)) << e;
+}
+
+TEST(OracleCases, ARecordIsReproducibleAndTheTwoRecordsDiffer) {
+  auto cases = loadCases(defaultCasesPath());
+  ASSERT_FALSE(cases.empty());
+  Case c = cases.front();
+  c.train.duration = 3.0;
+  c.validate.duration = 3.0;
+  const Record a = makeCaseRecord(c, "train"), b = makeCaseRecord(c, "train"), v = makeCaseRecord(c, "validate");
+  EXPECT_EQ(a.y, b.y);
+  EXPECT_NE(a.u, v.u);
+  EXPECT_NEAR(a.noise(), std::sqrt(c.noise_std * c.noise_std + 1e-6 / 12.0), 1e-12);
+}
