@@ -25,8 +25,8 @@ void ControllerOptions::add(CLI::App* a) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
   a->add_option("--eso-form", eso_form,
-                "the plant the ESO's observer assumes: 'first-order' (a lag: x1' = (gain u - x1)/tau + x2; fitted "
-                "to the paper's ESO column) or 'printed' (eq. 22's double integrator with beta1..3, delta, b0)")
+                "the plant the ESO's observer assumes: 'printed' (the paper's eqs. 22-24: a double integrator with "
+                "beta1..3, delta, b0) or 'first-order' (pamc's own: a lag, x1' = (gain u - x1)/tau + x2)")
       ->capture_default_str()
       ->check(CLI::IsMember({"first-order", "printed"}));
   a->add_option("--eso-gain", cc.eso_gain, "first-order ESO: static gain of its plant [mm/V]")

@@ -54,15 +54,13 @@ struct ControllerConfig {
   // itself through the direct feedthrough with gain kc k rho) or as an increment on the posterior
   // output (false); see docs/CONTROL.md. Only for the paper's form (amc_inverse = 0, horizon 1).
   bool amc_as_printed = true;
-  // ESO, the plant its observer assumes (docs/CONTROL.md). 2: eqs. (22)-(24) as printed, a double
-  // integrator x1'' = b0 u + tau, with fal() of delta in mm and b0 [mm/(s^2 V)] (the paper: b0 = 1).
-  // 1 (default): the same extended-state idea on a first-order lag, which is what a valve filling a
-  // muscle is from command to position: x1' = (eso_gain u - x1) / eso_tau + x2, the total disturbance
-  // x2 estimated with both eigenvalues of the error dynamics at -eso_wo, u = u_n - x2 eso_tau / eso_gain.
-  // On a nearly static plant the printed form trades the PI's integral with its own through a slow
-  // mode and cannot beat PI; eso_gain, eso_tau and eso_wo are fitted to the paper's ESO column
-  // (docs/CALIBRATION.md).
-  int eso_order = 1;
+  // ESO, the plant its observer assumes (docs/CONTROL.md). 2 (default): the paper's, eqs. (22)-(24),
+  // a double integrator x1'' = b0 u + tau, with fal() of delta in mm and b0 [mm/(s^2 V)] (the paper:
+  // beta1 = beta2 = beta3 = 100, delta = 500, b0 = 1). 1: pamc's own first-order observer, the same
+  // extended-state idea on a first-order lag (what a valve filling a muscle is from command to position):
+  // x1' = (eso_gain u - x1) / eso_tau + x2, the total disturbance x2 estimated with both eigenvalues of
+  // the error dynamics at -eso_wo, u = u_n - x2 eso_tau / eso_gain.
+  int eso_order = 2;
   double beta1 = 100.0, beta2 = 100.0, beta3 = 100.0, delta = 500.0, b0 = 1.0;
   double eso_gain = 8.4;  // [mm/V]
   double eso_tau = 0.3;   // [s]

@@ -1,5 +1,6 @@
 #include "report/figures.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -62,6 +63,40 @@ bool runGnuplot(const std::string& script_text, const std::string& png, const st
 
 bool haveGnuplot() { return std::system("command -v gnuplot >/dev/null 2>&1") == 0; }
 
+namespace {
+void plotSeries(std::ostringstream& gp, const Panel& p, bool titles) {
+  gp << "plot ";
+  bool first = true;
+  for (const auto& s : p.series) {
+    const int xc = columnIndex(s.csv, s.xcol), yc = columnIndex(s.csv, s.ycol);
+    if (xc < 0 || yc < 0) continue;
+    gp << (first ? "" : ", ") << quote(s.csv) << " skip 1 every 10 using " << xc << ":" << yc << " with " << s.style;
+    if (!s.color.empty()) gp << " lc rgb " << quote(s.color);
+    gp << (titles ? " title " + quote(s.title) : std::string(" notitle"));
+    first = false;
+  }
+  if (first) gp << "NaN notitle";
+  gp << "\n";
+}
+
+// One panel at [y0, y0 + h) of the page (fractions), and its inset if it has one.
+void plotPanel(std::ostringstream& gp, const Panel& p, double y0, double h) {
+  gp << "set origin 0," << y0 << "\nset size " << (p.equal_axes ? "ratio -1" : "noratio") << " 1," << h << "\n";
+  gp << "set title " << quote(p.title) << "\nset xlabel " << quote(p.xlabel) << "\nset ylabel " << quote(p.ylabel)
+     << "\nset key outside right top\n";
+  if (p.x_hi > p.x_lo) gp << "set xrange [" << p.x_lo << ":" << p.x_hi << "]\nset autoscale y\n";
+  else gp << "set autoscale x\nset autoscale y\n";
+  plotSeries(gp, p, true);
+  if (p.inset_hi <= p.inset_lo) return;
+  gp << "set origin 0.42," << y0 + 0.42 * h << "\nset size noratio 0.33," << 0.45 * h << "\n";
+  gp << "set title 'zoom'\nunset xlabel\nunset ylabel\nunset key\nset object 1 rectangle from graph 0,0 to graph 1,1 "
+        "behind fc rgb 'white' fs solid noborder\n";
+  gp << "set xrange [" << p.inset_lo << ":" << p.inset_hi << "]\nset autoscale y\n";
+  plotSeries(gp, p, false);
+  gp << "unset object 1\n";
+}
+}  // namespace
+
 bool renderFigure(const std::string& png, const std::string& title, const std::vector<Panel>& panels,
                   std::string& error, int width, int panel_height) {
   if (!haveGnuplot()) {
@@ -70,29 +105,14 @@ bool renderFigure(const std::string& png, const std::string& title, const std::v
   }
   std::ostringstream gp;
   const std::string tmp_png = png + ".tmp.png";
-  gp << "set terminal pngcairo size " << width << "," << panel_height * static_cast<int>(panels.size()) + 40
-     << " font 'DejaVu Sans,10'\n";
+  const int title_px = 20 * (1 + static_cast<int>(std::count(title.begin(), title.end(), '\n'))) + 10;
+  const int height = panel_height * static_cast<int>(panels.size()) + title_px;
+  gp << "set terminal pngcairo size " << width << "," << height << " font 'DejaVu Sans,10'\n";
   gp << "set output " << quote(tmp_png) << "\n";
-  gp << "set datafile separator ','\nset grid\nset key outside right top noenhanced\nset termoption noenhanced\n";
-  gp << "set multiplot layout " << panels.size() << ",1 title " << quote(title) << "\n";
-  for (const auto& p : panels) {
-    gp << "set title " << quote(p.title) << "\nset xlabel " << quote(p.xlabel) << "\nset ylabel " << quote(p.ylabel)
-       << "\n";
-    gp << (p.equal_axes ? "set size ratio -1\n" : "set size noratio\n");
-    if (p.x_hi > p.x_lo) gp << "set xrange [" << p.x_lo << ":" << p.x_hi << "]\nset autoscale y\n";
-    else gp << "set autoscale x\n";
-    gp << "plot ";
-    bool first = true;
-    for (const auto& s : p.series) {
-      const int xc = columnIndex(s.csv, s.xcol), yc = columnIndex(s.csv, s.ycol);
-      if (xc < 0 || yc < 0) continue;
-      gp << (first ? "" : ", ") << quote(s.csv) << " skip 1 every 10 using " << xc << ":" << yc << " with " << s.style
-         << " title " << quote(s.title);
-      first = false;
-    }
-    if (first) gp << "NaN notitle";
-    gp << "\n";
-  }
+  gp << "set datafile separator ','\nset grid\nset key noenhanced\nset termoption noenhanced\n";
+  gp << "set multiplot title " << quote(title) << "\n";
+  const double h = static_cast<double>(panel_height) / height;
+  for (size_t i = 0; i < panels.size(); ++i) plotPanel(gp, panels[i], 1.0 - static_cast<double>(title_px) / height - h * (i + 1), h);
   gp << "unset multiplot\nset output\n";
   return runGnuplot(gp.str(), png, tmp_png, error);
 }

@@ -12,6 +12,7 @@ struct Series {
   std::string xcol, ycol;  // column names in the CSV header
   std::string title;
   std::string style = "lines";
+  std::string color;  // gnuplot colour ("#d62728"); empty: gnuplot's sequence
 };
 
 struct Panel {
@@ -19,6 +20,9 @@ struct Panel {
   std::vector<Series> series;
   bool equal_axes = false;
   double x_lo = 0, x_hi = 0;  // x range when x_hi > x_lo (a zoom), else automatic
+  // An inset in the panel's upper right showing the same series zoomed to [inset_lo, inset_hi] in x
+  // (the paper's Fig. 11) when inset_hi > inset_lo.
+  double inset_lo = 0, inset_hi = 0;
 };
 
 // Renders panels stacked vertically into a PNG (pngcairo). Returns false with `error` set when

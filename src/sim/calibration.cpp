@@ -1,11 +1,13 @@
 #include "sim/calibration.hpp"
 
-#include <algorithm>
-#include <cmath>
-#include <cstdio>
-#include <stdexcept>
-
 #include <sys/stat.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <thread>
 
 #include "io/text.hpp"
 
@@ -15,127 +17,196 @@ namespace {
 
 using io::fmt;
 
-// The summaries' numbers by path (paper_criteria.hpp).
-double at(const nlohmann::json& j, std::initializer_list<const char*> path) { return jsonNumber(j, path); }
+const physics::PhysicsConfig& physicsDefaults() {
+  static const physics::PhysicsConfig d = physics::PhysicsConfig::defaults();
+  return d;
+}
 
-double distanceToPaper(const nlohmann::json& s) {
-  double sum = 0;
-  int n = 0;
-  const char* u[3] = {"u0", "u1", "u2"};
-  for (int i = 0; i < 3; ++i) {
-    sum += std::fabs(std::log(at(s, {"table1", u[i], "reference_rmse"}) / PaperNumbers::table1_reference[i]));
-    ++n;
-  }
-  const char* cols[3] = {"pi", "eso", "amc"};
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) {
-      sum += std::fabs(std::log(at(s, {"table2", PaperNumbers::table2_rows[r], cols[c], "rmse"}) /
-                                PaperNumbers::table2[r][c + 1][1]));
-      ++n;
+void setHysteresisScale(plant::PlantConfig& p, double s) {
+  p.physics.muscle.hysteresis_N = physicsDefaults().muscle.hysteresis_N * s;
+  p.physics.muscle.hysteresis_N_per_bar = physicsDefaults().muscle.hysteresis_N_per_bar * s;
+}
+void setTravel(plant::PlantConfig& p, double v) { p.physics.muscle.hysteresis_travel_mm = v; }
+void setConductance(plant::PlantConfig& p, double v) { p.physics.regulator.conductance_dm3_per_s_bar = v; }
+void setMass(plant::PlantConfig& p, double v) { p.physics.payload.mass_kg = v; }
+
+std::vector<CalibrationAxis> buildAxes() {
+  const auto& d = physicsDefaults();
+  return {
+      {"hysteresis_scale", "-", "braid friction level: muscle.hysteresis_N and hysteresis_N_per_bar times this",
+       {0.5, 0.75, 1.0, 1.5, 2.0, 3.0}, 1.0, setHysteresisScale},
+      {"hysteresis_travel_mm", "mm", "pre-sliding travel of the braid friction (muscle.hysteresis_travel_mm)",
+       {0.1, 0.3, 1.0, 3.0}, d.muscle.hysteresis_travel_mm, setTravel},
+      {"conductance_dm3_per_s_bar", "dm^3/(s bar)", "sonic conductance of valve and tube (regulator.conductance_dm3_per_s_bar)",
+       {0.2, 0.4, 0.8, 1.6}, d.regulator.conductance_dm3_per_s_bar, setConductance},
+      {"mass_kg", "kg", "payload mass (payload.mass_kg)", {4.0, 8.0, 16.0, 32.0}, d.payload.mass_kg, setMass},
+  };
+}
+
+std::string key(const CalibratedReading& r) {
+  std::string k;
+  for (double v : r.plant_values) k += fmt("%g", v) + "_";
+  return k;
+}
+
+void makeDirectory(const std::string& d) {
+  ::mkdir(d.c_str(), 0755);
+  struct stat sb {};
+  if (::stat(d.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(d + ": cannot create the directory");
+}
+
+// Every reading of ki on one plant: Table 1 and the identification once, then the triangle per ki.
+std::vector<CalibrationPoint> evaluatePlant(const CalibrationSettings& s, const std::vector<double>& values) {
+  ExperimentSettings es = s.base;
+  es.plant = plantWith(values);
+  es.figures = false;
+  es.log = nullptr;
+  es.only = {"triangle"};
+  es.out_dir = s.work_dir + "/" + key({values, 0});
+  std::vector<CalibrationPoint> out;
+  nlohmann::json table1;
+  for (double ki : s.ki_grid) {
+    es.ctrl.ki = ki;
+    auto rep = runExperiments(es);
+    if (es.table1) {
+      table1 = rep.json["table1"];
+      es.model_file = es.out_dir + "/model.json";
+      es.table1 = false;
     }
-  return std::isfinite(sum) ? sum / n : INFINITY;
+    rep.json["table1"] = table1;
+    CalibrationPoint p{{values, ki}, std::move(rep.json), 0};
+    p.distance = calibrationDistance(p.summary, s.claims);
+    out.push_back(std::move(p));
+  }
+  return out;
+}
+
+// The plants of `batch` evaluated on s.threads threads; results in the cache.
+void evaluateBatch(const CalibrationSettings& s, const std::vector<std::vector<double>>& batch,
+                   std::map<std::string, std::vector<CalibrationPoint>>& cache, std::mutex& m) {
+  std::atomic<size_t> next{0};
+  auto worker = [&] {
+    for (size_t i = next++; i < batch.size(); i = next++) {
+      auto pts = evaluatePlant(s, batch[i]);
+      std::lock_guard<std::mutex> lock(m);
+      double best = INFINITY;
+      for (const auto& p : pts) best = std::min(best, p.distance);
+      if (s.log) s.log("calibrate: plant " + key({batch[i], 0}) + " best distance " + fmt("%.3f", best));
+      cache[key({batch[i], 0})] = std::move(pts);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < std::max(1, s.threads); ++t) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+}
+
+double bestDistance(const std::vector<CalibrationPoint>& pts) {
+  double best = INFINITY;
+  for (const auto& p : pts) best = std::min(best, p.distance);
+  return best;
 }
 
 }  // namespace
 
-std::vector<CalibrationRow> runCalibration(const CalibrationSettings& s) {
-  std::vector<CalibrationRow> rows;
-  if (s.base.plant.kind != plant::PlantKind::Model)
-    throw std::invalid_argument("calibrate varies the pressure lag of a model plant: give a plant file with \"kind\": \"model\"");
-  ::mkdir(s.work_dir.c_str(), 0755);
-  const std::vector<double> eso_tau = s.eso_tau.empty() ? std::vector<double>{s.base.ctrl.eso_tau} : s.eso_tau;
-  const std::vector<double> eso_wo = s.eso_wo.empty() ? std::vector<double>{s.base.ctrl.eso_wo} : s.eso_wo;
-  const size_t total = s.lag_tau_s.size() * s.ki.size() * s.amc_as_printed.size() * eso_tau.size() * eso_wo.size();
-  size_t done = 0;
-  for (double tau : s.lag_tau_s) {
-    ExperimentSettings es = s.base;
-    es.figures = false;
-    es.log = nullptr;
-    if (!es.plant.truth.hasEffect("pressure_lag")) es.plant.truth.addEffect("pressure_lag");
-    es.plant.truth.setEffectParam("pressure_lag", "tau", tau);
-    es.out_dir = s.work_dir + "/tau_" + fmt("%g", tau);
-    std::string model_file;  // identified once per emulator, reused for every gain reading
-    for (double ki : s.ki)
-      for (bool printed : s.amc_as_printed)
-        for (double e_tau : eso_tau)
-          for (double e_wo : eso_wo) {
-        es.ctrl.ki = ki;
-        es.ctrl.amc_as_printed = printed;
-        es.ctrl.eso_tau = e_tau;
-        es.ctrl.eso_wo = e_wo;
-        es.model_file = model_file;
-        const auto rep = runExperiments(es);
-        if (model_file.empty()) model_file = es.out_dir + "/model.json";
-        CalibrationRow row;
-        row.lag_tau_s = tau;
-        row.ki = ki;
-        row.amc_as_printed = printed;
-        row.eso_tau = e_tau;
-        row.eso_wo = e_wo;
-        row.summary = rep.json;
-        row.criteria = paperCriteria(rep.json);
-        row.met = criteriaMet(row.criteria);
-        row.distance = distanceToPaper(rep.json);
-        rows.push_back(std::move(row));
-        ++done;
-        if (s.log)
-          s.log("calibrate: " + std::to_string(done) + "/" + std::to_string(total) + "  tau " + fmt("%g", tau) +
-                " s, ki " + fmt("%g", ki) + (printed ? ", eq. 17 as printed" : ", eq. 17 as increment") + ", ESO tau " +
-                fmt("%g", e_tau) + " s wo " + fmt("%g", e_wo) + " rad/s: " +
-                std::to_string(rows.back().met) + "/" + std::to_string(rows.back().criteria.size()) +
-                " criteria, distance " + fmt("%.3f", rows.back().distance));
+const std::vector<CalibrationAxis>& calibrationAxes() {
+  static const std::vector<CalibrationAxis> a = buildAxes();
+  return a;
+}
+
+plant::PlantConfig plantWith(const std::vector<double>& values) {
+  plant::PlantConfig p = plant::PlantConfig::defaults();
+  const auto& axes = calibrationAxes();
+  for (size_t i = 0; i < axes.size() && i < values.size(); ++i) axes[i].apply(p, values[i]);
+  return p;
+}
+
+CalibrationResult runCalibration(const CalibrationSettings& s) {
+  makeDirectory(s.work_dir);
+  const auto& axes = calibrationAxes();
+  std::vector<double> current;
+  for (const auto& a : axes) current.push_back(a.nominal);
+  std::map<std::string, std::vector<CalibrationPoint>> cache;
+  std::mutex m;
+  for (int pass = 0; pass < s.passes; ++pass)
+    for (size_t ai = 0; ai < axes.size(); ++ai) {
+      std::vector<std::vector<double>> batch;
+      for (double v : axes[ai].values) {
+        auto c = current;
+        c[ai] = v;
+        if (!cache.count(key({c, 0}))) batch.push_back(c);
       }
-  }
-  return rows;
-}
-
-void rankCalibration(std::vector<CalibrationRow>& rows) {
-  std::stable_sort(rows.begin(), rows.end(), [](const CalibrationRow& a, const CalibrationRow& b) {
-    if (a.met != b.met) return a.met > b.met;
-    return a.distance < b.distance;
-  });
-}
-
-std::string formatCalibration(const std::vector<CalibrationRow>& rows, int mark) {
-  std::string t =
-      "| lag tau [s] | ki [V/(mm s)] | eq. 17 | ESO tau [s] / wo [rad/s] | Table 1 u0 / u1 / u2 | triangle PI / ESO / AMC | sine 0.05 Hz PI / ESO / "
-      "AMC | sine 0.1 Hz PI / ESO / AMC | triangle max PI / ESO / AMC | square fwd PI os / AMC os, settle | payload "
-      "AMC best | criteria | distance |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  // The paper's own row.
-  t += "| paper | | | | " + fmt("%.2f", PaperNumbers::table1_reference[0]) + " / " +
-       fmt("%.2f", PaperNumbers::table1_reference[1]) + " / " + fmt("%.2f", PaperNumbers::table1_reference[2]) + " |";
-  for (int r = 0; r < 3; ++r)
-    t += " " + fmt("%.3f", PaperNumbers::table2[r][1][1]) + " / " + fmt("%.3f", PaperNumbers::table2[r][2][1]) + " / " +
-         fmt("%.3f", PaperNumbers::table2[r][3][1]) + " |";
-  t += " " + fmt("%.2f", PaperNumbers::table2[0][1][0]) + " / " + fmt("%.2f", PaperNumbers::table2[0][2][0]) + " / " +
-       fmt("%.2f", PaperNumbers::table2[0][3][0]) + " | ~17 % / negligible, < 0.5 s | yes | | |\n";
-  for (size_t i = 0; i < rows.size(); ++i) {
-    const auto& r = rows[i];
-    const auto& s = r.summary;
-    const std::string b = static_cast<int>(i) == mark ? "**" : "";
-    t += "| " + b + fmt("%g", r.lag_tau_s) + b + " | " + b + fmt("%g", r.ki) + b + " | " +
-         (r.amc_as_printed ? "printed" : "increment") + " | " + fmt("%g", r.eso_tau) + " / " + fmt("%g", r.eso_wo) +
-         " | " + fmt("%.2f", at(s, {"table1", "u0", "reference_rmse"})) +
-         " / " + fmt("%.2f", at(s, {"table1", "u1", "reference_rmse"})) + " / " +
-         fmt("%.2f", at(s, {"table1", "u2", "reference_rmse"})) + " |";
-    for (int row = 0; row < 3; ++row) {
-      const char* tr = PaperNumbers::table2_rows[row];
-      t += " " + fmt("%.3f", at(s, {"table2", tr, "pi", "rmse"})) + " / " + fmt("%.3f", at(s, {"table2", tr, "eso", "rmse"})) +
-           " / " + fmt("%.3f", at(s, {"table2", tr, "amc", "rmse"})) + " |";
+      if (s.log) s.log("calibrate: pass " + std::to_string(pass + 1) + ", " + axes[ai].name + ": " +
+                       std::to_string(batch.size()) + " new plants");
+      evaluateBatch(s, batch, cache, m);
+      double best = INFINITY;
+      for (double v : axes[ai].values) {
+        auto c = current;
+        c[ai] = v;
+        const double d = bestDistance(cache[key({c, 0})]);
+        if (d < best) best = d, current = c;
+      }
     }
-    const char* tri = PaperNumbers::table2_rows[0];
-    t += " " + fmt("%.2f", at(s, {"table2", tri, "pi", "max"})) + " / " + fmt("%.2f", at(s, {"table2", tri, "eso", "max"})) +
-         " / " + fmt("%.2f", at(s, {"table2", tri, "amc", "max"})) + " |";
-    t += " " + fmt("%.1f %%", at(s, {"discontinuous", "square", "forward", "pi", "overshoot_pct"})) + " / " +
-         fmt("%.1f %%", at(s, {"discontinuous", "square", "forward", "amc", "overshoot_pct"})) + ", " +
-         fmt("%.2f s", at(s, {"discontinuous", "square", "forward", "amc", "settling_s"})) + " |";
-    bool pay = false;
-    for (const auto& c : r.criteria)
-      if (c.name == "payload_amc_best") pay = c.ok;
-    t += std::string(" ") + (pay ? "yes" : "no") + " | " + std::to_string(r.met) + "/" +
-         std::to_string(r.criteria.size()) + " | " + fmt("%.3f", r.distance) + " |\n";
+  CalibrationResult r;
+  for (auto& [k, pts] : cache)
+    for (auto& p : pts) r.tried.push_back(std::move(p));
+  r.best = chooseCalibration(r.tried, s.claims);
+  return r;
+}
+
+size_t chooseCalibration(const std::vector<CalibrationPoint>& points, const std::vector<Claim>& claims) {
+  size_t best = 0;
+  double d_best = INFINITY;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const double d = calibrationDistance(points[i].summary, claims);
+    if (d < d_best) d_best = d, best = i;
+  }
+  return best;
+}
+
+std::string formatCalibration(const CalibrationResult& r) {
+  const auto& axes = calibrationAxes();
+  std::vector<const Claim*> cal;
+  for (const auto& c : paperClaims())
+    if (c.role == ClaimRole::Calibrated && c.test.kind == ClaimTest::Kind::Near) cal.push_back(&c);
+  std::string t = "|";
+  for (const auto& a : axes) t += " " + a.name + " |";
+  t += " ki |";
+  for (const auto* c : cal) t += " " + c->id + " |";
+  t += " distance |\n|";
+  for (size_t i = 0; i < axes.size() + cal.size() + 2; ++i) t += "---|";
+  t += "\n| paper |" + std::string(axes.size(), '|') + "";
+  for (const auto* c : cal) t += " " + fmt("%.4g", c->test.paper) + " |";
+  t += " |\n";
+  std::vector<size_t> order(r.tried.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return r.tried[a].distance < r.tried[b].distance; });
+  for (size_t i : order) {
+    const auto& p = r.tried[i];
+    const std::string b = i == r.best ? "**" : "";
+    t += "|";
+    for (double v : p.reading.plant_values) t += " " + b + fmt("%g", v) + b + " |";
+    t += " " + b + fmt("%g", p.reading.ki) + b + " |";
+    for (const auto* c : cal) t += " " + fmt("%.4g", numberAt(p.summary, c->test.a[0])) + " |";
+    t += " " + fmt("%.3f", p.distance) + " |\n";
   }
   return t;
 }
+
+}  // namespace pamc::sim
+
+namespace pamc::sim {
+
+// The result of `pamc calibrate` (docs/CALIBRATION.md), per calibrationAxes(): hysteresis scale,
+// travel [mm], conductance [dm^3/(s bar)], payload mass [kg]. The reading of ki it chose is
+// ControllerConfig's default.
+namespace {
+const std::vector<double> kPaperPlantValues = {1.0, 0.3, 0.8, 16.0};
+}
+
+const char* const kCalibratedOn =
+    "Table 1 (u0, u1, u2) and Table 2's triangle row (0.05 Hz) by `pamc calibrate`: hysteresis scale, "
+    "hysteresis travel, valve conductance, payload mass and ki";
+
+plant::PlantConfig paperPlant() { return plantWith(kPaperPlantValues); }
 
 }  // namespace pamc::sim

@@ -1,7 +1,7 @@
-// The two-target calibration of the emulator's speed and the reading of the paper's gains: every
-// candidate runs the paper's experiments and is judged against Table 1 (open-loop model error) and
-// the closed-loop results (Table 2, the square wave, the payload step) at once, with the criteria of
-// paper_criteria.hpp. `pamc calibrate` prints the table that docs/CALIBRATION.md shows.
+// The protocol of docs/CALIBRATION.md: the paper tuned its controllers on the triangle and then fixed
+// every parameter. So the physics plant's free parameters (the table of calibrationAxes(), at most four)
+// and the reading of ki are fitted to the calibrated claims of paper_claims.cpp only - Table 1 and
+// Table 2's triangle row - by a coordinate search; every other claim is a prediction of the fitted plant.
 #pragma once
 
 #include <functional>
@@ -11,42 +11,54 @@
 #include <nlohmann/json.hpp>
 
 #include "sim/experiments.hpp"
-#include "sim/paper_criteria.hpp"
+#include "sim/paper_claims.hpp"
 
 namespace pamc::sim {
 
-inline ExperimentSettings modelPlantBase() {
-  ExperimentSettings e;
-  e.plant = plant::PlantConfig::modelDefaults();
-  return e;
-}
+// One free parameter of the plant: its name, unit, the values the search tries and what it sets.
+struct CalibrationAxis {
+  std::string name, unit, physics;
+  std::vector<double> values;
+  double nominal = 0;  // the datasheet/assumption value of docs/PHYSICS.md
+  void (*apply)(plant::PlantConfig&, double) = nullptr;
+};
+const std::vector<CalibrationAxis>& calibrationAxes();
+
+// A point of the search: the plant's free parameters (per calibrationAxes()) and the reading of ki.
+struct CalibratedReading {
+  std::vector<double> plant_values;
+  double ki = 0;
+};
+// The physics plant's defaults with the axes set to `values`.
+plant::PlantConfig plantWith(const std::vector<double>& values);
 
 struct CalibrationSettings {
-  ExperimentSettings base = modelPlantBase();  // plant (of kind model) and controller defaults the candidates vary
-  std::vector<double> lag_tau_s;      // pressure_lag tau of the emulator [s]
-  std::vector<double> ki;             // PI integral gain [V/(mm s)]
-  std::vector<bool> amc_as_printed;   // eq. (17) as printed / as an increment
-  std::vector<double> eso_tau, eso_wo;  // first-order ESO's time constant [s] and bandwidth [rad/s]; empty: base's
+  ExperimentSettings base{};  // its plant's free parameters are overwritten per point
+  std::vector<double> ki_grid = {0.15, 0.5, 1.0, 1.3, 2.0};
+  int passes = 2;
+  int threads = 2;
   std::string work_dir = "calibration";
+  std::vector<Claim> claims = paperClaims();  // only the calibrated rows are read
   std::function<void(const std::string&)> log;
 };
 
-struct CalibrationRow {
-  double lag_tau_s = 0, ki = 0;
-  bool amc_as_printed = true;
-  double eso_tau = 0, eso_wo = 0;
-  nlohmann::json summary;               // the experiments' summary.json
-  std::vector<Criterion> criteria;
-  int met = 0;
-  double distance = 0;  // mean |ln(ours / paper)| over Table 1 and Table 2's closed-loop RMSEs
+struct CalibrationPoint {
+  CalibratedReading reading;
+  nlohmann::json summary;  // Table 1 and the triangle row
+  double distance = 0;     // calibrationDistance
 };
 
-std::vector<CalibrationRow> runCalibration(const CalibrationSettings& s);
+struct CalibrationResult {
+  std::vector<CalibrationPoint> tried;
+  size_t best = 0;
+};
 
-// Best first: most criteria met, then closest to the paper's numbers.
-void rankCalibration(std::vector<CalibrationRow>& rows);
+CalibrationResult runCalibration(const CalibrationSettings& s);
 
-// A Markdown table, the paper's row first; `mark` rows (index into rows) get a bold marker.
-std::string formatCalibration(const std::vector<CalibrationRow>& rows, int mark = -1);
+// The index of the point with the smallest calibration distance under `claims`.
+size_t chooseCalibration(const std::vector<CalibrationPoint>& points, const std::vector<Claim>& claims);
+
+// A Markdown table of the points tried, the paper's row first, the chosen one in bold.
+std::string formatCalibration(const CalibrationResult& r);
 
 }  // namespace pamc::sim

@@ -24,15 +24,25 @@ namespace pamc::sim {
 // where the muscle is parked: no transient.
 enum class SineStart { Centre, Trough };
 
+// The plant the paper's experiments run on by default: the physics plant with the free parameters that
+// `pamc calibrate` fitted to Table 1 and Table 2's triangle row (calibration.cpp, docs/CALIBRATION.md),
+// and the words the summary records for that.
+plant::PlantConfig paperPlant();
+extern const char* const kCalibratedOn;
+
 struct ExperimentSettings {
   std::string out_dir = "results";
-  plant::PlantConfig plant = plant::PlantConfig::defaults();
+  plant::PlantConfig plant = paperPlant();
+  std::string calibrated_on = kCalibratedOn;  // the readings' record of what the plant was fitted to
   control::ControllerConfig ctrl{};  // gains and UKF settings; the model comes from table1's fit
   ident::FitSettings fit{};
   std::string model_file;            // use this model instead of identifying one
   SineStart sine_start = SineStart::Centre;
   bool figures = true;
-  std::vector<std::string> only;     // empty: all
+  // Empty: all. Else any of table1 (always runs), table2, triangle (Table 2's triangle row alone),
+  // discontinuous, payload.
+  std::vector<std::string> only;
+  bool table1 = true;  // false (with model_file): skip Table 1's records (a calibration's second gain)
   std::function<void(const std::string&)> log;
 };
 

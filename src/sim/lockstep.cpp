@@ -142,6 +142,31 @@ double firstReach(const Record& r) {
   return r.t.back();
 }
 
+double turningPointError(const Record& r, double window_s) {
+  double worst = 0, until = -1, slope_prev = 0;
+  for (size_t i = 1; i < r.t.size(); ++i) {
+    const double slope = r.yd[i] - r.yd[i - 1];
+    if (slope != 0.0) {
+      if (slope_prev != 0.0 && (slope > 0) != (slope_prev > 0)) until = r.t[i] + window_s;
+      slope_prev = slope;
+    }
+    if (r.t[i] <= until) worst = std::max(worst, std::fabs(r.yd[i] - r.y[i]));
+  }
+  return worst;
+}
+
+double windowRmse(const Record& r, double t0, double t1) {
+  double acc = 0;
+  size_t n = 0;
+  for (size_t i = 0; i < r.t.size(); ++i) {
+    if (r.t[i] < t0 || r.t[i] >= t1) continue;
+    const double e = r.yd[i] - r.y[i];
+    acc += e * e;
+    ++n;
+  }
+  return n ? std::sqrt(acc / static_cast<double>(n)) : NAN;
+}
+
 StepStats stepResponse(const Record& r, int dir, double min_jump, double band_frac) {
   StepStats s;
   double os_sum = 0, ts_sum = 0;

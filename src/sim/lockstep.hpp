@@ -99,6 +99,11 @@ TrackingStats tracking(const Record& r, double from_s = 0.0);
 // vanishes); the record's end if it never does. Tracking scored from here leaves out the rise from
 // home to a trajectory that starts elsewhere, and keeps the overshoot and the oscillation after it.
 double firstReach(const Record& r);
+// The largest |error| within window_s after each turning point of the reference (where its slope
+// changes sign: a triangle's corners); 0 when the reference has none.
+double turningPointError(const Record& r, double window_s);
+// RMSE of the error over [t0, t1) (a hold: the steady state's noise and limit cycle).
+double windowRmse(const Record& r, double t0, double t1);
 
 struct StepStats {
   double overshoot_pct = 0;   // mean over the steps
