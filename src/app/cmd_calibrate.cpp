@@ -83,7 +83,7 @@ class CalibrateCommand final : public Command {
   }
 
  private:
-  std::string ki_ = "0.15,0.5,1,1.3,2";
+  std::string ki_ = "0.15,0.5,1,1.3,1.5,1.7,2,2.5,3,4";
   int passes_ = 2, threads_ = 2;
   std::string out_, work_ = "calibration";
 };

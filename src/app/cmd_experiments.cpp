@@ -59,6 +59,7 @@ class ExperimentsCommand final : public Command {
     ControllerOptions no_model = ctrl_;
     no_model.model_file.clear();  // the experiments read it themselves (Table 1 reports on it)
     s.ctrl = no_model.config();
+    if (cmd_->get_option("--ki")->count() == 0) s.ctrl.ki = sim::paperController().ki;  // the calibrated reading
     s.log = progressLine;
     const auto t0 = std::chrono::steady_clock::now();
     const auto rep = sim::runExperiments(s);

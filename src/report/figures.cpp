@@ -88,12 +88,13 @@ void plotPanel(std::ostringstream& gp, const Panel& p, double y0, double h) {
   else gp << "set autoscale x\nset autoscale y\n";
   plotSeries(gp, p, true);
   if (p.inset_hi <= p.inset_lo) return;
-  gp << "set origin 0.42," << y0 + 0.42 * h << "\nset size noratio 0.33," << 0.45 * h << "\n";
+  gp << "set origin 0.40," << y0 + 0.30 * h << "\nset size noratio 0.40," << 0.60 * h << "\n";
+  gp << "set tics font ',8'\nset ytics autofreq\nset format y '%.1f'\n";
   gp << "set title 'zoom'\nunset xlabel\nunset ylabel\nunset key\nset object 1 rectangle from graph 0,0 to graph 1,1 "
         "behind fc rgb 'white' fs solid noborder\n";
   gp << "set xrange [" << p.inset_lo << ":" << p.inset_hi << "]\nset autoscale y\n";
   plotSeries(gp, p, false);
-  gp << "unset object 1\n";
+  gp << "unset object 1\nset tics font ',10'\nset format y '% h'\n";
 }
 }  // namespace
 

@@ -34,12 +34,12 @@ std::vector<CalibrationAxis> buildAxes() {
   const auto& d = physicsDefaults();
   return {
       {"hysteresis_scale", "-", "braid friction level: muscle.hysteresis_N and hysteresis_N_per_bar times this",
-       {0.5, 0.75, 1.0, 1.5, 2.0, 3.0}, 1.0, setHysteresisScale},
+       {0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.5}, 1.0, setHysteresisScale},
       {"hysteresis_travel_mm", "mm", "pre-sliding travel of the braid friction (muscle.hysteresis_travel_mm)",
-       {0.1, 0.3, 1.0, 3.0}, d.muscle.hysteresis_travel_mm, setTravel},
+       {0.1, 0.3, 1.0, 3.0, 6.0}, d.muscle.hysteresis_travel_mm, setTravel},
       {"conductance_dm3_per_s_bar", "dm^3/(s bar)", "sonic conductance of valve and tube (regulator.conductance_dm3_per_s_bar)",
-       {0.2, 0.4, 0.8, 1.6}, d.regulator.conductance_dm3_per_s_bar, setConductance},
-      {"mass_kg", "kg", "payload mass (payload.mass_kg)", {4.0, 8.0, 16.0, 32.0}, d.payload.mass_kg, setMass},
+       {0.2, 0.4, 0.8, 1.6, 3.2}, d.regulator.conductance_dm3_per_s_bar, setConductance},
+      {"mass_kg", "kg", "payload mass (payload.mass_kg)", {2.0, 4.0, 8.0, 16.0, 32.0}, d.payload.mass_kg, setMass},
   };
 }
 
@@ -174,7 +174,8 @@ std::string formatCalibration(const CalibrationResult& r) {
   for (const auto* c : cal) t += " " + c->id + " |";
   t += " distance |\n|";
   for (size_t i = 0; i < axes.size() + cal.size() + 2; ++i) t += "---|";
-  t += "\n| paper |" + std::string(axes.size(), '|') + "";
+  t += "\n| paper |";
+  for (size_t i = 0; i < axes.size(); ++i) t += " |";
   for (const auto* c : cal) t += " " + fmt("%.4g", c->test.paper) + " |";
   t += " |\n";
   std::vector<size_t> order(r.tried.size());
@@ -197,10 +198,16 @@ std::string formatCalibration(const CalibrationResult& r) {
 namespace pamc::sim {
 
 // The result of `pamc calibrate` (docs/CALIBRATION.md), per calibrationAxes(): hysteresis scale,
-// travel [mm], conductance [dm^3/(s bar)], payload mass [kg]. The reading of ki it chose is
-// ControllerConfig's default.
+// travel [mm], conductance [dm^3/(s bar)], payload mass [kg]; and the reading of ki it chose.
 namespace {
-const std::vector<double> kPaperPlantValues = {1.0, 0.3, 0.8, 16.0};
+const std::vector<double> kPaperPlantValues = {3.0, 3.0, 3.2, 16.0};
+constexpr double kPaperKi = 3.0;  // V/(mm s)
+}
+
+control::ControllerConfig paperController() {
+  control::ControllerConfig c;
+  c.ki = kPaperKi;
+  return c;
 }
 
 const char* const kCalibratedOn =

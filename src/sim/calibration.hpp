@@ -34,7 +34,7 @@ plant::PlantConfig plantWith(const std::vector<double>& values);
 
 struct CalibrationSettings {
   ExperimentSettings base{};  // its plant's free parameters are overwritten per point
-  std::vector<double> ki_grid = {0.15, 0.5, 1.0, 1.3, 2.0};
+  std::vector<double> ki_grid = {0.15, 0.5, 1.0, 1.3, 1.5, 1.7, 2.0, 2.5, 3.0, 4.0};
   int passes = 2;
   int threads = 2;
   std::string work_dir = "calibration";

@@ -183,11 +183,26 @@ nlohmann::json discontinuousWave(Context& x, const std::string& tag, const Traje
 
 }  // namespace
 
+// The judged sines once more, scored over the whole run (the start included).
+void wholeRunRows(Context& x, const nlohmann::json& t2, const std::vector<Table2Case>& cases) {
+  x.txt << "The same sines scored over the whole run (their start included): max/RMSE\n";
+  for (size_t ci = 1; ci < cases.size(); ++ci) {
+    x.txt << padded(cases[ci].tag, 18);
+    for (auto k : kClosedKinds) {
+      const auto& e = t2[cases[ci].tag][control::toString(k)];
+      x.txt << "  " << label(k) << " " << fmt("%.3f", e["whole_max"].get<double>()) << "/"
+            << fmt("%.4f", e["whole_rmse"].get<double>());
+    }
+    x.txt << "\n";
+  }
+}
+
 void runTable2(Context& x) {
   table2Header(x);
   nlohmann::json t2 = nlohmann::json::object();
   const auto cases = table2Cases(x.s.sine_start);
   for (size_t i = 0; i < cases.size(); ++i) t2[cases[i].tag] = table2Row(x, cases[i], i);
+  wholeRunRows(x, t2, cases);
   x.txt << "\n";
   x.json["table2"] = t2;
   x.json["table2_other_start"] = otherStartRows(x);

@@ -216,3 +216,28 @@ TEST(StepResponse, RingingMeasure) {
   EXPECT_GT(ringing.max_u_reversals, 3);
 }
 
+
+// A run computes its verdicts: the payload claims on the calibrated plant and on one with a valve four
+// times narrower (the same controller) come out with other values, each judged.
+TEST(PaperClaims, AChangedPlantChangesTheJudgedValues) {
+  auto runOn = [](const plant::PlantConfig& p, const std::string& dir) {
+    sim::ExperimentSettings s;
+    s.plant = p;
+    s.only = {"payload"};
+    s.figures = false;
+    s.out_dir = (std::filesystem::temp_directory_path() / dir).string();
+    return sim::judgeClaims(sim::runExperiments(s).json);
+  };
+  plant::PlantConfig slow = sim::paperPlant();
+  slow.physics.regulator.conductance_dm3_per_s_bar /= 4.0;
+  const auto a = runOn(sim::paperPlant(), "pamc_test_claims_a");
+  const auto b = runOn(slow, "pamc_test_claims_b");
+  for (const char* id : {"payload_amc_faster_pi", "payload_amc_faster_eso", "steady_noise_amc"}) {
+    const auto& ra = resultOf(a, id);
+    const auto& rb = resultOf(b, id);
+    EXPECT_NE(ra.verdict, sim::Verdict::NotRun) << id;
+    EXPECT_NE(rb.verdict, sim::Verdict::NotRun) << id;
+    EXPECT_NE(ra.value, rb.value) << id;
+  }
+  EXPECT_EQ(resultOf(a, "t2_sine05_amc_rmse").verdict, sim::Verdict::NotRun);
+}
