@@ -41,6 +41,26 @@ const std::vector<EffectInfo>& effectTable() {
        "displacement flattens above the knee towards knee + width"},
       {"warm_up", {{"tau", 1.0, 3600.0, 60.0}, {"gain", -0.5, 0.5, 0.1}, {"shift", -10.0, 10.0, 0.0}}, false,
        "travel grows and length shifts with a thermal time constant after the start"},
+      // Outside pamc's catalogue (unseen.json): physics the model has no effect for.
+      {"dead_zone", {{"centre", -5.0, 5.0, 0.0}, {"width", 0.01, 3.0, 0.3}}, false,
+       "outside the catalogue: no response within +-width of the centre, the command shifted by the width "
+       "outside (an overlapped spool)"},
+      {"piecewise_gain", {{"knee", -5.0, 5.0, 1.0}, {"gain", 0.05, 5.0, 0.5}}, false,
+       "outside the catalogue: the command's gain changes to `gain` above the knee"},
+      {"input_saturation", {{"lo", -5.0, 5.0, -5.0}, {"hi", -5.0, 5.0, 5.0}}, false,
+       "outside the catalogue: the command clipped to [lo, hi] (the regulator's range ends early)"},
+      {"direction_lag", {{"tau_up", 1e-3, 2.0, 0.05}, {"tau_down", 1e-3, 2.0, 0.2}}, false,
+       "outside the catalogue: a first-order lag, faster rising (filling) than falling (venting)"},
+      {"valve_flow", {{"rate", 0.1, 100.0, 5.0}, {"eps", 1e-4, 1.0, 0.01}}, false,
+       "outside the catalogue: orifice flow, the effective command moves at rate sqrt(|difference|)"},
+      {"backlash", {{"width", 0.0, 10.0, 0.5}}, false,
+       "outside the catalogue: play of `width` mm between the muscle and the sensor"},
+      {"periodic_disturbance", {{"amplitude", 0.0, 5.0, 0.05}, {"freq", 0.1, 200.0, 7.3}, {"phase", -360.0, 360.0, 0.0}},
+       false, "outside the catalogue: a sinusoidal vibration added to the position, unrelated to the command"},
+      {"play_hysteresis",
+       {{"r1", 0.01, 5.0, 0.3}, {"w1", -10.0, 10.0, 0.5}, {"r2", 0.01, 5.0, 0.8}, {"w2", -10.0, 10.0, 0.4},
+        {"r3", 0.01, 5.0, 1.5}, {"w3", -10.0, 10.0, 0.3}},
+       false, "outside the catalogue: a Prandtl-Ishlinskii sum of three play operators of the command added to y"},
   };
   return t;
 }
@@ -154,6 +174,8 @@ void validateEffects(const std::vector<EffectSpec>& effects) {
   }
   if (seen.count("mass_spring") && seen.count("force_loop"))
     throw std::invalid_argument("mass_spring and force_loop are alternatives: take one");
+  if (seen.count("pressure_lag") + seen.count("direction_lag") + seen.count("valve_flow") > 1)
+    throw std::invalid_argument("pressure_lag, direction_lag and valve_flow are alternatives: take one");
 }
 
 double Record::noise() const { return std::sqrt(noise_std * noise_std + quantum * quantum / 12.0); }
@@ -196,6 +218,27 @@ struct System {
   double wn = 1, zeta = 0, fl_zmax = 0, fl_delta = 1;
   double wu_tau = 1, wu_gain = 0, wu_shift = 0;
   double y_start = 0.0;  // warm_up's displacement at t = 0
+  // Outside the catalogue (input stage; the output stage's are applied per sample, OutputStage).
+  bool dz = false, pwg = false, isat = false, dlag = false, vflow = false;
+  double dz_c = 0, dz_w = 0, pw_knee = 0, pw_gain = 1, is_lo = -5, is_hi = 5, tau_up = 1, tau_down = 1;
+  double vf_rate = 1, vf_eps = 0.01;
+
+  // The input stage outside the catalogue, before the lags: s and its rate sd.
+  void unseenInput(double& s, double& sd) const {
+    if (dz) {
+      const double e = s - dz_c;
+      if (std::fabs(e) <= dz_w) s = dz_c, sd = 0.0;
+      else s = s - sgn(e) * dz_w;
+    }
+    if (pwg && s > pw_knee) s = pw_knee + pw_gain * (s - pw_knee), sd *= pw_gain;
+    if (isat && (s < is_lo || s > is_hi)) s = std::clamp(s, is_lo, is_hi), sd = 0.0;
+  }
+  // The lags outside the catalogue: the rate of the lagged command p towards s.
+  double unseenLagRate(double s, double p) const {
+    if (dlag) return (s - p) / (s > p ? tau_up : tau_down);
+    const double e = s - p;
+    return vf_rate * e / std::sqrt(std::fabs(e) + vf_eps);
+  }
 
   // The output of the chain for states x at time t, valve stage output and load (and their rates)
   // given by dr; the state derivatives into dx when non-null. With `rest`, the states are first put at
@@ -209,6 +252,7 @@ struct System {
     Vec d{};  // d[kV] = d[kL] = 0: the integrator moves v and L by their closed form
     // Input stage.
     double s = dr.v, sd = dr.vd;
+    unseenInput(s, sd);
     if (dead) {
       if (s > thr) {
         // passes
@@ -220,6 +264,11 @@ struct System {
     if (lag) {
       if (rest) x[kP] = s;
       d[kP] = std::clamp((s - x[kP]) / lag_tau, -lag_slew, lag_slew);
+      s = x[kP];
+      sd = d[kP];
+    } else if (dlag || vflow) {
+      if (rest) x[kP] = s;
+      d[kP] = unseenLagRate(s, x[kP]);
       s = x[kP];
       sd = d[kP];
     }
@@ -303,9 +352,53 @@ System makeSystem(const Core& core, const std::vector<EffectSpec>& effects, cons
       s.fl_delta = param(e, "delta");
     else if (n == "warm_up")
       s.warm = true, s.wu_tau = param(e, "tau"), s.wu_gain = param(e, "gain"), s.wu_shift = param(e, "shift");
+    else if (n == "dead_zone") s.dz = true, s.dz_c = param(e, "centre"), s.dz_w = param(e, "width");
+    else if (n == "piecewise_gain") s.pwg = true, s.pw_knee = param(e, "knee"), s.pw_gain = param(e, "gain");
+    else if (n == "input_saturation") s.isat = true, s.is_lo = param(e, "lo"), s.is_hi = param(e, "hi");
+    else if (n == "direction_lag") s.dlag = true, s.tau_up = param(e, "tau_up"), s.tau_down = param(e, "tau_down");
+    else if (n == "valve_flow") s.vflow = true, s.vf_rate = param(e, "rate"), s.vf_eps = param(e, "eps");
   }
   return s;
 }
+
+// The output stage outside the catalogue, applied to each clean sample in turn (rate-independent
+// operators and an additive vibration): play hysteresis of the command, backlash, periodic disturbance.
+class OutputStage {
+ public:
+  explicit OutputStage(const std::vector<EffectSpec>& effects) {
+    for (const auto& e : effects) {
+      if (e.name == "play_hysteresis")
+        for (int i = 1; i <= 3; ++i)
+          plays_.push_back({param(e, "r" + std::to_string(i)), param(e, "w" + std::to_string(i)), 0.0, false});
+      if (e.name == "backlash") backlash_ = true, bl_w_ = param(e, "width");
+      if (e.name == "periodic_disturbance")
+        per_ = true, per_a_ = param(e, "amplitude"), per_f_ = param(e, "freq"), per_ph_ = param(e, "phase") * M_PI / 180;
+    }
+  }
+  double step(double t_end, double u, double y) {
+    for (auto& p : plays_) {
+      if (!p.started) p.x = u, p.started = true;
+      p.x = std::clamp(p.x, u - p.r, u + p.r);
+      y += p.w * p.x;
+    }
+    if (backlash_) {
+      if (!bl_started_) bl_x_ = y, bl_started_ = true;
+      bl_x_ = std::clamp(bl_x_, y - bl_w_ / 2, y + bl_w_ / 2);
+      y = bl_x_;
+    }
+    if (per_) y += per_a_ * std::sin(2 * M_PI * per_f_ * t_end + per_ph_);
+    return y;
+  }
+
+ private:
+  struct Play {
+    double r, w, x;
+    bool started;
+  };
+  std::vector<Play> plays_;
+  bool backlash_ = false, bl_started_ = false, per_ = false;
+  double bl_w_ = 0, bl_x_ = 0, per_a_ = 0, per_f_ = 0, per_ph_ = 0;
+};
 
 // Dormand-Prince RK5(4)7M with first-same-as-last and an elementary step-size controller, integrating
 // over one interval on which the held inputs do not change.
@@ -463,6 +556,8 @@ Record simulate(const Core& core, const std::vector<EffectSpec>& effects, const 
   }
   r.steps = integ.steps();
   r.rejected = integ.rejected();
+  OutputStage out(effects);
+  for (size_t k = 0; k < n; ++k) r.y_clean[k] = out.step(static_cast<double>(k + 1) * opt.Ts, u[k], r.y_clean[k]);
 
   std::mt19937_64 g(opt.noise_seed);
   for (size_t k = 0; k < n; ++k) {

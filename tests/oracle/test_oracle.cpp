@@ -456,3 +456,24 @@ TEST(OracleCases, ARecordIsReproducibleAndTheTwoRecordsDiffer) {
   EXPECT_NE(a.u, v.u);
   EXPECT_NEAR(a.noise(), std::sqrt(c.noise_std * c.noise_std + 1e-6 / 12.0), 1e-12);
 }
+
+// The pre-committed set outside the catalogue (unseen.json): every case loads, names its kind, and its
+// effect is visible - the record with it differs from the same record without it by well above the noise.
+TEST(Unseen, EveryCaseIsAVisibleEffectOutsideTheCatalogue) {
+  const std::string path = std::string(PAMC_ORACLE_SOURCE_DIR) + "/unseen.json";
+  const auto cases = loadCases(path);
+  ASSERT_GE(cases.size(), 8u);
+  for (const auto& c : cases) {
+    ASSERT_EQ(c.effects.size(), 1u) << c.name;
+    EXPECT_NE(effectInfo(c.effects[0].name).meaning.find("outside the catalogue"), std::string::npos) << c.name;
+    Case bare = c;
+    bare.effects.clear();
+    const auto with = makeCaseRecord(c, "train");
+    const auto without = makeCaseRecord(bare, "train");
+    double acc = 0;
+    for (size_t k = 0; k < with.y_clean.size(); ++k) acc += std::pow(with.y_clean[k] - without.y_clean[k], 2);
+    const double rms = std::sqrt(acc / static_cast<double>(with.y_clean.size()));
+    std::printf("unseen %-22s effect rms %.4f mm (%.1fx the noise)\n", c.name.c_str(), rms, rms / with.noise());
+    EXPECT_GT(rms, 5.0 * with.noise()) << c.name;
+  }
+}
