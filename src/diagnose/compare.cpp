@@ -16,6 +16,9 @@ Comparison compare(const model::Model& m, const io::Measurement& d) {
   c.y_model.resize(d.size());
   m.simulate(d.u.data(), load ? load->data() : nullptr, d.size(), d.Ts, c.y_model.data());
   c.report = analyze(d, c.y_model);
+  std::vector<double> e(d.size());
+  for (size_t i = 0; i < d.size(); ++i) e[i] = d.y[i] - c.y_model[i];
+  c.spectrum = residualSpectrum(e, d.u, d.Ts, c.report.noise_floor);
   return c;
 }
 
@@ -25,7 +28,8 @@ nlohmann::json toJson(const Comparison& c) {
   for (const auto& b : r.bins) bins.push_back({{"group", b.group}, {"label", b.label}, {"n", b.n}, {"rmse", b.rmse}, {"mean", b.mean}});
   return {{"samples", r.n},  {"rmse", r.rmse}, {"max_abs", r.max_abs}, {"fit_pct", r.fit_pct},
           {"mean", r.mean},  {"noise_floor", r.noise_floor}, {"breakdown", bins}, {"indicators", r.ind},
-          {"acf", r.acf},    {"ccf_du", r.ccf_du}, {"conf", r.conf}, {"lag_step_s", r.lag_step_s}};
+          {"acf", r.acf},    {"ccf_du", r.ccf_du}, {"conf", r.conf}, {"lag_step_s", r.lag_step_s},
+          {"spectrum", toJson(c.spectrum)}};
 }
 
 void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::vector<std::string>* warnings) {
@@ -60,6 +64,7 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
     io::writeFileAtomic(p + "breakdown.csv", t);
   }
   io::writeFileAtomic(p + "compare.json", toJson(c).dump(2) + "\n");
+  writeSpectrumReport(c.spectrum, p, "The residual in frequency: " + d.source, warnings);
   if (!report::haveGnuplot()) {
     if (warnings) warnings->push_back("gnuplot not found (apt-get install gnuplot-nox); figures skipped");
     return;

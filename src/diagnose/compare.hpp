@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "diagnose/residual.hpp"
+#include "diagnose/spectrum.hpp"
 #include "io/measurement.hpp"
 #include "model/model.hpp"
 
@@ -14,6 +15,7 @@ namespace pamc::diagnose {
 struct Comparison {
   std::vector<double> y_model;
   ResidualReport report;
+  ResidualSpectrum spectrum;  // of the residual, with its coherence with the input
 };
 
 Comparison compare(const model::Model& m, const io::Measurement& d);

@@ -375,7 +375,13 @@ void Diagnosis::prune() {
 // the noise, which kind of structure explains what is left, and where.
 void Diagnosis::probes() {
   const Rung& fin = res_.ladder.back();
-  res_.final_residual = analyze(train_, simulate(fin.model, train_));
+  {
+    const auto ym = simulate(fin.model, train_);
+    res_.final_residual = analyze(train_, ym);
+    std::vector<double> e(ym.size());
+    for (size_t i = 0; i < ym.size(); ++i) e[i] = train_.y[i] - ym[i];
+    res_.spectrum = residualSpectrum(e, train_.u, train_.Ts, noise_);
+  }
   {
     const auto yv = simulate(fin.model, *v_.data);
     double sum = 0.0;
@@ -406,7 +412,21 @@ void Diagnosis::probes() {
   });
   std::stable_sort(res_.probes.begin(), res_.probes.end(),
                    [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
+  preferSimplestProbe();
   res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
+}
+
+// Among the probes that explain about as much as the best (validated RMSE within kProbeTie of it), the
+// one with the fewest parameters goes first: a dead zone fitted by a two-parameter probe says more than
+// the same shape drawn by an eight-parameter curve.
+void Diagnosis::preferSimplestProbe() {
+  if (res_.probes.empty()) return;
+  auto size = [](const ProbeResult& p) { return model::findProbe(p.probe)->make()->params().size(); };
+  const double limit = kProbeTie * res_.probes.front().rmse_val;
+  size_t best = 0;
+  for (size_t i = 1; i < res_.probes.size() && res_.probes[i].rmse_val <= limit; ++i)
+    if (size(res_.probes[i]) < size(res_.probes[best])) best = i;
+  std::rotate(res_.probes.begin(), res_.probes.begin() + static_cast<long>(best), res_.probes.begin() + static_cast<long>(best) + 1);
 }
 
 // What the ladder did, in words.
@@ -468,8 +488,9 @@ void Diagnosis::verdict() {
            p.meaning + ". It is a probe, not part of the model.";
     else if (!val_off)
       v += " No probe explains what is left either (the best, " + p.probe + ", " + fmt("%.0f", 100 * p.explains) +
-           " %): it may be noise that is not white, or structure none of the probes has.";
+           " %): structure none of the probes has.";
   }
+  v += " The residual: " + describeSpectrum(res_.spectrum) + ".";
   res_.verdict = v;
 }
 

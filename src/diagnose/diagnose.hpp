@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "diagnose/residual.hpp"
+#include "diagnose/spectrum.hpp"
 #include "ident/identify.hpp"
 #include "io/measurement.hpp"
 #include "model/model.hpp"
@@ -73,6 +74,7 @@ struct DiagnoseResult {
   std::vector<ProbeResult> probes;  // best first; empty when the catalogue reached the noise
   bool probe_rung = false;          // the best probe lowers the validated RMSE by min_gain or more
   ResidualReport baseline_residual, final_residual;  // on the training data
+  ResidualSpectrum spectrum;        // of the final model's residual on the training data
   double val_offset = 0;            // mean of measured - final model on the validation data
   std::string verdict;
   double seconds = 0;

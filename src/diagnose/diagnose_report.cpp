@@ -54,6 +54,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
                   {"regime", p.regime}, {"meaning", p.meaning}, {"params", params}});
   }
   j["probes"] = pj;
+  j["spectrum"] = toJson(r.spectrum);
   j["model"] = io::modelToJson(r.ladder.back().model);
   j["verdict"] = r.verdict;
   j["seconds"] = r.seconds;
@@ -119,6 +120,7 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
   }
   io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", toJson(r)["ladder"]}});
   io::writeFileAtomic(p + "diagnosis.json", toJson(r).dump(2) + "\n");
+  writeSpectrumReport(r.spectrum, p, "The final model's residual in frequency (training data)", warnings);
   if (!report::haveGnuplot()) {
     if (warnings) warnings->push_back("gnuplot not found (apt-get install gnuplot-nox); figures skipped");
     return;

@@ -39,6 +39,9 @@ constexpr size_t kFullProbes = 1;
 // A validated error below this multiple of the sensor noise leaves nothing to explain: the ladder
 // stops adding effects and the probes are not run.
 constexpr double kAtNoise = 1.5;
+// Probes whose validated RMSE is within this factor of the best's explain about as much: the one with
+// the fewest parameters names the kind (Diagnosis::preferSimplestProbe).
+constexpr double kProbeTie = 1.25;
 
 inline double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -79,6 +82,7 @@ class Diagnosis {
   void candidates();
   void prune();
   void probes();
+  void preferSimplestProbe();
   void verdict();
 
   // candidates(): the effects that can go on top of the current model; one round's search.

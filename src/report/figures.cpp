@@ -70,7 +70,7 @@ void plotSeries(std::ostringstream& gp, const Panel& p, bool titles) {
   for (const auto& s : p.series) {
     const int xc = columnIndex(s.csv, s.xcol), yc = columnIndex(s.csv, s.ycol);
     if (xc < 0 || yc < 0) continue;
-    gp << (first ? "" : ", ") << quote(s.csv) << " skip 1 every 10 using " << xc << ":" << yc << " with " << s.style;
+    gp << (first ? "" : ", ") << quote(s.csv) << " skip 1 every " << std::max(1, p.every) << " using " << xc << ":" << yc << " with " << s.style;
     if (!s.color.empty()) gp << " lc rgb " << quote(s.color);
     gp << (titles ? " title " + quote(s.title) : std::string(" notitle"));
     first = false;
@@ -86,6 +86,7 @@ void plotPanel(std::ostringstream& gp, const Panel& p, double y0, double h) {
      << "\nset key outside right top\n";
   if (p.x_hi > p.x_lo) gp << "set xrange [" << p.x_lo << ":" << p.x_hi << "]\nset autoscale y\n";
   else gp << "set autoscale x\nset autoscale y\n";
+  gp << (p.log_y ? "set logscale y\nset format y '%.0e'\n" : "unset logscale y\nset format y '% h'\n") << (p.log_x ? "set logscale x\n" : "unset logscale x\n");
   plotSeries(gp, p, true);
   if (p.inset_hi <= p.inset_lo) return;
   gp << "set origin 0.40," << y0 + 0.30 * h << "\nset size noratio 0.40," << 0.60 * h << "\n";

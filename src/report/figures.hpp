@@ -23,6 +23,8 @@ struct Panel {
   // An inset in the panel's upper right showing the same series zoomed to [inset_lo, inset_hi] in x
   // (the paper's Fig. 11) when inset_hi > inset_lo.
   double inset_lo = 0, inset_hi = 0;
+  bool log_y = false, log_x = false;  // logarithmic axes (spectra)
+  int every = 10;                     // plot every n-th row (1 for spectra, whose lines are one bin wide)
 };
 
 // Renders panels stacked vertically into a PNG (pngcairo). Returns false with `error` set when
