@@ -25,11 +25,7 @@ void Context::log(const std::string& m) const {
 
 Record Context::run(control::Kind kind, const ClosedLoopRun& run, const std::string& tag,
                     const control::ControllerConfig* c, const std::string& csv_name) const {
-  plant::Plant p(s.plant);
-  auto ctrl = control::makeController(kind, c ? *c : cc);
-  ClosedLoopRun rr = run;
-  rr.delay_cycles = (c ? *c : cc).delay_cycles;
-  Record r = runClosedLoop(*ctrl, p, rr, inv(run.home()));
+  Record r = runController(kind, c ? *c : cc, inv, s.plant, run);
   r.writeCsv(dir + (csv_name.empty() ? tag + "_" + control::toString(kind) : csv_name) + ".csv");
   return r;
 }
@@ -67,21 +63,16 @@ std::string plantText(const plant::PlantConfig& p) {
 namespace {
 
 const char* const kIdentNames[3] = {"u0", "u1", "u2"};
-constexpr double kIdentDuration = 40.0;
 
 std::vector<Trajectory> identInputs() {
-  return {Trajectory::sine(0.1, 2.9, 0.2), Trajectory::sine(0.1, 1.4, 0.2), Trajectory::sine(0.05, 2.9, 0.2)};
+  return {identInput(), identInput(1.4), Trajectory::sine(0.05, kIdentAmplitude, 0.2)};
 }
 
 std::vector<Record> exciteOpenLoop(Context& x, const std::vector<Trajectory>& inputs) {
   x.log("table1: exciting the plant with u0, u1, u2 (open loop, " + fmt("%.0f", kIdentDuration) + " s each)");
   std::vector<Record> recs;
-  for (size_t i = 0; i < inputs.size(); ++i) {
-    plant::Plant p(x.s.plant);
-    recs.push_back(runOpenLoopInput(p, inputs[i], kIdentDuration));
-    const auto& r = recs.back();
-    io::writeCsvAtomic(x.dir + "ident_" + kIdentNames[i] + ".csv", {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
-  }
+  for (size_t i = 0; i < inputs.size(); ++i)
+    recs.push_back(recordOpenLoop(x.s.plant, inputs[i], kIdentDuration, x.dir + "ident_" + kIdentNames[i] + ".csv"));
   return recs;
 }
 
@@ -93,14 +84,7 @@ void identify(Context& x) {
     return;
   }
   x.log("table1: identifying the Bouc-Wen model on u0 (GA + Nelder-Mead)");
-  io::Measurement m = io::readMeasurementCsv(x.dir + "ident_u0.csv");
-  int last_gen = 0;
-  const auto fr = ident::fit(model::Model{}, m, x.s.fit, [&](const char* stage, int it, double rmse) {
-    if (std::string(stage) == "ga" && it - last_gen >= 25) {
-      last_gen = it;
-      x.log("  GA generation " + std::to_string(it) + ": RMSE " + fmt("%.4f", rmse) + " mm");
-    }
-  });
+  const auto fr = identifyOnRecord(x.dir + "ident_u0.csv", x.s.fit, x.s.log);
   x.ref = fr.model;
   io::writeModelFile(x.dir + "model.json", x.ref,
                      {{"data", "ident_u0.csv"}, {"rmse", fr.rmse}, {"generations", fr.generations},
@@ -169,11 +153,7 @@ void runTable1(Context& x) {
 }
 
 void buildController(Context& x) {
-  x.cc = x.s.ctrl;
-  x.cc.Ts = x.s.plant.Ts;
-  x.cc.model = x.ref;
-  x.cc.u_min = x.s.plant.u_min;
-  x.cc.u_max = x.s.plant.u_max;
+  x.cc = controllerFor(x.s.ctrl, x.ref, x.s.plant);
   x.inv.build(x.ref, x.cc.u_min, x.cc.u_max, x.cc.Ts);
   const char* start = x.s.sine_start == SineStart::Trough ? "trough" : "centre";
   x.json["readings"] = {{"ki", x.cc.ki},
@@ -214,6 +194,46 @@ void judge(Context& x) {
 }  // namespace
 
 }  // namespace detail
+
+Trajectory identInput(double amplitude) { return Trajectory::sine(0.1, amplitude, 0.2); }
+
+Record recordOpenLoop(const plant::PlantConfig& plant, const Trajectory& u, double duration_s, const std::string& csv) {
+  plant::Plant p(plant);
+  Record r = runOpenLoopInput(p, u, duration_s);
+  io::writeCsvAtomic(csv, {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
+  return r;
+}
+
+ident::FitResult identifyOnRecord(const std::string& csv, const ident::FitSettings& fit,
+                                  const std::function<void(const std::string&)>& log) {
+  const io::Measurement m = io::readMeasurementCsv(csv);
+  int last_gen = 0;
+  return ident::fit(model::Model{}, m, fit, [&](const char* stage, int it, double rmse) {
+    if (log && std::string(stage) == "ga" && it - last_gen >= 25) {
+      last_gen = it;
+      log("  GA generation " + std::to_string(it) + ": RMSE " + io::fmt("%.4f", rmse) + " mm");
+    }
+  });
+}
+
+control::ControllerConfig controllerFor(const control::ControllerConfig& gains, const model::Model& m,
+                                        const plant::PlantConfig& plant) {
+  control::ControllerConfig cc = gains;
+  cc.Ts = plant.Ts;
+  cc.model = m;
+  cc.u_min = plant.u_min;
+  cc.u_max = plant.u_max;
+  return cc;
+}
+
+Record runController(control::Kind kind, const control::ControllerConfig& cc, const control::InverseStatic& inv,
+                     const plant::PlantConfig& plant, const ClosedLoopRun& run) {
+  plant::Plant p(plant);
+  auto ctrl = control::makeController(kind, cc);
+  ClosedLoopRun rr = run;
+  rr.delay_cycles = cc.delay_cycles;
+  return runClosedLoop(*ctrl, p, rr, inv(run.home()));
+}
 
 ModelAccuracy modelAccuracy(const model::Model& m, const estimation::ActiveModelSettings& ukf,
                             const std::vector<double>& u, const std::vector<double>& y, double Ts,

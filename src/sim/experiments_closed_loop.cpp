@@ -19,38 +19,6 @@ const std::vector<Kind> kAllKinds = {Kind::OpenLoop, Kind::PI, Kind::PidEso, Kin
 const std::vector<Kind> kClosedKinds = {Kind::PI, Kind::PidEso, Kind::PiAmc};
 constexpr double kTurnWindowS = 1.0;  // turning-point error: within 1 s after the triangle's corners
 
-// A run that starts away from home is scored from its first reach: the rise is not tracking.
-double scoredFrom(const Record& r, const ClosedLoopRun& run) { return run.startsAwayFromHome() ? firstReach(r) : 0.0; }
-
-struct Table2Case {
-  std::string tag;
-  ClosedLoopRun run;
-};
-
-ClosedLoopRun triangleRun() {
-  ClosedLoopRun r;
-  r.reference = Trajectory::triangle(0.05, 0.2, 30.0);
-  r.duration_s = 40.0;
-  return r;
-}
-
-// Table 2's descending sines. Centre: from their centre, rising, on a muscle parked at the bottom of the
-// range (where the triangle starts); trough: from their lowest point, where the muscle is parked.
-ClosedLoopRun sineRun(double freq, double duration, SineStart start) {
-  ClosedLoopRun r;
-  const bool centre = start == SineStart::Centre;
-  r.reference = Trajectory::sineDescending(freq, 15.1, 14.9, 3.0, duration, centre ? M_PI / 2 : 0.0);
-  r.duration_s = duration;
-  if (centre) r.home_mm = triangleRun().reference.at(0.0);
-  return r;
-}
-
-std::vector<Table2Case> table2Cases(SineStart start) {
-  return {{"triangle_0.05Hz", triangleRun()},
-          {"sine_0.05Hz", sineRun(0.05, 60.0, start)},
-          {"sine_0.1Hz", sineRun(0.1, 30.0, start)}};
-}
-
 std::string padded(const std::string& s, size_t w) { return s.size() >= w ? s : s + std::string(w - s.size(), ' '); }
 
 const char* startName(SineStart s) { return s == SineStart::Trough ? "trough" : "centre"; }
@@ -79,7 +47,7 @@ void table2Header(Context& x) {
 }
 
 // The judged Table 2 row: all four controllers and the linear open loop, figure included.
-nlohmann::json table2Row(Context& x, const Table2Case& c, size_t prow) {
+nlohmann::json table2Row(Context& x, const TrackingCase& c, size_t prow) {
   x.log("table2: " + c.tag + " (" + c.run.reference.describe() + ")");
   x.txt << padded(c.tag, 18);
   const auto& paper = PaperNumbers::table2[prow];
@@ -151,11 +119,10 @@ nlohmann::json stepEntry(const StepStats& st) {
           {"max_u_reversals", st.max_u_reversals}};
 }
 
-nlohmann::json discontinuousWave(Context& x, const std::string& tag, const Trajectory& traj) {
-  x.log("discontinuous: " + tag + " (" + traj.describe() + ")");
-  ClosedLoopRun run;
-  run.reference = traj;
-  run.duration_s = 30.0;
+nlohmann::json discontinuousWave(Context& x, const TrackingCase& c) {
+  const std::string& tag = c.tag;
+  const ClosedLoopRun& run = c.run;
+  x.log("discontinuous: " + tag + " (" + run.reference.describe() + ")");
   std::vector<Record> recs;
   for (auto k : kClosedKinds) {
     recs.push_back(x.run(k, run, tag));
@@ -177,14 +144,14 @@ nlohmann::json discontinuousWave(Context& x, const std::string& tag, const Traje
     const auto st = tracking(recs[i]);
     dj["tracking"][control::toString(kClosedKinds[i])] = {{"max", st.max_abs}, {"rmse", st.rmse}};
   }
-  figureTracking(x, tag, "Tracking of a " + traj.describe(), kClosedKinds, true);
+  figureTracking(x, tag, "Tracking of a " + run.reference.describe(), kClosedKinds, true);
   return dj;
 }
 
 }  // namespace
 
 // The judged sines once more, scored over the whole run (the start included).
-void wholeRunRows(Context& x, const nlohmann::json& t2, const std::vector<Table2Case>& cases) {
+void wholeRunRows(Context& x, const nlohmann::json& t2, const std::vector<TrackingCase>& cases) {
   x.txt << "The same sines scored over the whole run (their start included): max/RMSE\n";
   for (size_t ci = 1; ci < cases.size(); ++ci) {
     x.txt << padded(cases[ci].tag, 18);
@@ -222,8 +189,7 @@ void runDiscontinuous(Context& x) {
            "Paper, square wave forward: PID ~17.3 % / ~0.8 s, PID+ESO ~5.7 %, PID+AMC negligible / < 0.5 s.\n"
            "                      PID                 PID+ESO             PID+AMC\n";
   nlohmann::json dj = nlohmann::json::object();
-  dj["square"] = discontinuousWave(x, "square", Trajectory::square(0.1, 10.0, 25.0));
-  dj["sawtooth"] = discontinuousWave(x, "sawtooth", Trajectory::sawtooth(0.1, 10.0, 25.0));
+  for (const auto& c : discontinuousCases()) dj[c.tag] = discontinuousWave(x, c);
   x.txt << "\n";
   x.json["discontinuous"] = dj;
 }
@@ -256,3 +222,47 @@ void runPayload(Context& x) {
 }
 
 }  // namespace pamc::sim::detail
+
+namespace pamc::sim {
+
+namespace {
+
+ClosedLoopRun triangleRun() {
+  ClosedLoopRun r;
+  r.reference = Trajectory::triangle(0.05, 0.2, 30.0);
+  r.duration_s = 40.0;
+  return r;
+}
+
+// Table 2's descending sines. Centre: from their centre, rising, on a muscle parked at the bottom of the
+// range (where the triangle starts); trough: from their lowest point, where the muscle is parked.
+ClosedLoopRun sineRun(double freq, double duration, SineStart start) {
+  ClosedLoopRun r;
+  const bool centre = start == SineStart::Centre;
+  r.reference = Trajectory::sineDescending(freq, 15.1, 14.9, 3.0, duration, centre ? M_PI / 2 : 0.0);
+  r.duration_s = duration;
+  if (centre) r.home_mm = triangleRun().reference.at(0.0);
+  return r;
+}
+
+ClosedLoopRun waveRun(const Trajectory& t) {
+  ClosedLoopRun r;
+  r.reference = t;
+  r.duration_s = 30.0;
+  return r;
+}
+
+}  // namespace
+
+std::vector<TrackingCase> table2Cases(SineStart start) {
+  return {{"triangle_0.05Hz", triangleRun()},
+          {"sine_0.05Hz", sineRun(0.05, 60.0, start)},
+          {"sine_0.1Hz", sineRun(0.1, 30.0, start)}};
+}
+
+std::vector<TrackingCase> discontinuousCases() {
+  return {{"square", waveRun(Trajectory::square(0.1, 10.0, 25.0))},
+          {"sawtooth", waveRun(Trajectory::sawtooth(0.1, 10.0, 25.0))}};
+}
+
+}  // namespace pamc::sim

@@ -142,6 +142,8 @@ double firstReach(const Record& r) {
   return r.t.back();
 }
 
+double scoredFrom(const Record& r, const ClosedLoopRun& run) { return run.startsAwayFromHome() ? firstReach(r) : 0.0; }
+
 double turningPointError(const Record& r, double window_s) {
   double worst = 0, until = -1, slope_prev = 0;
   for (size_t i = 1; i < r.t.size(); ++i) {
