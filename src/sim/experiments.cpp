@@ -44,9 +44,6 @@ const char* label(control::Kind k) {
   return "?";
 }
 
-// A run that starts away from home is scored from its first reach: the rise is not tracking.
-double scoredFrom(const Record& r, const ClosedLoopRun& run) { return run.startsAwayFromHome() ? firstReach(r) : 0.0; }
-
 // Each step of the reference (jumps of at least 1 mm) as its own block: time since the step and the
 // response in % of the jump (0 = where it started, 100 = the target), blocks separated by a blank line
 // so that a plot overlays them.
@@ -102,6 +99,75 @@ std::string plantText(const plant::PlantConfig& p) {
 
 }  // namespace
 
+std::vector<TrackingCase> table2Cases(SineStart start) {
+  std::vector<TrackingCase> cases;
+  ClosedLoopRun r;
+  r.reference = Trajectory::triangle(0.05, 0.2, 30.0);
+  r.duration_s = 40.0;
+  cases.push_back({"triangle_0.05Hz", r});
+  const bool centre = start == SineStart::Centre;
+  const double phase = centre ? M_PI / 2 : 0.0;
+  if (centre) r.home_mm = r.reference.at(0.0);  // parked where the triangle starts: the bottom of the range
+  r.reference = Trajectory::sineDescending(0.05, 15.1, 14.9, 3.0, 60.0, phase);
+  r.duration_s = 60.0;
+  cases.push_back({"sine_0.05Hz", r});
+  r.reference = Trajectory::sineDescending(0.1, 15.1, 14.9, 3.0, 30.0, phase);
+  r.duration_s = 30.0;
+  cases.push_back({"sine_0.1Hz", r});
+  return cases;
+}
+
+std::vector<TrackingCase> discontinuousCases() {
+  std::vector<TrackingCase> cases;
+  ClosedLoopRun run;
+  run.duration_s = 30.0;
+  run.reference = Trajectory::square(0.1, 10.0, 25.0);
+  cases.push_back({"square", run});
+  run.reference = Trajectory::sawtooth(0.1, 10.0, 25.0);
+  cases.push_back({"sawtooth", run});
+  return cases;
+}
+
+Trajectory identInput(double amplitude) { return Trajectory::sine(0.1, amplitude, 0.2); }
+
+Record recordOpenLoop(const plant::PlantConfig& plant, const Trajectory& u, double duration_s, const std::string& csv) {
+  plant::Plant p(plant);
+  Record r = runOpenLoopInput(p, u, duration_s);
+  io::writeCsvAtomic(csv, {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
+  return r;
+}
+
+ident::FitResult identifyOnRecord(const std::string& csv, const ident::FitSettings& fit,
+                                  const std::function<void(const std::string&)>& log) {
+  const io::Measurement m = io::readMeasurementCsv(csv);
+  int last_gen = 0;
+  return ident::fit(model::Model{}, m, fit, [&](const char* stage, int it, double rmse) {
+    if (log && std::string(stage) == "ga" && it - last_gen >= 25) {
+      last_gen = it;
+      log("  GA generation " + std::to_string(it) + ": RMSE " + fmt("%.4f", rmse) + " mm");
+    }
+  });
+}
+
+control::ControllerConfig controllerFor(const control::ControllerConfig& gains, const model::Model& m,
+                                        const plant::PlantConfig& plant) {
+  control::ControllerConfig cc = gains;
+  cc.Ts = plant.Ts;
+  cc.model = m;
+  cc.u_min = plant.u_min;
+  cc.u_max = plant.u_max;
+  return cc;
+}
+
+Record runController(control::Kind kind, const control::ControllerConfig& cc, const control::InverseStatic& inv,
+                     const plant::PlantConfig& plant, const ClosedLoopRun& run) {
+  plant::Plant p(plant);
+  auto ctrl = control::makeController(kind, cc);
+  ClosedLoopRun rr = run;
+  rr.delay_cycles = cc.delay_cycles;
+  return runClosedLoop(*ctrl, p, rr, inv(run.home()));
+}
+
 ModelAccuracy modelAccuracy(const model::Model& m, const estimation::ActiveModelSettings& ukf,
                             const std::vector<double>& u, const std::vector<double>& y, double Ts,
                             std::vector<double>* y_ref, std::vector<double>* y_post) {
@@ -149,19 +215,15 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
 
   // ---------------------------------------------------------------- Table 1
   model::Model ref;
-  const Trajectory u0 = Trajectory::sine(0.1, 2.9, 0.2), u1 = Trajectory::sine(0.1, 1.4, 0.2),
-                   u2 = Trajectory::sine(0.05, 2.9, 0.2);
-  const double ident_duration = 40.0;
+  const Trajectory u0 = identInput(), u1 = identInput(1.4), u2 = Trajectory::sine(0.05, kIdentAmplitude, 0.2);
+  const double ident_duration = kIdentDuration;
   {
     log("table1: exciting the emulator with u0, u1, u2 (open loop, " + fmt("%.0f", ident_duration) + " s each)");
     std::vector<Record> recs;
     const char* names[] = {"u0", "u1", "u2"};
     const Trajectory* inputs[] = {&u0, &u1, &u2};
     for (int i = 0; i < 3; ++i) {
-      plant::Plant p(s.plant);
-      recs.push_back(runOpenLoopInput(p, *inputs[i], ident_duration));
-      const auto& r = recs.back();
-      io::writeCsvAtomic(dir + "ident_" + names[i] + ".csv", {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
+      recs.push_back(recordOpenLoop(s.plant, *inputs[i], ident_duration, dir + "ident_" + names[i] + ".csv"));
     }
     ident::FitResult fr;
     if (!s.model_file.empty()) {
@@ -169,14 +231,7 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
       log("table1: using the model in " + s.model_file);
     } else {
       log("table1: identifying the Bouc-Wen model on u0 (GA + Nelder-Mead)");
-      io::Measurement m = io::readMeasurementCsv(dir + "ident_u0.csv");
-      int last_gen = 0;
-      fr = ident::fit(model::Model{}, m, s.fit, [&](const char* stage, int it, double rmse) {
-        if (std::string(stage) == "ga" && it - last_gen >= 25) {
-          last_gen = it;
-          log("  GA generation " + std::to_string(it) + ": RMSE " + fmt("%.4f", rmse) + " mm");
-        }
-      });
+      fr = identifyOnRecord(dir + "ident_u0.csv", s.fit, log);
       ref = fr.model;
       io::writeModelFile(dir + "model.json", ref,
                          {{"data", "ident_u0.csv"}, {"rmse", fr.rmse}, {"generations", fr.generations},
@@ -237,21 +292,13 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     else rep.json["fit"] = {{"rmse", fr.rmse}, {"generations", fr.generations}, {"seconds", fr.seconds}};
   }
 
-  control::ControllerConfig cc = s.ctrl;
-  cc.Ts = Ts;
-  cc.model = ref;
-  cc.u_min = s.plant.u_min;
-  cc.u_max = s.plant.u_max;
+  const control::ControllerConfig cc = controllerFor(s.ctrl, ref, s.plant);
   control::InverseStatic inv;
   inv.build(ref, cc.u_min, cc.u_max, Ts);
 
   auto runWith = [&](control::Kind kind, const control::ControllerConfig& c, const ClosedLoopRun& run,
                      const std::string& csv) {
-    plant::Plant p(s.plant);
-    auto ctrl = control::makeController(kind, c);
-    ClosedLoopRun rr = run;
-    rr.delay_cycles = c.delay_cycles;
-    Record r = runClosedLoop(*ctrl, p, rr, inv(run.home()));
+    Record r = runController(kind, c, inv, s.plant, run);
     r.writeCsv(csv);
     return r;
   };
@@ -304,26 +351,7 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
 
   // ---------------------------------------------------------------- Table 2
   if (wanted(s, "table2")) {
-    struct Case {
-      std::string tag;
-      ClosedLoopRun run;
-    };
-    std::vector<Case> cases;
-    {
-      ClosedLoopRun r;
-      r.reference = Trajectory::triangle(0.05, 0.2, 30.0);
-      r.duration_s = 40.0;
-      cases.push_back({"triangle_0.05Hz", r});
-      const bool centre = s.sine_start == SineStart::Centre;
-      const double phase = centre ? M_PI / 2 : 0.0;
-      if (centre) r.home_mm = r.reference.at(0.0);  // parked where the triangle starts: the bottom of the range
-      r.reference = Trajectory::sineDescending(0.05, 15.1, 14.9, 3.0, 60.0, phase);
-      r.duration_s = 60.0;
-      cases.push_back({"sine_0.05Hz", r});
-      r.reference = Trajectory::sineDescending(0.1, 15.1, 14.9, 3.0, 30.0, phase);
-      r.duration_s = 30.0;
-      cases.push_back({"sine_0.1Hz", r});
-    }
+    const std::vector<TrackingCase> cases = table2Cases(s.sine_start);
     txt << "Table 2. Tracking error max/RMSE (mm); paper's values in brackets.\n";
     if (cc.amc_inverse > 0.0)
       txt << "PID+AMC in the predictive form: x = " << fmt("%.2f", cc.amc_inverse) << ", AMC horizon "
@@ -377,12 +405,11 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
     txt << "Paper, square wave forward: PID ~17.3 % / ~0.8 s, PID+ESO ~5.7 %, PID+AMC negligible / < 0.5 s.\n";
     txt << "                      PID                 PID+ESO             PID+AMC\n";
     nlohmann::json dj = nlohmann::json::object();
-    for (const auto& [tag, traj] : std::vector<std::pair<std::string, Trajectory>>{
-             {"square", Trajectory::square(0.1, 10.0, 25.0)}, {"sawtooth", Trajectory::sawtooth(0.1, 10.0, 25.0)}}) {
+    for (const auto& dc : discontinuousCases()) {
+      const std::string& tag = dc.tag;
+      const Trajectory& traj = dc.run.reference;
+      const ClosedLoopRun& run = dc.run;
       log("discontinuous: " + tag + " (" + traj.describe() + ")");
-      ClosedLoopRun run;
-      run.reference = traj;
-      run.duration_s = 30.0;
       std::vector<Record> recs;
       for (auto k : kinds) {
         recs.push_back(runOne(k, run, tag));

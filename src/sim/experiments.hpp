@@ -14,6 +14,7 @@
 #include "control/controller.hpp"
 #include "ident/identify.hpp"
 #include "plant/plant.hpp"
+#include "sim/lockstep.hpp"
 
 namespace pamc::sim {
 
@@ -42,6 +43,38 @@ struct ExperimentReport {
 };
 
 ExperimentReport runExperiments(const ExperimentSettings& s);
+
+// A closed-loop run of the experiments under its name (the tag of its files and rows).
+struct TrackingCase {
+  std::string tag;
+  ClosedLoopRun run;
+};
+// Table 2's trajectories: the 0.05 Hz triangle 0.2..30 mm (40 s), the descending sines 0.05 Hz (60 s)
+// and 0.1 Hz (30 s) started as `start` says.
+std::vector<TrackingCase> table2Cases(SineStart start);
+// The discontinuous trajectories: the 0.1 Hz square and sawtooth waves 10..25 mm, 30 s each.
+std::vector<TrackingCase> discontinuousCases();
+
+// The controller of the experiments: the gains and estimator settings of `gains` with the model `m`, the
+// plant's sample time and command range.
+control::ControllerConfig controllerFor(const control::ControllerConfig& gains, const model::Model& m,
+                                        const plant::PlantConfig& plant);
+// One closed-loop run of a fresh controller of `kind` on a fresh plant, started at the inverse of the
+// run's home position, with the controller's bus delay. Shares nothing mutable between calls.
+Record runController(control::Kind kind, const control::ControllerConfig& cc, const control::InverseStatic& inv,
+                     const plant::PlantConfig& plant, const ClosedLoopRun& run);
+
+// Table 1's identification input: u = amplitude sin(0.2 pi t) + 0.2 V (u0: amplitude 2.9 V), recorded
+// for kIdentDuration seconds in open loop.
+constexpr double kIdentDuration = 40.0;
+constexpr double kIdentAmplitude = 2.9;
+Trajectory identInput(double amplitude = kIdentAmplitude);
+// The plant excited by u in open loop for duration_s from rest; the record written to csv (t,u,y,p).
+Record recordOpenLoop(const plant::PlantConfig& plant, const Trajectory& u, double duration_s, const std::string& csv);
+// Table 1's fit: the Bouc-Wen model (ident::fit from model::Model{}) on the record in `csv` (t,u,y),
+// the GA's progress every 25 generations to `log` (may be empty).
+ident::FitResult identifyOnRecord(const std::string& csv, const ident::FitSettings& fit,
+                                  const std::function<void(const std::string&)>& log);
 
 // Table 1's analysis of one record: reference-model RMSE, UKF posterior and one-step-ahead
 // RMSE, and the persistence predictor y_{k-1} for scale.

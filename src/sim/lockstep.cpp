@@ -142,6 +142,8 @@ double firstReach(const Record& r) {
   return r.t.back();
 }
 
+double scoredFrom(const Record& r, const ClosedLoopRun& run) { return run.startsAwayFromHome() ? firstReach(r) : 0.0; }
+
 StepStats stepResponse(const Record& r, int dir, double min_jump, double band_frac) {
   StepStats s;
   double os_sum = 0, ts_sum = 0;

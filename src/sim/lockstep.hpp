@@ -99,6 +99,9 @@ TrackingStats tracking(const Record& r, double from_s = 0.0);
 // vanishes); the record's end if it never does. Tracking scored from here leaves out the rise from
 // home to a trajectory that starts elsewhere, and keeps the overshoot and the oscillation after it.
 double firstReach(const Record& r);
+// Where a run's tracking is scored from: its first reach when it starts away from home (the rise is not
+// tracking), else 0.
+double scoredFrom(const Record& r, const ClosedLoopRun& run);
 
 struct StepStats {
   double overshoot_pct = 0;   // mean over the steps
