@@ -107,6 +107,7 @@ namespace {
 
 // ---------------------------------------------------------------- controllers and models
 
+// In the order of RobustnessScore's fields.
 const control::Kind kKinds[] = {control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc};
 
 // A controller configuration with the inverse its runs start from; one per model.
@@ -192,17 +193,25 @@ Job makeJob(const Variant& v, const RobustnessSettings& s, const std::map<double
   return j;
 }
 
-double rmseOf(control::Kind kind, const Job& job, const TrackingCase& c) {
-  const Record r = runController(kind, job.ctrl->cc, job.ctrl->inv, job.plant, c.run);
-  return tracking(r, scoredFrom(r, c.run)).rmse;
+// The three controllers on one trajectory. A run that starts away from home is scored from its first
+// reach (Table 2's rule); with a common window all three from the latest of their first reaches, so that
+// the ratios compare the same stretch of time (a controller that reaches early is not scored on a
+// transient the others are not scored on).
+RobustnessScore scoreCase(const Job& job, const TrackingCase& c, bool common_window) {
+  std::vector<Record> recs;
+  double latest = 0.0;
+  for (auto kind : kKinds) {
+    recs.push_back(runController(kind, job.ctrl->cc, job.ctrl->inv, job.plant, c.run));
+    latest = std::max(latest, scoredFrom(recs.back(), c.run));
+  }
+  auto rmse = [&](size_t i) { return tracking(recs[i], common_window ? latest : scoredFrom(recs[i], c.run)).rmse; };
+  return {c.tag, rmse(0), rmse(1), rmse(2), common_window ? latest : NAN};
 }
 
 // Every trajectory with every controller; fresh plants, controllers and records per run.
-void runJob(Job& job, const std::vector<TrackingCase>& cases) {
+void runJob(Job& job, const std::vector<TrackingCase>& cases, bool common_window) {
   job.scores.clear();
-  for (const auto& c : cases)
-    job.scores.push_back({c.tag, rmseOf(control::Kind::PI, job, c), rmseOf(control::Kind::PidEso, job, c),
-                          rmseOf(control::Kind::PiAmc, job, c)});
+  for (const auto& c : cases) job.scores.push_back(scoreCase(job, c, common_window));
 }
 
 // What the workers share: the job list (each job touched by one worker only), the next index, the
@@ -233,7 +242,7 @@ void reportDone(WorkQueue& q, const Job& job) {
 void workerLoop(WorkQueue& q) {
   for (size_t i = q.next++; i < q.jobs.size(); i = q.next++) {
     try {
-      runJob(q.jobs[i], q.cases);
+      runJob(q.jobs[i], q.cases, q.s.common_window);
       reportDone(q, q.jobs[i]);
     } catch (...) {
       std::lock_guard<std::mutex> lock(q.mutex);
@@ -424,7 +433,8 @@ nlohmann::json scoresJson(const std::vector<RobustnessScore>& scores) {
   nlohmann::json j = nlohmann::json::object();
   for (const auto& sc : scores)
     j[sc.trajectory] = {{"pi_rmse", sc.pi}, {"eso_rmse", sc.eso}, {"amc_rmse", sc.amc},
-                        {"amc_over_pi", sc.amcOverPi()}, {"eso_over_pi", sc.esoOverPi()}};
+                        {"amc_over_pi", sc.amcOverPi()}, {"eso_over_pi", sc.esoOverPi()},
+                        {"scored_from_s", sc.scored_from_s}};  // null: each run from its own first reach
   return j;
 }
 
@@ -514,7 +524,8 @@ std::vector<RobustnessAxis> axesOf(const RobustnessSettings& s) {
   if (axes.empty()) throw std::invalid_argument("no axis to run");
   for (const auto& a : axes)
     if (a.physics_only && s.plant.kind != plant::PlantKind::Physics)
-      throw std::invalid_argument("axis '" + a.name + "' changes the physics plant; the plant is of kind model");
+      throw std::invalid_argument("axis '" + a.name + "' changes the physics plant; the plant is of kind model "
+                                  "(--only-axes noise,model)");
   return axes;
 }
 
@@ -541,7 +552,10 @@ void renderFigures(const std::string& dir, const RobustnessReport& rep, const st
 void writeSummary(const std::string& dir, RobustnessReport& rep, const RobustnessSettings& s) {
   std::ostringstream t;
   t << "RMSE of PID+ESO and PI+AMC against PI (ratio < 1: better than PI) on the triangle, the two sines and the\n"
-       "square wave, over plant changes the controllers were not tuned for ('*': nominal).\n\n";
+       "square wave, over plant changes the controllers were not tuned for ('*': nominal).\n"
+    << (s.common_window ? "The sines (started away from home) are scored over one window for all three controllers, from the\n"
+                          "latest of their first reaches.\n\n"
+                        : "Every run is scored from its own first reach (Table 2's rule).\n\n");
   nlohmann::json axes = nlohmann::json::object();
   for (const auto& r : rep.axes) {
     t << axisText(r);
@@ -555,7 +569,7 @@ void writeSummary(const std::string& dir, RobustnessReport& rep, const Robustnes
     << fmt("%.1f", rep.seconds) << " s on " << s.threads << " worker threads\n";
   rep.text = t.str();
   rep.json = {{"axes", axes}, {"strongest", rep.strongest}, {"variants", rep.variants}, {"seconds", rep.seconds},
-              {"threads", s.threads}, {"plant", s.plant.toJson()}};
+              {"threads", s.threads}, {"score_from", s.common_window ? "common" : "own"}, {"plant", s.plant.toJson()}};
   if (!rep.grid.scores.empty()) rep.json["grid"] = gridJson(rep.grid);
   io::writeFileAtomic(dir + "summary.txt", rep.text);
   io::writeFileAtomic(dir + "summary.json", rep.json.dump(2) + "\n");
@@ -569,7 +583,7 @@ RobustnessReport runRobustness(const RobustnessSettings& s) {
   const std::string dir = makeOutDir(s.out_dir);
   const auto cases = robustnessCases(s.duration_scale);
   const auto sets = prepareControllers(s, dir, axes);
-  RunContext ctx{s, cases, sets, Clock::now(), {}, 0};
+  RunContext ctx{s, cases, sets, t0, {}, 0};  // progress times from the start, identification included
   RobustnessReport rep;
   rep.axes = sweepAxes(ctx, axes);
   for (const auto& r : rep.axes) writeAxisCsv(dir, r);

@@ -5,6 +5,7 @@
 // nominal model; the model axis changes only the model (identified on another amplitude of u0).
 #pragma once
 
+#include <cmath>
 #include <functional>
 #include <string>
 #include <vector>
@@ -51,6 +52,9 @@ struct RobustnessSettings {
   std::vector<std::string> only_axes;     // empty: every axis of the table
   std::vector<RobustnessAxis> axes;       // empty: robustnessAxes(plant) (tests pass reduced ones)
   double duration_scale = 1.0;            // trajectories shortened for tests
+  // The three runs of a trajectory scored over the same window: from the latest of their first reaches
+  // (false: each from its own, Table 2's rule; see scoreCase in robustness.cpp).
+  bool common_window = true;
   bool grid = true;                       // the 5x5 grid of the two strongest axes
   bool figures = true;
   int threads = 2;                        // worker threads over the independent runs
@@ -61,6 +65,7 @@ struct RobustnessSettings {
 struct RobustnessScore {
   std::string trajectory;
   double pi = 0.0, eso = 0.0, amc = 0.0;
+  double scored_from_s = NAN;  // the common window's start (NaN: each run from its own first reach)
   double amcOverPi() const { return amc / pi; }
   double esoOverPi() const { return eso / pi; }
 };

@@ -65,7 +65,9 @@ TEST(Robustness, AxisTableAppliesEachAxisToItsField) {
       plant::PlantConfig p = nominal;
       a.apply(p, v);
       EXPECT_DOUBLE_EQ(fieldOf(p, a.field), v);
-      if (v != a.nominal) EXPECT_NE(p.toJson(), nominal.toJson());
+      if (v != a.nominal) {
+        EXPECT_TRUE(p.toJson() != nominal.toJson()) << "the plant file did not change";
+      }
     }
   }
   // The supply axis reaches below the 8 bar the top of the command asks for, and above it.
@@ -126,6 +128,17 @@ TEST(Robustness, ShortRunWritesFiniteRatiosThatMoveWithThePlant) {
     }
   }
   EXPECT_TRUE(moved) << "0.4x the valve flow left every AMC/PI ratio as it was";
+
+  // One window for the three runs of a trajectory: from the start where it starts at home (the triangle),
+  // from a first reach after the start where it does not (the sines).
+  for (const auto& sc : rep.axes[0].scores[0]) {
+    ASSERT_TRUE(std::isfinite(sc.scored_from_s)) << sc.trajectory;
+    if (sc.trajectory.rfind("sine", 0) == 0) {
+      EXPECT_GT(sc.scored_from_s, 0.0) << sc.trajectory;
+    } else {
+      EXPECT_EQ(sc.scored_from_s, 0.0) << sc.trajectory;
+    }
+  }
 
   ASSERT_EQ(rep.strongest.size(), 2u);
   EXPECT_EQ(rep.variants, 4);  // nominal, flow, mass and the grid's corner: each run once
