@@ -540,8 +540,8 @@ void renderFigures(const std::string& dir, const RobustnessReport& rep, const st
     std::string error;
     for (const auto& r : rep.axes) renderAxis(dir, r, error);
     if (rep.grid.scores.empty()) return;
-    const auto& rows = *std::find_if(axes.begin(), axes.end(), [&](const auto& a) { return a.name == rep.grid.row_axis; });
-    const auto& cols = *std::find_if(axes.begin(), axes.end(), [&](const auto& a) { return a.name == rep.grid.col_axis; });
+    const RobustnessAxis rows = selectAxes(axes, {rep.grid.row_axis}).front();
+    const RobustnessAxis cols = selectAxes(axes, {rep.grid.col_axis}).front();
     renderGrid(dir, rep.grid, rows, cols, &RobustnessScore::amcOverPi, "grid_amc_over_pi", "PI+AMC / PI");
     renderGrid(dir, rep.grid, rows, cols, &RobustnessScore::esoOverPi, "grid_eso_over_pi", "PID+ESO / PI");
   } catch (const std::runtime_error& e) {
@@ -587,9 +587,9 @@ RobustnessReport runRobustness(const RobustnessSettings& s) {
   RobustnessReport rep;
   rep.axes = sweepAxes(ctx, axes);
   for (const auto& r : rep.axes) writeAxisCsv(dir, r);
-  for (const auto* a : strongestTwo(rep.axes)) rep.strongest.push_back(a->axis.name);
-  if (s.grid && rep.strongest.size() == 2) {
-    const auto strong = strongestTwo(rep.axes);
+  const auto strong = strongestTwo(rep.axes);
+  for (const auto* a : strong) rep.strongest.push_back(a->axis.name);
+  if (s.grid && strong.size() == 2) {
     rep.grid = sweepGrid(ctx, strong[0]->axis, strong[1]->axis);
     writeGridCsv(dir, rep.grid);
   }
