@@ -56,10 +56,7 @@ class ExperimentsCommand final : public Command {
         throw std::invalid_argument("--only: unknown experiment '" + o +
                                     "' (known: table1, table2, triangle, discontinuous, payload)");
     s.fit.ga.seed = seed_;
-    ControllerOptions no_model = ctrl_;
-    no_model.model_file.clear();  // the experiments read it themselves (Table 1 reports on it)
-    s.ctrl = no_model.config();
-    if (cmd_->get_option("--ki")->count() == 0) s.ctrl.ki = sim::paperController().ki;  // the calibrated reading
+    s.ctrl = ctrl_.paperConfig(cmd_);  // the experiments read the model themselves (Table 1 reports on it)
     s.log = progressLine;
     const auto t0 = std::chrono::steady_clock::now();
     const auto rep = sim::runExperiments(s);

@@ -29,6 +29,7 @@ using CommandFactory = std::unique_ptr<Command> (*)(CLI::App&);
 
 // The modelling side.
 std::unique_ptr<Command> makeExperimentsCommand(CLI::App& app);
+std::unique_ptr<Command> makeRobustnessCommand(CLI::App& app);
 std::unique_ptr<Command> makeCalibrateCommand(CLI::App& app);
 std::unique_ptr<Command> makeFitCommand(CLI::App& app);
 std::unique_ptr<Command> makeCompareCommand(CLI::App& app);
@@ -45,9 +46,9 @@ std::unique_ptr<Command> makeMonitorCommand(CLI::App& app);
 
 // In the order `pamc --help` lists them.
 inline const CommandFactory kCommands[] = {
-    makeExperimentsCommand, makeCalibrateCommand, makeFitCommand,        makeCompareCommand, makeDiagnoseCommand,
-    makeEmulateCommand,     makePlantCommand,     makeEffectsCommand,    makeRigCommand,     makeControllerCommand,
-    makeEmulatorCommand,    makeDecodeCommand,    makeMonitorCommand};
+    makeExperimentsCommand, makeRobustnessCommand, makeCalibrateCommand, makeFitCommand,     makeCompareCommand,
+    makeDiagnoseCommand,    makeEmulateCommand,    makePlantCommand,     makeEffectsCommand, makeRigCommand,
+    makeControllerCommand,  makeEmulatorCommand,   makeDecodeCommand,    makeMonitorCommand};
 
 // --output-form: the form a model is fitted in (model::OutputForm), the same option wherever a model is fitted.
 CLI::Option* addOutputFormOption(CLI::App* cmd, std::string& form);

@@ -1,6 +1,7 @@
 #include "app/controller_options.hpp"
 
 #include "io/model_file.hpp"
+#include "sim/experiments.hpp"
 
 namespace pamc::app {
 
@@ -55,6 +56,14 @@ control::ControllerConfig ControllerOptions::config() const {
   c.amc_as_printed = amc_form == "printed";
   c.eso_order = eso_form == "printed" ? 2 : 1;
   if (!model_file.empty()) c.model = io::readModelFile(model_file);
+  return c;
+}
+
+control::ControllerConfig ControllerOptions::paperConfig(const CLI::App* cmd) const {
+  ControllerOptions o = *this;
+  o.model_file.clear();  // the experiments read or identify their model themselves
+  control::ControllerConfig c = o.config();
+  if (cmd->get_option("--ki")->count() == 0) c.ki = sim::paperController().ki;
   return c;
 }
 

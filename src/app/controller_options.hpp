@@ -20,6 +20,9 @@ struct ControllerOptions {
   void add(CLI::App* a);
   // The configuration with the model file read (throws with the file's one-line error).
   control::ControllerConfig config() const;
+  // The paper's experiments (experiments, robustness): config() without the model, with the reading of ki
+  // that `pamc calibrate` chose on the physics plant unless --ki was given on `cmd`.
+  control::ControllerConfig paperConfig(const CLI::App* cmd) const;
 };
 
 // --controller: open, pi (pid: the paper's "PID" is a PI), eso, amc.

@@ -1,6 +1,7 @@
 #include "report/figures.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -133,6 +134,66 @@ bool renderBars(const std::string& png, const std::string& title, const std::str
   gp << "set xtics rotate by -45 left\nset bmargin 18\nset rmargin 8\nunset key\nset yrange [0:*]\n";
   gp << "plot " << quote(csv) << " skip 1 using 0:" << value_col << ":xtic(" << label_col << ") with boxes\n";
   gp << "set output\n";
+  return runGnuplot(gp.str(), png, tmp_png, error);
+}
+
+namespace {
+// The data of one heat map as a gnuplot datablock: "col row value" per cell.
+std::string heatmapBlock(const Heatmap& m, const std::string& name) {
+  std::ostringstream b;
+  b << name << " << EOD\n";
+  for (size_t r = 0; r < m.z.size(); ++r)
+    for (size_t c = 0; c < m.z[r].size(); ++c) b << c << " " << r << " " << m.z[r][c] << "\n";
+  return b.str() + "EOD\n";
+}
+
+std::string ticks(const std::vector<std::string>& labels) {
+  std::string t = "(";
+  for (size_t i = 0; i < labels.size(); ++i) t += (i ? ", " : "") + quote(labels[i]) + " " + std::to_string(i);
+  return t + ")";
+}
+
+double halfRange(const std::vector<Heatmap>& maps, double centre) {
+  double h = 0.05;
+  for (const auto& m : maps)
+    for (const auto& row : m.z)
+      for (double v : row)
+        if (std::isfinite(v)) h = std::max(h, std::fabs(v - centre));
+  return h;
+}
+
+std::string heatmapPanel(const Heatmap& m, const std::string& block) {
+  const size_t rows = m.z.size(), cols = m.z.empty() ? 0 : m.z[0].size();
+  std::ostringstream gp;
+  gp << "set title " << quote(m.title) << "\nset xlabel " << quote(m.xlabel) << "\nset ylabel " << quote(m.ylabel) << "\n";
+  gp << "set xrange [-0.5:" << cols - 0.5 << "]\nset yrange [-0.5:" << rows - 0.5 << "]\n";
+  gp << "set xtics " << ticks(m.xticks) << "\nset ytics " << ticks(m.yticks) << "\n";
+  gp << "plot " << block << " using 1:2:3 with image notitle, " << block
+     << " using 1:2:(sprintf('%.3f', $3)) with labels font ',9' notitle\n";
+  return gp.str();
+}
+}  // namespace
+
+bool renderHeatmaps(const std::string& png, const std::string& title, const std::vector<Heatmap>& maps, double centre,
+                    const std::string& cblabel, std::string& error, int columns) {
+  if (!haveGnuplot()) {
+    error = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
+    return false;
+  }
+  const int cols = std::max(1, std::min(columns, static_cast<int>(maps.size())));
+  const int rows = (static_cast<int>(maps.size()) + cols - 1) / cols;
+  const double h = halfRange(maps, centre);
+  std::ostringstream gp;
+  const std::string tmp_png = png + ".tmp.png";
+  gp << "set terminal pngcairo size " << 560 * cols << "," << 420 * rows + 60 << " font 'DejaVu Sans,10'\n";
+  gp << "set output " << quote(tmp_png) << "\nset termoption noenhanced\n";
+  for (size_t i = 0; i < maps.size(); ++i) gp << heatmapBlock(maps[i], "$m" + std::to_string(i));
+  gp << "set palette defined (0 '#2166ac', 0.5 '#ffffff', 1 '#b2182b')\n";
+  gp << "set cbrange [" << centre - h << ":" << centre + h << "]\nset cblabel " << quote(cblabel) << "\n";
+  gp << "set xtics rotate by -30 left\nset tics nomirror\nset view map\n";
+  gp << "set multiplot layout " << rows << "," << cols << " title " << quote(title) << "\n";
+  for (size_t i = 0; i < maps.size(); ++i) gp << heatmapPanel(maps[i], "$m" + std::to_string(i));
+  gp << "unset multiplot\nset output\n";
   return runGnuplot(gp.str(), png, tmp_png, error);
 }
 

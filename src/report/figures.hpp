@@ -36,6 +36,19 @@ bool renderFigure(const std::string& png, const std::string& title, const std::v
 bool renderBars(const std::string& png, const std::string& title, const std::string& csv, int label_col,
                 int value_col, const std::string& ylabel, std::string& error);
 
+// A heat map: z[row][col], rows along y (row 0 at the bottom) and columns along x, named by the ticks.
+struct Heatmap {
+  std::string title, xlabel, ylabel;
+  std::vector<std::string> xticks, yticks;  // one per column / row
+  std::vector<std::vector<double>> z;
+};
+
+// Heat maps in one PNG, `columns` side by side, every cell coloured and labelled with its value. One colour
+// scale for all, diverging around `centre` (white), blue below and red above, symmetric: centre +- the
+// largest distance from it in the data (at least 0.05). Returns false with `error` set like renderFigure.
+bool renderHeatmaps(const std::string& png, const std::string& title, const std::vector<Heatmap>& maps, double centre,
+                    const std::string& cblabel, std::string& error, int columns = 2);
+
 bool haveGnuplot();
 
 }  // namespace pamc::report
