@@ -80,8 +80,8 @@ class DiagnoseCommand final : public Command {
     if (!dg_report.empty()) {
       diagnose::writeReport(r, d, dg_val.empty() ? nullptr : &v, ds, dg_report, &warnings);
       printWarnings(warnings);
-      std::printf("report in %s/ (ladder.png, validation.png, residual_tests.png%s, model.json)\n", dg_report.c_str(),
-                  r.probes.empty() ? "" : ", probes.png");
+      std::printf("report in %s/ (ladder.png, validation.png, residual_tests.png, spectrum.png%s, model.json%s)\n",
+                  dg_report.c_str(), r.probes.empty() ? "" : ", probes.png", r.probe_rung ? ", probe_model.json" : "");
     }
     if (!dg_json.empty()) io::writeFileAtomic(dg_json, diagnose::toJson(r).dump(2) + "\n");
     return 0;

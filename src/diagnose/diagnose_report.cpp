@@ -119,6 +119,15 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
     io::writeFileAtomic(p + "probes.csv", t);
   }
   io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", toJson(r)["ladder"]}});
+  // The best probe, when it explains enough to be a rung, as a ready model: to check in closed loop
+  // (pamc rig --model, pamc experiments --model) whether the structure it points to matters there.
+  if (r.probe_rung)
+    io::writeModelFile(p + "probe_model.json", r.probes.front().model,
+                       {{"probe", r.probes.front().probe},
+                        {"note", "the final model with a probe on top: a kind of structure, not a physical model"},
+                        {"rmse_val", r.probes.front().rmse_val}});
+  else
+    std::remove((p + "probe_model.json").c_str());
   io::writeFileAtomic(p + "diagnosis.json", toJson(r).dump(2) + "\n");
   writeSpectrumReport(r.spectrum, p, "The final model's residual in frequency (training data)", warnings);
   if (!report::haveGnuplot()) {

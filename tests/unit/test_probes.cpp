@@ -3,12 +3,15 @@
 // other parameters and excitations than the emulator's defaults.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include <cmath>
 #include <cstdio>
 #include <random>
 
 #include "control/trajectory.hpp"
 #include "diagnose/diagnose.hpp"
+#include "io/model_file.hpp"
 #include "model/model.hpp"
 #include "model/probe.hpp"
 
@@ -77,6 +80,14 @@ TEST(Probes, AGainThatGrowsWithTimePointsAtDrift) {
   EXPECT_TRUE(r.probe_rung);
   EXPECT_NE(r.verdict.find("drift"), std::string::npos) << table(r);
   EXPECT_NE(r.verdict.find("temperature"), std::string::npos) << table(r);
+  // The probe that is a rung is offered as a ready model, which reads back with the probe in it.
+  const auto dir = (std::filesystem::temp_directory_path() / "pamc_probe_report").string();
+  const auto train = make(11, 24.0, same, sameOut);
+  diagnose::writeReport(r, train, nullptr, diagnose::DiagnoseSettings{}, dir);
+  const auto m = io::readModelFile(dir + "/probe_model.json");
+  bool has = false;
+  for (int i = 0; i < m.numEffects(); ++i) has = has || std::string(m.effect(i).name()) == "drift";
+  EXPECT_TRUE(has);
 }
 
 // A valve whose pressure gain grows towards the ends of the command range: a curve on the input side.
