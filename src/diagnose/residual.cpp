@@ -358,7 +358,7 @@ std::string formatReport(const ResidualReport& r) {
   o << "\nResidual tests (95 % bound +-" << fmt("%.3g", r.conf) << ", lags up to " << fmt("%.3g", r.max_lag * r.lag_step_s)
     << " s):\n";
   o << "  auto-correlation of e: " << acf_out << " of " << r.max_lag << " lags outside the bound"
-    << (acf_out > r.max_lag / 20 ? " - the residual is not white: the model misses dynamics\n" : " - white\n");
+    << (acf_out > r.max_lag / 20 ? " - the residual is correlated in time (its spectrum says where)\n" : " - white\n");
   o << "  cross-correlation of e with du: " << ccf_out << " of " << r.ccf_du.size() << " lags outside the bound, peak "
     << fmt("%.3f", ccf_peak) << " at lag " << fmt("%.4g", ccf_peak_lag * r.lag_step_s) << " s"
     << (ccf_out > static_cast<int>(r.ccf_du.size()) / 20 ? " - the input still explains part of the residual\n"
