@@ -53,6 +53,7 @@ struct Rung {
   model::Model model;
   std::string removed;  // a pruning rung: the effect taken out of the previous rung
   std::string replaced_by;  // ... and, if not empty, the simpler alternative put in its place
+  std::string direction;    // a direction rung: what differs between rising and falling, in words
 };
 
 // A probe fitted on top of the final physical model.

@@ -26,7 +26,9 @@ bool byValidation(const CandidateResult& a, const CandidateResult& b) { return a
 
 // Refit on the whole training record, starting from a fit on the screening record: every parameter
 // has a value to start from, so one Levenberg-Marquardt run from there, whatever the method.
-ident::FitResult Diagnosis::refitOnAll(const model::Model& m) const {
+ident::FitResult Diagnosis::refitOnAll(const model::Model& m) const { return refitOn(m, train_); }
+
+ident::FitResult Diagnosis::refitOn(const model::Model& m, const io::Measurement& data) const {
   ident::FitSettings ps = ident::FitSettings::forMethod(ident::FitMethod::MultiStart);
   ps.ga.threads = threads_;
   ps.ga.seed = s_.seed;
@@ -36,8 +38,8 @@ ident::FitResult Diagnosis::refitOnAll(const model::Model& m) const {
   ps.refine_evals = 0;
   ps.lm_tolerance = 1e-7;
   const auto rt = std::chrono::steady_clock::now();
-  auto f = ident::fit(m, train_, ps, {}, &m);
-  log("  refitted on all " + std::to_string(train_.size()) + " training samples: train " + fmt("%.5g", f.rmse) + " (" +
+  auto f = ident::fit(m, data, ps, {}, &m);
+  log("  refitted on " + std::to_string(data.size()) + " training samples: train " + fmt("%.5g", f.rmse) + " (" +
       fmt("%.1f", seconds(rt)) + " s)");
   return f;
 }

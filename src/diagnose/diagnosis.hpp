@@ -81,6 +81,7 @@ class Diagnosis {
   void baseline();
   void candidates();
   void prune();
+  void directions();
   void probes();
   void preferSimplestProbe();
   void verdict();
@@ -97,6 +98,7 @@ class Diagnosis {
 
   // diagnose_search.cpp: fits on the screening record, refits on the whole training record.
   ident::FitResult refitOnAll(const model::Model& m) const;
+  ident::FitResult refitOn(const model::Model& m, const io::Measurement& data) const;
   void refitIfBetter(CandidateResult& c) const;
   std::vector<CandidateResult> fitEach(const std::vector<model::Model>& structures, const model::Model& base_model,
                                        const std::vector<std::string>& names, int round, const ResidualReport& rr,

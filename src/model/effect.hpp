@@ -68,9 +68,20 @@ class Effect {
   virtual const char* alternativeTo() const { return nullptr; }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }
+  // Whether the effect has a direction-dependent version ("<name>_updown": separate parameters for a
+  // rising and a falling stage input; directional.cpp). Such an effect implements retune.
+  virtual bool directional() const { return false; }
+  // Recomputes what init derived from the parameters (cached filter gains) for new parameters, keeping
+  // the dynamic states: the direction-dependent version switches parameter sets mid-run.
+  virtual void retune(const double* /*p*/, double* /*s*/, const StepContext& /*c*/) const noexcept {}
 };
 
 using EffectFactory = std::unique_ptr<Effect> (*)();
+
+// "<name>_updown": the direction-dependent version of a directional() effect (directional.cpp).
+inline constexpr const char* kDirectionalSuffix = "_updown";
+// Throws std::invalid_argument when `inner` has no such version.
+std::unique_ptr<Effect> makeDirectional(std::unique_ptr<Effect> inner);
 
 struct CatalogueEntry {
   const char* name;

@@ -30,6 +30,10 @@ class Creep final : public Effect {
   int numFilterStates() const override { return 1; }  // z
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     s[0] = p[0] * in0;
+    retune(p, s, c);
+  }
+  bool directional() const override { return true; }  // creep that differs loading and unloading
+  void retune(const double* p, double* s, const StepContext& c) const noexcept override {
     s[1] = 1.0 - std::exp(-c.Ts / std::max(p[1], 1e-6));
   }
   double step(const double* p, double* s, double in, const StepContext&) const noexcept override {

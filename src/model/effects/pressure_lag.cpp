@@ -27,6 +27,10 @@ class PressureLag final : public Effect {
   int numStates() const override { return 3; }  // pressure (as command), cached: filter gain, step limit
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     s[0] = in0;
+    retune(p, s, c);
+  }
+  bool directional() const override { return true; }  // a muscle filling and venting through different paths
+  void retune(const double* p, double* s, const StepContext& c) const noexcept override {
     s[1] = 1.0 - std::exp(-c.Ts / std::max(p[0], 1e-6));
     s[2] = std::max(p[1], 0.0) * c.Ts;
   }

@@ -29,6 +29,10 @@ class Lag1 final : public Effect {
   int numStates() const override { return 2; }  // output, cached filter gain
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     s[0] = in0;
+    retune(p, s, c);
+  }
+  bool directional() const override { return true; }
+  void retune(const double* p, double* s, const StepContext& c) const noexcept override {
     s[1] = 1.0 - std::exp(-c.Ts / std::max(p[0], 1e-6));
   }
   double step(const double*, double* s, double in, const StepContext&) const noexcept override {

@@ -23,8 +23,10 @@ class RateLimit final : public Effect {
   int numStates() const override { return 2; }  // output, cached step limit
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     s[0] = in0;
-    s[1] = std::fabs(p[0]) * c.Ts;
+    retune(p, s, c);
   }
+  bool directional() const override { return true; }
+  void retune(const double* p, double* s, const StepContext& c) const noexcept override { s[1] = std::fabs(p[0]) * c.Ts; }
   double step(const double*, double* s, double in, const StepContext&) const noexcept override {
     s[0] += std::clamp(in - s[0], -s[1], s[1]);
     return s[0];
