@@ -112,6 +112,11 @@ void ControllerNode::poll(TimeUs now, bool usable) noexcept {
   const auto& rp = node_->rpdo(1);
   const unsigned missing_limit = params_->running().missing_limit;
   if (active_ && !usable) ++fc_.samples_missing;
+  if (usable) ++fc_.positions;
+  // The loop never started: say so once no_position_s has passed (the reporter names the COB-ID).
+  if (!active_ && operational_at_ != canopen::kNever &&
+      static_cast<double>(now - operational_at_) >= cfg_.no_position_s * 1e6)
+    raise(Fault::NoPosition, cfg_.sensor_id);
   if (active_ && rp.syncsSinceReception() > missing_limit) raise(Fault::PositionMissing);
   if (rp.conflictInLastCycle()) {
     if (++conflict_run_ >= 3) raise(Fault::SensorConflict, static_cast<std::uint8_t>(rp.cobId() & 0xFF));

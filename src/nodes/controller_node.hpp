@@ -72,6 +72,7 @@ struct ControllerNodeConfig {
   int recover_cycles = 500;           // a fault must be gone this long before control resumes
   double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast
   double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
+  double no_position_s = 1.0;         // no position this long after entering Operational: Fault::NoPosition
   SlaveLayout layout;
   // The controller of an SDO commit built on a worker thread instead of in the SDO server (on a rig; in
   // virtual time the inline build keeps runs deterministic). docs/PERFORMANCE.md has what it saves.
@@ -86,6 +87,7 @@ struct FaultCounters {
   std::uint64_t recoveries = 0;
   std::uint64_t safe_cycles = 0;      // cycles that sent the safe value
   std::uint64_t samples_missing = 0;  // cycles after activation without a usable position
+  std::uint64_t positions = 0;        // usable positions latched (0 at the end of a run: it never had one)
   std::uint64_t warnings = 0;         // warning EMCYs sent
   std::uint64_t nmt_starts = 0;       // NMT start to a slave after its boot-up or in Pre-operational
   std::uint64_t nmt_reboots = 0;      // NMT reset communication to a slave back after a heartbeat timeout
@@ -126,6 +128,10 @@ class ControllerNode {
   std::uint32_t lastRefusal() const noexcept { return params_->lastRefusal(); }  // abort code of the last refused commit
   // COB-ID of the last frame another node sent on this node's identifiers (0: none); any thread.
   std::uint32_t lastCollisionCob() const noexcept { return collision_pub_.load(std::memory_order_relaxed); }
+  // COB-ID the position is awaited on (RPDO1, as configured at the last NMT start); any thread.
+  std::uint32_t positionCob() const noexcept { return position_cob_pub_.load(std::memory_order_relaxed); }
+  std::uint8_t sensorId() const noexcept { return cfg_.sensor_id; }
+  double noPositionSeconds() const noexcept { return cfg_.no_position_s; }
   // Node time of the first reaction (EMCY or safe state) of the present episode; kNever if none.
   canopen::TimeUs reactedAtUs() const noexcept { return reacted_at_us_; }
   const canopen::NmtMaster& master() const noexcept { return *master_; }
@@ -214,6 +220,7 @@ class ControllerNode {
   unsigned same_run_ = 0;
   double run_u_min_ = 0.0, run_u_max_ = 0.0;
   canopen::TimeUs reacted_at_us_ = canopen::kNever;
+  canopen::TimeUs operational_at_ = canopen::kNever;  // entered Operational (kNever: it is not)
   // Bumpless return: the setpoint goes from ramp_from_ to the trajectory over ramp_cycles_.
   bool ramp_ = false;
   bool slew_ = false;           // command rate-limited: during the ramp and until the limit no longer binds
@@ -223,6 +230,7 @@ class ControllerNode {
   std::atomic<Fault> fault_pub_{Fault::None};
   std::atomic<double> run_time_pub_{0.0};
   std::atomic<std::uint32_t> collision_pub_{0};
+  std::atomic<std::uint32_t> position_cob_pub_{0};
   canopen::TimeUs last_sync_ = 0;
   CycleStats stats_;
   SpscRing<CycleRecord, 1 << 15> records_;

@@ -94,6 +94,7 @@ void ControllerNode::installHooks() {
       // The loop stops (PDOs do not move outside Operational); NMT start configures it afresh.
       hold(kHoldSelf);
       master_->end();
+      operational_at_ = canopen::kNever;
       active_ = run_started_ = false;
       ramp_ = slew_ = false;
     }
@@ -202,6 +203,8 @@ void ControllerNode::onOperational(TimeUs now) {
   }
   // Boots (checks and configures) the slaves that need it and starts those that may run; the valve
   // starts once nothing else holds it.
+  operational_at_ = now;
+  position_cob_pub_.store(node_->rpdo(1).cobId() & 0x7FFu, std::memory_order_relaxed);
   master_->begin(now);
   release(kHoldSelf, now);
   push_valve_ = true;
