@@ -36,7 +36,7 @@ const std::set<std::string> kSlaveCommon = {"node_id",  "eds",    "device_type",
                                             "boot",     "mandatory", "reset"};
 const std::set<std::string> kSensorKeys = {"position", "position_step_mm", "tpdo", "cob_id"};
 const std::set<std::string> kValveKeys = {"command", "command_full_counts", "command_zero_counts", "rpdo", "cob_id",
-                                          "feedback", "feedback_tpdo", "feedback_cob_id"};
+                                          "feedback", "feedback_full_counts", "feedback_tpdo", "feedback_cob_id"};
 
 class Reader {
  public:
@@ -303,7 +303,9 @@ RigFile fromIni(const canopen::IniFile& ini) {
   pdoWrites(r, sensor, tpdo_line, true, tpdo, rig.layout.sensor_cob, pos);
   if (const IniKey* k = ss.find("position_step_mm")) {
     if (k->value == "device") {
-      entry(r, sensor, k->line, 0x6005, 1);
+      // Read at boot; until then (and for decoding a log) the EDS's default, if it has one.
+      const canopen::Entry& step = entry(r, sensor, k->line, 0x6005, 1);
+      if (step.asUnsigned() > 0) rig.layout.scaling.position_step_mm = static_cast<double>(step.asUnsigned()) * 1e-6;
       rig.layout.position_step_from_device = true;
     } else {
       rig.layout.scaling.position_step_mm = r.doubleKey(ss, "position_step_mm", 0, 1e-9, 1e3);
@@ -347,6 +349,8 @@ RigFile fromIni(const canopen::IniFile& ini) {
         r.unsignedKey(vs, "feedback_cob_id", defaultPdoCob(r, line, true, feedback_tpdo, valve.id), 1, 0x7FF));
     otherTpdosOff(valve, feedback_tpdo);
     pdoWrites(r, valve, line, true, feedback_tpdo, rig.layout.feedback_cob, fb);
+    rig.layout.scaling.pressure_full_counts = r.doubleKey(vs, "feedback_full_counts", rig.layout.scaling.pressure_full_counts, 1, 65535);
+    rig.feedback = RigObject{fidx, fsub, fb.dataType()};
   } else {
     rig.layout.feedback = false;
     otherTpdosOff(valve, 0);
@@ -368,6 +372,8 @@ RigFile fromIni(const canopen::IniFile& ini) {
   rig.layout.sensor_boot = std::move(sensor.boot);
   rig.layout.valve_boot = std::move(valve.boot);
   rig.layout.startup = rig.startup;
+  rig.position = RigObject{pidx, psub, pos.dataType()};
+  rig.command = RigObject{cidx, csub, cmd.dataType()};
   return rig;
 }
 }  // namespace

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "canopen/bus.hpp"
+#include "nodes/decoder.hpp"
 #include "nodes/rig_file.hpp"
 #include "plant/plant.hpp"
 #include "rig/virtual_rig.hpp"
@@ -97,6 +98,17 @@ struct Tool {
   Frame last{};
   std::vector<std::uint16_t> emcy;
 };
+
+// od/rigs/profile.ini with its EDS paths made absolute.
+std::string profileRig() {
+  std::ifstream in(kOd + "rigs/profile.ini");
+  std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const char* eds : {"controller.eds", "profile/encoder406.eds", "profile/analog401.eds"}) {
+    const std::string from = std::string("../") + eds;
+    t.replace(t.find(from), from.size(), kOd + eds);
+  }
+  return t;
+}
 
 double trackingRmse(const std::vector<nodes::CycleRecord>& recs, double from_s) {
   double s = 0;
@@ -355,15 +367,7 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
     EXPECT_FALSE(rig.controller().running()) << "pamc's layout on devices that differ";
   }
   std::vector<std::string> log;
-  auto c = controllerFromRig(writeTemp("profile.ini", [] {
-    std::ifstream in(kOd + "rigs/profile.ini");
-    std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    for (const char* eds : {"controller.eds", "profile/encoder406.eds", "profile/analog401.eds"}) {
-      const std::string from = std::string("../") + eds;
-      t.replace(t.find(from), from.size(), kOd + eds);
-    }
-    return t;
-  }()), &log);
+  auto c = controllerFromRig(writeTemp("profile.ini", profileRig()), &log);
   nodes::VirtualRig rig(c, profile);
   rig.start();
   rig.runFor(4.0);
@@ -374,4 +378,50 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
   EXPECT_LT(trackingRmse(rig.records(), 1.0), 1.0);
   // The module watches the controller now: without its heartbeat the valve output goes to its error value.
   EXPECT_FALSE(rig.emulator().valveInError());
+}
+
+// A log of a run with the profile devices decodes through the rig file - its COB-IDs 0x190, 0x220,
+// 0x1A0 and its scaling (5 um steps, 0..20000 counts) - to the positions the controller saw; through
+// the EDS files alone (pamc's own COB-IDs) it has no position at all.
+TEST(RigDecode, ALogOfTheProfileRigDecodesToThePositionsTheControllerSaw) {
+  const auto path = writeTemp("profile.ini", profileRig());
+  nodes::VirtualRig rig(controllerFromRig(path, nullptr), nodes::EmulatorConfig::profileDevices(kOd.substr(0, kOd.size() - 1)));
+  std::vector<canopen::CandumpRecord> log;
+  rig.addTap([&](const Frame& f, canopen::TimeUs t) {
+    canopen::CandumpRecord r;
+    r.unix_time_us = 1700000000000000 + t;
+    r.interface = "vcan0";
+    r.frame = f;
+    log.push_back(r);
+  });
+  rig.start();
+  rig.runFor(3.0);
+  ASSERT_TRUE(rig.controller().running());
+  const auto run = nodes::decodeCandump(log, nodes::busDictionaryFromRig(nodes::readRigFile(path)));
+  ASSERT_GT(run.rows.size(), 2000u);
+  EXPECT_EQ(run.columns.at(2), "y");
+  EXPECT_EQ(run.held, 0u);
+  // The controller works at SYNC k with the position sent after SYNC k-1: the same series one row on.
+  const auto& recs = rig.records();
+  ASSERT_GT(recs.size(), 2000u);
+  std::vector<double> dec;
+  for (const auto& r : run.rows) dec.push_back(r[2]);
+  std::size_t best = 0;
+  for (std::size_t off = 0; off + recs.size() <= dec.size(); ++off) {
+    std::size_t same = 0;
+    for (std::size_t i = 0; i < recs.size(); ++i) same += dec[off + i] == recs[i].y;
+    best = std::max(best, same);
+  }
+  EXPECT_EQ(best, recs.size()) << "every position the controller saw, in order";
+  // Scaled: the positions are millimetres of the sine 10-20 mm, not counts.
+  const auto [lo, hi] = std::minmax_element(dec.begin(), dec.end());
+  EXPECT_GT(*lo, -1.0);
+  EXPECT_LT(*hi, 40.0);
+  EXPECT_GT(*hi - *lo, 5.0);
+  // The command in volts relative to mid-range, from 0..20000 counts.
+  for (const auto& r : run.rows) {
+    EXPECT_GE(r[1], -5.0 - 1e-9);
+    EXPECT_LE(r[1], 5.0 + 1e-9);
+  }
+  EXPECT_TRUE(nodes::decodeCandump(log, nodes::loadBusDictionary({kOd})).rows.empty()) << "pamc's own COB-IDs";
 }
