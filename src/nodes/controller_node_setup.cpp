@@ -144,15 +144,15 @@ void ControllerNode::applyOverrides() {
     hb.set(withNode(hb.get(), id));
   }
   if (lay.startup) od.ref<std::uint32_t>(0x1F80, 0).set(lay.startup);
-  // 0x1F81 for the slaves (the master reads it when it begins): the rig's boot settings, or a slave that
-  // may be reset for a node-ID the EDS does not assign.
+  // 0x1F81 for the slaves (the master reads it when it begins): the rig's boot settings, or a plain slave
+  // (reset when it comes back after a heartbeat loss) for a node-ID the EDS does not assign.
   for (auto [id, boot] : {std::pair<std::uint8_t, const std::optional<canopen::SlaveBoot>*>{cfg_.sensor_id, &lay.sensor_boot},
                           {cfg_.valve_id, &lay.valve_boot}}) {
     auto* e = od.find(0x1F81, id);
     if (e == nullptr) continue;
     std::uint32_t a = e->get<std::uint32_t>();
     if (*boot) a = (*boot)->assignment;
-    else if (a == 0) a = canopen::kAssignSlave | canopen::kAssignResetAllowed;
+    else if (a == 0) a = canopen::kAssignSlave;
     if (id == cfg_.sensor_id && lay.position_step_from_device) a |= canopen::kAssignBoot;
     e->set<std::uint32_t>(a);
   }

@@ -33,7 +33,7 @@ const std::set<std::string> kBusKeys = {"interface", "bitrate", "period_us"};
 const std::set<std::string> kControllerKeys = {"node_id", "eds", "startup"};
 const std::set<std::string> kSlaveCommon = {"node_id",  "eds",    "device_type", "vendor_id",    "product_code",
                                             "revision", "serial", "heartbeat_ms", "master_heartbeat_ms",
-                                            "boot",     "mandatory", "reset"};
+                                            "boot",     "mandatory", "keep_alive", "retries"};
 const std::set<std::string> kSensorKeys = {"position", "position_step_mm", "tpdo", "cob_id"};
 const std::set<std::string> kValveKeys = {"command", "command_full_counts", "command_zero_counts", "rpdo", "cob_id",
                                           "feedback", "feedback_full_counts", "feedback_tpdo", "feedback_cob_id"};
@@ -56,6 +56,9 @@ class Reader {
     for (const auto& k : s.keys) {
       std::string n = k.name;
       std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (n == "reset")  // the key of the former reading of 0x1F81 bit 4
+        fail(k.line, "reset: 0x1F81 bit 4 is keep alive (CiA 302-2); a slave back after a heartbeat loss is reset "
+                     "unless keep_alive = yes");
       if (a.count(n) == 0 && b.count(n) == 0) fail(k.line, "unknown key '" + k.name + "' in [" + s.name + "]");
     }
   }
@@ -206,7 +209,8 @@ SlaveBuild slaveCommon(const Reader& r, const IniSection& sec, std::uint8_t cont
   std::uint32_t a = canopen::kAssignSlave;
   if (r.boolKey(sec, "boot", true)) a |= canopen::kAssignBoot;
   if (r.boolKey(sec, "mandatory", true)) a |= canopen::kAssignMandatory;
-  if (r.boolKey(sec, "reset", true)) a |= canopen::kAssignResetAllowed;
+  if (r.boolKey(sec, "keep_alive", false)) a |= canopen::kAssignKeepAlive;
+  a |= canopen::assignRetries(static_cast<unsigned>(r.unsignedKey(sec, "retries", 3, 0, 255)));
   s.boot.assignment = a;
   (void)controller_id;
   return s;

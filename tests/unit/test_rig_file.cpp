@@ -131,6 +131,11 @@ TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
   ASSERT_TRUE(rig.layout.sensor_boot && rig.layout.valve_boot);
   EXPECT_EQ(*rig.layout.sensor_boot->device_type, 0x00080196u);
   EXPECT_EQ(rig.layout.error_value_index, 0x6444);
+  // 0x1F81: slave, boot, mandatory, not kept alive, 3 retries.
+  EXPECT_EQ(rig.layout.sensor_boot->assignment, 0x0000030Du);
+  const auto kept = nodes::readRigFile(writeTemp("kept.ini", rigText({{"mandatory = yes          ; 0x1F81",
+                                                                        "keep_alive = yes\nretries = 5\nmandatory = yes ; 0x1F81"}})));
+  EXPECT_EQ(kept.layout.sensor_boot->assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
   // The sensor's TPDO1: disabled, synchronous, mapped to 0x6004:00 (32 bits), enabled on 0x182.
   const auto& w = rig.layout.sensor_boot->writes;
   auto has = [&](std::uint16_t i, std::uint8_t s, std::uint64_t v, std::size_t n) {
@@ -172,6 +177,8 @@ TEST(RigFile, ABadFileGetsOneLineNamingTheLine) {
       {{{"startup = 0x00000001", "startup = 0x00000010"}}, "only bits 0-3 of 0x1F80"},
       {{{"tpdo = 1 ", "tpdo = 7 "}}, "has no predefined COB-ID"},
       {{{"mandatory = yes          ; 0x1F81", "mandatory = yes\nmandatory = no ; 0x1F81"}}, "duplicate key 'mandatory' in [sensor]"},
+      {{{"mandatory = yes          ; 0x1F81", "reset = yes ; 0x1F81"}}, "reset: 0x1F81 bit 4 is keep alive"},
+      {{{"mandatory = yes          ; 0x1F81", "retries = 256 ; 0x1F81"}}, "retries 256 is outside 0..255"},
   };
   for (const auto& c : cases) {
     const std::string path = writeTemp("rig.ini", rigText(c.edits));
@@ -424,4 +431,34 @@ TEST(RigDecode, ALogOfTheProfileRigDecodesToThePositionsTheControllerSaw) {
     EXPECT_LE(r[1], 5.0 + 1e-9);
   }
   EXPECT_TRUE(nodes::decodeCandump(log, nodes::loadBusDictionary({kOd})).rows.empty()) << "pamc's own COB-IDs";
+}
+
+// CiA 302-2 0x1F81 bits 8-15, the retry factor: an answer of the sensor is lost, the step times out
+// (1 s) and is tried again; the boot completes and the loop runs. With `retries = 0` the boot fails there.
+TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
+  for (int retries : {3, 0}) {
+    std::vector<std::string> log;
+    const auto path = writeTemp("rig.ini", retries == 3 ? rigText()
+                                                         : rigText({{"boot = yes               ; configure at boot",
+                                                                     "retries = 0\nboot = yes ; configure at boot"}}));
+    int lost = 0;  // the sensor's first answer to the read of its vendor-ID 0x1018:01
+    nodes::VirtualRig rig(controllerFromRig(path, &log), emulator(), 0, [&](Frame& f) {
+      return !(f.id == 0x582 && f.data[1] == 0x18 && f.data[2] == 0x10 && f.data[3] == 1 && lost++ == 0);
+    });
+    rig.start();
+    rig.runFor(4.0);
+    const auto& mc = rig.controller().master().counters();
+    if (retries == 3) {
+      EXPECT_EQ(mc.boot_retries, 1u);
+      EXPECT_EQ(mc.boots, 2u);
+      EXPECT_EQ(mc.boot_failures, 0u);
+      EXPECT_TRUE(rig.controller().running());
+    } else {
+      EXPECT_EQ(mc.boot_retries, 0u);
+      EXPECT_EQ(mc.boot_failures, 1u);
+      const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; });
+      ASSERT_NE(line, log.end());
+      EXPECT_NE(line->find("sensor (node 2) not started: 0x1018:01 read failed: SDO protocol timed out"), std::string::npos) << *line;
+    }
+  }
 }
