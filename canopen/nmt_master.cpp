@@ -93,6 +93,11 @@ bool NmtMaster::mandatoryReady() const noexcept {
   });
 }
 
+bool NmtMaster::keptAlive(const Slave& s) const noexcept {
+  return (s.boot.assignment & kAssignKeepAlive) != 0 && !node_.heartbeatConsumer().timedOut(s.id) &&
+         node_.heartbeatConsumer().remoteState(s.id) == NmtState::Operational;
+}
+
 bool NmtMaster::mayStart(const Slave& s) const noexcept {
   if (!begun_ || (startup_ & kStartupMaster) == 0 || (startup_ & kStartupNoSlaveStart) != 0) return false;
   if (s.hold != 0) return false;
@@ -127,9 +132,18 @@ void NmtMaster::begin(TimeUs now) {
     if (const Entry* e = od.find(0x1F81, s.id)) s.boot.assignment = e->get<std::uint32_t>();
   begun_ = true;
   if ((startup_ & kStartupMaster) == 0) return;
-  // Every slave is booted at the master's start (CiA 302-2): whatever another master left in it.
-  for (auto& s : slaves_)
-    if (needsBoot(s.boot, s.ops.size()) && s.state != Boot::Running) s.state = Boot::Waiting;
+  // Every slave is booted at the master's start (CiA 302-2): whatever another master left in it - but one
+  // kept alive that is running is left as it is.
+  for (auto& s : slaves_) {
+    if (!needsBoot(s.boot, s.ops.size()) || s.state == Boot::Running) continue;
+    if (keptAlive(s)) {
+      s.state = Boot::Done;
+      ++counters_.kept_alive;
+    } else {
+      s.state = Boot::Waiting;
+      s.resume = false;
+    }
+  }
   poll(now);
   startReady(now);
 }
@@ -140,8 +154,12 @@ void NmtMaster::poll(TimeUs) noexcept {
     if (s.state != Boot::Waiting) continue;
     if (node_.sdoClient().busy()) return;
     s.state = Boot::Running;
-    s.next_op = 0;
-    s.error = BootError{};
+    if (!s.resume) {
+      s.next_op = 0;
+      s.retries_left = retriesOf(s.boot.assignment);
+      s.error = BootError{};
+    }
+    s.resume = false;
     runBoot(s);
     return;
   }
@@ -150,6 +168,7 @@ void NmtMaster::poll(TimeUs) noexcept {
 void NmtMaster::bootSlave(Slave& s, TimeUs now) noexcept {
   if (!begun_ || !needsBoot(s.boot, s.ops.size()) || (startup_ & kStartupMaster) == 0) return;
   s.state = Boot::Waiting;
+  s.resume = false;
   poll(now);
 }
 
@@ -176,13 +195,22 @@ void NmtMaster::runBoot(Slave& s) noexcept {
   } else {
     sent = sdo.upload(id, op.index, op.sub, reply);
   }
-  if (!sent) s.state = Boot::Waiting;  // the client is busy: poll() goes on from this operation
+  if (!sent) {
+    s.state = Boot::Waiting;  // the client is busy: poll() goes on from this operation
+    s.resume = true;
+  }
 }
 
 void NmtMaster::onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept {
   if (s.state != Boot::Running || s.next_op >= s.ops.size()) return;
   const Op& op = s.ops[s.next_op];
   const std::string at = where(op.index, op.sub);
+  if (code == kAbortTimeout && s.retries_left > 0) {
+    // No answer (still booting, a frame lost): the same step again.
+    --s.retries_left;
+    ++counters_.boot_retries;
+    return runBoot(s);
+  }
   if (code != kSdoOk) {
     const char* what = op.kind == OpKind::Write ? " write refused: " : " read failed: ";
     return bootFailed(s, code, at + what + sdoAbortText(code));
@@ -320,15 +348,16 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
     case HeartbeatEvent::Started:
       if (s->lost) {
         // Back after a timeout without a boot-up: re-boot it (reset communication); its boot-up boots and
-        // starts it. Without the right to reset it, it is only started.
+        // starts it. One kept alive that reports Operational keeps its state and configuration.
         s->lost = false;
         if (!begun_) {
           // Not the master now: nothing to send.
-        } else if ((s->boot.assignment & kAssignResetAllowed) != 0) {
+        } else if ((s->boot.assignment & kAssignKeepAlive) != 0 && st == NmtState::Operational) {
+          s->start_sent = kNever;
+          ++counters_.kept_alive;
+        } else {
           node_.sendNmt(NmtCommand::ResetCommunication, id);
           ++counters_.reboots;
-        } else if (mayStart(*s)) {
-          startSlave(*s, now);
         }
       } else if (st == NmtState::Operational) {
         s->start_sent = kNever;

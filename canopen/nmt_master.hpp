@@ -2,15 +2,18 @@
 // NMT master of a set of slaves (CiA 301 7.2.8, the start-up of CiA 302-2): a slave is checked and
 // configured after its boot-up ("boot slave": its identity 0x1000 / 0x1018 against the expected one, a
 // concise DCF written and read back), then started; one that comes back after a heartbeat loss is
-// re-booted (reset communication), so it boots up and goes through all of it again; one that stays in
-// Pre-operational after a start gets another. The application may hold a slave in Pre-operational for
+// re-booted (reset communication), so it boots up and goes through all of it again - unless it is kept
+// alive and reports Operational; one that stays in Pre-operational after a start gets another. A boot
+// step the slave does not answer (SDO timeout) is tried again, up to the slave's retry factor. The application may hold a slave in Pre-operational for
 // reasons of its own (a bit per reason); it is started when the last reason is released.
 //
 // Settings: 0x1F80 NMT start-up (bit 0 master, bit 1 start the slaves with one broadcast, bit 2 do not
 // enter Operational by itself - read by the application, bit 3 do not start the slaves) and 0x1F81
-// slave assignment (bit 0 slave, bit 2 boot: check and configure, bit 3 mandatory: no slave is started
-// before it is configured, bit 4 reset communication allowed), taken from the node's dictionary when
-// it has them (begin()), otherwise from setStartup() / SlaveBoot.
+// slave assignment as CiA 302-2 defines it (bit 0 slave, bit 2 boot: check and configure, bit 3
+// mandatory: no slave is started before it is configured, bit 4 keep alive: a slave that is Operational
+// with a live heartbeat is neither reset nor configured again - at the master's start and when it comes
+// back after a heartbeat loss, bits 8-15 retry factor: how often an unanswered boot step is tried again),
+// taken from the node's dictionary when it has them (begin()), otherwise from setStartup() / SlaveBoot.
 //
 // The master takes the node's heartbeat hook and passes what the application must react to on as
 // SlaveEvents. All of it runs on the node's thread; the boot uses the node's SDO client between
@@ -47,11 +50,14 @@ inline constexpr std::uint32_t kStartupSupported = 0x0F;
 inline constexpr std::uint32_t kAssignSlave = 0x01;
 inline constexpr std::uint32_t kAssignBoot = 0x04;
 inline constexpr std::uint32_t kAssignMandatory = 0x08;
-inline constexpr std::uint32_t kAssignResetAllowed = 0x10;
+inline constexpr std::uint32_t kAssignKeepAlive = 0x10;
+inline constexpr unsigned kAssignRetryShift = 8;  // bits 8-15: retry factor
+constexpr std::uint32_t assignRetries(unsigned n) { return (n & 0xFFu) << kAssignRetryShift; }
+constexpr unsigned retriesOf(std::uint32_t assignment) { return (assignment >> kAssignRetryShift) & 0xFFu; }
 
 // What the master checks, reads and writes at a slave's boot.
 struct SlaveBoot {
-  std::uint32_t assignment = kAssignSlave | kAssignResetAllowed;  // 0x1F81 bits
+  std::uint32_t assignment = kAssignSlave;  // 0x1F81 bits
   // Expected identity: 0x1000, 0x1018:01..04 (unset: not checked).
   std::optional<std::uint32_t> device_type, vendor_id, product_code, revision, serial;
   // Read before the writes; on_value returns false (with why) to fail the boot.
@@ -81,6 +87,8 @@ class NmtMaster {
     std::uint64_t holds = 0;    // slave sent to Pre-operational by hold()
     std::uint64_t boots = 0;    // boots finished (configured)
     std::uint64_t boot_failures = 0;
+    std::uint64_t boot_retries = 0;  // boot steps tried again after an SDO timeout
+    std::uint64_t kept_alive = 0;    // Operational keep-alive slaves left as they were (no reset, no boot)
   };
 
   explicit NmtMaster(Node& node);
@@ -145,12 +153,16 @@ class NmtMaster {
     std::vector<Op> ops;           // the boot, flattened
     Boot state = Boot::Idle;
     std::size_t next_op = 0;
+    unsigned retries_left = 0;     // of this boot
+    bool resume = false;           // Waiting for the SDO client in the middle of a boot: go on at next_op
     BootError error;
   };
   Slave* find(std::uint8_t id) noexcept;
   const Slave* find(std::uint8_t id) const noexcept;
   bool mayStart(const Slave& s) const noexcept;
   bool mandatoryReady() const noexcept;
+  // Kept alive (0x1F81 bit 4) and Operational with a live heartbeat: leave it as it is.
+  bool keptAlive(const Slave& s) const noexcept;
   void startSlave(Slave& s, TimeUs now) noexcept;
   void startReady(TimeUs now) noexcept;
   void bootSlave(Slave& s, TimeUs now) noexcept;  // begins the boot, or starts it when nothing to check

@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <cstring>
 
+#include "nodes/rig_file.hpp"
 #include "plant/plant.hpp"
 
 namespace pamc::app {
@@ -91,6 +92,26 @@ std::string defaultOdDir() {
 
 void OdOption::add(CLI::App* a) {
   a->add_option("--od", dir, "folder with the EDS files (controller.eds, sensor.eds, valve.eds)")->capture_default_str();
+}
+
+void BusDictionaryOptions::add(CLI::App* a) {
+  a->add_option("--rig", rig, "rig file (docs/RIG.md): decode the rig's devices - their COB-IDs and scaling - "
+                              "as the controller configured them, instead of the EDS files of --od");
+  a->add_option("--eds", eds, "further EDS files (devices not in --od or the rig), repeatable");
+}
+
+nodes::BusDictionary BusDictionaryOptions::load(const OdOption& od) const {
+  if (rig.empty()) {
+    std::vector<std::string> paths = eds;
+    paths.insert(paths.begin(), od.dir);
+    return nodes::loadBusDictionary(paths);
+  }
+  nodes::BusDictionary d = nodes::busDictionaryFromRig(nodes::readRigFile(rig));
+  if (eds.empty()) return d;
+  const nodes::BusDictionary more = nodes::loadBusDictionary(eds);
+  d.pdos.insert(more.pdos.begin(), more.pdos.end());  // the rig's COB-IDs win
+  d.nodes.insert(more.nodes.begin(), more.nodes.end());
+  return d;
 }
 
 void EmulatorOptions::add(CLI::App* a) {

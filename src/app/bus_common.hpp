@@ -17,6 +17,7 @@
 #include "canopen/event_loop.hpp"
 #include "canopen/socketcan.hpp"
 #include "nodes/controller_node.hpp"
+#include "nodes/decoder.hpp"
 #include "nodes/emulator_node.hpp"
 
 namespace pamc::app {
@@ -136,6 +137,15 @@ std::string defaultOdDir();
 struct OdOption {
   std::string dir = defaultOdDir();
   void add(CLI::App* a);
+};
+
+// What decode and monitor read the bus through: the rig file's devices (--rig: its slaves, COB-IDs and
+// scaling) with the PDOs of the further EDS files (--eds) beside them, or the EDS files of --od and --eds.
+struct BusDictionaryOptions {
+  std::string rig;
+  std::vector<std::string> eds;
+  void add(CLI::App* a);
+  nodes::BusDictionary load(const OdOption& od) const;
 };
 
 // The emulator nodes: plant, fault injection, payload (rig, emulator).

@@ -14,6 +14,7 @@
 #include "app/node_options.hpp"
 #include "io/measurement.hpp"
 #include "nodes/decoder.hpp"
+#include "nodes/fault_report.hpp"
 #include "nodes/monitor.hpp"
 #include "rig/fault_rig.hpp"
 #include "rig/virtual_rig.hpp"
@@ -26,7 +27,7 @@ class ControllerCommand final : public Command {
  public:
   explicit ControllerCommand(CLI::App& app)
       : Command(app.add_subcommand("controller", "run the controller node on a SocketCAN interface")) {
-    cmd_->add_option("--iface", iface, "CAN interface (can0, vcan0, ...)")->capture_default_str();
+    cmd_->add_option("--iface", iface, "CAN interface (can0, vcan0, ...; default: the rig file's)");
     od_.add(cmd_);
     rig_.add(cmd_);
     kind_.add(cmd_);
@@ -39,9 +40,10 @@ class ControllerCommand final : public Command {
   int run() override {
     const std::string& csv = run_.csv;
     const double duration = run_.duration;
+    if (!rig_.given()) rig_.path = od_.dir + "/rigs/default.ini";  // pamc's own rig, booted like any other
     auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, consume_sync, &rig_);
     c.build_off_cycle = true;  // an SDO commit must not hold up the cycles of this thread
-    if (rig_.given() && cmd_->count("--iface") == 0) iface = nodes::readRigFile(rig_.path).interface;
+    if (iface.empty()) iface = nodes::readRigFile(rig_.path).interface;
     realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
     auto canp = openCan(iface);
     auto& can = *canp;
@@ -58,23 +60,14 @@ class ControllerCommand final : public Command {
     logger.start();
     std::fprintf(stderr, "controller node %u on %s: %s, %s%s\n", node.node().nodeId(), iface.c_str(), control::toString(node.kind()),
                  c.trajectory.describe().c_str(), c.produce_sync ? ", producing SYNC" : ", consuming SYNC");
+    // --duration by the wall clock too: the run ends on time whatever the slaves do.
+    const nodes::RunEnd end(duration, c.preroll_s, canopen::monotonicNowUs());
     std::thread watch([&] {
-      nodes::Fault last = nodes::Fault::None;
+      nodes::FaultReporter reporter([](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); });
       while (!g_stop) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
-        const auto f = node.fault();
-        if (f != last) {
-          if (f == nodes::Fault::IdCollision)
-            std::fprintf(stderr, "fault: %s (frame on COB-ID 0x%03X from another node) -> valve to its safe value, "
-                         "EMCY 0x%04X sent\n", nodes::toString(f), node.lastCollisionCob(), nodes::emcyCode(f));
-          else if (f != nodes::Fault::None)
-            std::fprintf(stderr, "fault: %s -> valve to its safe value, EMCY 0x%04X sent\n", nodes::toString(f),
-                         nodes::emcyCode(f));
-          else
-            std::fprintf(stderr, "fault cleared: estimator and integrator restarted\n");
-          last = f;
-        }
-        if (duration > 0 && node.runTime() >= duration) loop.stop();
+        reporter.step(node);
+        if (end.reached(node, canopen::monotonicNowUs())) loop.stop();
       }
     });
     {
@@ -90,11 +83,12 @@ class ControllerCommand final : public Command {
                 static_cast<unsigned long long>(st.rx_frames), static_cast<unsigned long long>(st.tx_frames),
                 static_cast<unsigned long long>(st.tx_queued), static_cast<unsigned long long>(st.tx_dropped),
                 static_cast<unsigned long long>(st.tx_expired), static_cast<unsigned long long>(st.error_frames));
+    if (auto why = nodes::runFailure(node)) throw std::runtime_error(*why);
     return 0;
   }
 
  private:
-  std::string iface = "vcan0", candump;
+  std::string iface, candump;
   bool consume_sync = false;
   OdOption od_;
   RigOption rig_;

@@ -29,13 +29,11 @@ class DecodeCommand final : public Command {
                                              "mappings of the EDS files")) {
     cmd_->add_option("log", log_in, "candump -l log (from candump or the nodes)")->required();
     od_.add(cmd_);
-    cmd_->add_option("--eds", eds, "further EDS files (devices not in --od), repeatable");
+    dict_.add(cmd_);
     cmd_->add_option("--out", out, "measurement CSV to write (default: LOG.csv)");
   }
   int run() override {
-    std::vector<std::string> od_paths = eds;
-    od_paths.insert(od_paths.begin(), od_.dir);
-    const auto dict = nodes::loadBusDictionary(od_paths);
+    const auto dict = dict_.load(od_);
     std::vector<std::string> warnings;
     const auto log = canopen::readCandumpLog(log_in, &warnings);
     printWarnings(warnings);
@@ -69,8 +67,8 @@ class DecodeCommand final : public Command {
 
  private:
   std::string log_in, out;
-  std::vector<std::string> eds;
   OdOption od_;
+  BusDictionaryOptions dict_;
 };
 
 }  // namespace

@@ -29,16 +29,14 @@ class MonitorCommand final : public Command {
     cmd_->add_option("--iface", iface, "CAN interface")->capture_default_str();
     cmd_->add_option("--log", log_in, "replay a candump log instead of listening");
     od_.add(cmd_);
-    cmd_->add_option("--eds", eds, "further EDS files (devices not in --od), repeatable");
+    dict_.add(cmd_);
     cmd_->add_option("--duration", duration, "stop after this many seconds (0: until Ctrl-C)")
         ->capture_default_str()
         ->check(CLI::NonNegativeNumber);
     cmd_->add_flag("--once", once, "print one screen at the end and exit");
   }
   int run() override {
-    std::vector<std::string> od_paths = eds;
-    od_paths.insert(od_paths.begin(), od_.dir);
-    auto dict = nodes::loadBusDictionary(od_paths);
+    auto dict = dict_.load(od_);
     nodes::Monitor mon(dict);
     if (!log_in.empty()) {
       std::vector<std::string> warnings;
@@ -85,7 +83,7 @@ class MonitorCommand final : public Command {
 
  private:
   std::string iface = "vcan0", log_in;
-  std::vector<std::string> eds;
+  BusDictionaryOptions dict_;
   double duration = 0.0;  // live: until Ctrl-C
   bool once = false;
   OdOption od_;

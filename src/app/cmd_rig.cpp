@@ -248,10 +248,9 @@ class RigCommand final : public Command {
                 r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
     printStats(r.stats, t);
     if (!candump.empty()) std::printf("candump log: %s\n", candump.c_str());
-    if (t.n == 0 && !forever)
-      throw std::runtime_error("the loop never started: no usable position from the sensor (node " +
-                               std::to_string(c.sensor_id) + "); devices that differ from pamc's own need a rig "
-                               "file that describes them (--rig, docs/RIG.md)");
+    if (!r.failure.empty() && !forever)
+      throw std::runtime_error("the loop never started: " + r.failure + "; devices that differ from pamc's own need "
+                               "a rig file that describes them (--rig, docs/RIG.md)");
     return 0;
   }
 

@@ -24,7 +24,8 @@ struct NodeRunOptions {
     a->add_option("--trajectory", trajectory,
                   "desired position: triangle:F:LO:HI, sinedesc:F:C:A0:A1:T, square:F:LO:HI, ...")
         ->capture_default_str();
-    a->add_option("--duration", duration, "seconds of trajectory (0: until stopped with Ctrl-C)")->capture_default_str()->check(CLI::NonNegativeNumber);
+    a->add_option("--duration", duration, "seconds of trajectory; the run ends by the clock at the latest pre-roll + duration + 3 s after the start, "
+                  "whatever the slaves do (0: until stopped with Ctrl-C)")->capture_default_str()->check(CLI::NonNegativeNumber);
     a->add_option("--preroll", preroll, "seconds holding the first setpoint before the trajectory")->capture_default_str()->check(CLI::NonNegativeNumber);
     a->add_option("--csv", csv, "file for the cycle records (t,yd,y,u,...)");
     a->add_option("--period-us", period_us, "SYNC period (default: 0x1006 of the EDS, 1000 us)")->check(CLI::Range(100u, 1000000u));
@@ -32,13 +33,15 @@ struct NodeRunOptions {
 };
 
 // A rig file: the slaves the controller masters - node-IDs, EDS, identity, PDOs, scaling, what to
-// write at their boot (docs/RIG.md). Without it, pamc's own devices with their built-in layout.
+// write at their boot (docs/RIG.md). Without it, `pamc controller` runs on od/rigs/default.ini and
+// `pamc rig` on pamc's own devices with their built-in layout.
 struct RigOption {
   std::string path;
   void add(CLI::App* a) {
     a->add_option("--rig", path,
                   "rig file (docs/RIG.md, od/rigs/): node-IDs, EDS files, the slaves' identity, PDOs, scaling and "
-                  "boot configuration; its interface and period unless --iface / --period-us are given");
+                  "boot configuration; its interface and period unless --iface / --period-us are given "
+                  "(pamc controller without it: od/rigs/default.ini)");
   }
   bool given() const { return !path.empty(); }
 };
@@ -61,8 +64,8 @@ inline nodes::ControllerNodeConfig controllerNodeConfig(const OdOption& od, cons
   if (rig != nullptr && rig->given()) {
     nodes::applyRig(nodes::readRigFile(rig->path), c);
     if (run.period_us) c.period_us = run.period_us;
-    c.log = [](const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); };
   }
+  c.log = [](const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); };
   if ((c.kind == static_cast<int>(control::Kind::PiAmc) || c.kind == static_cast<int>(control::Kind::OpenLoop)) &&
       ctrl.model_file.empty())
     std::fprintf(stderr, "warning: no --model: the %s controller uses the model parameters of the EDS defaults\n",

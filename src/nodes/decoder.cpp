@@ -13,6 +13,7 @@
 
 #include "canopen/eds_dictionary.hpp"
 #include "canopen/pdo.hpp"
+#include "nodes/rig_file.hpp"
 
 namespace pamc::nodes {
 
@@ -146,6 +147,48 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
       }
     }
   }
+  return bd;
+}
+
+namespace {
+// A PDO of one field on cob, from node id of device dev, in role with its scaling.
+void addField(BusDictionary& bd, std::uint32_t cob, const std::string& dev, std::uint8_t id, const RigObject& o,
+              const char* name, const char* role, double scale, double offset, const char* unit) {
+  PdoField f;
+  f.index = o.index;
+  f.sub = o.sub;
+  f.type = o.type;
+  f.bytes = static_cast<std::uint8_t>(canopen::dataTypeSize(o.type));
+  f.column = dev + "." + name;
+  f.role = role;
+  f.scale = scale;
+  f.offset = offset;
+  f.unit = unit;
+  PdoLayout l;
+  l.cob_id = cob;
+  l.device = dev;
+  l.node_id = id;
+  l.fields.push_back(f);
+  l.length = f.bytes;
+  bd.pdos[cob] = l;
+}
+}  // namespace
+
+BusDictionary busDictionaryFromRig(const RigFile& rig) {
+  BusDictionary bd;
+  bd.sync_period_s = static_cast<double>(rig.period_us) * 1e-6;
+  bd.nodes[rig.controller_id] = "controller";
+  bd.nodes[rig.sensor_id] = "sensor";
+  bd.nodes[rig.valve_id] = "valve";
+  const pd::Scaling& s = rig.layout.scaling;
+  addField(bd, rig.layout.sensor_cob, "sensor", rig.sensor_id, rig.position, "position", "y", s.position_step_mm, 0.0, "mm");
+  // Counts -> volts over 0..10 V, relative to mid-range as the controller's u.
+  const double v_per_count = pd::kValveFullScale_V / s.command_full_counts;
+  addField(bd, rig.layout.valve_cob, "valve", rig.valve_id, rig.command, "command", "u", v_per_count,
+           -s.command_zero_counts * v_per_count - pd::kValveMid_V, "V");
+  if (rig.layout.feedback)
+    addField(bd, rig.layout.feedback_cob, "valve", rig.valve_id, rig.feedback, "pressure", "p",
+             pd::kPressureFullScale_bar / s.pressure_full_counts, 0.0, "bar");
   return bd;
 }
 

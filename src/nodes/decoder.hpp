@@ -42,6 +42,12 @@ struct BusDictionary {
 // EDS files, or directories holding them. Throws canopen::EdsError / std::runtime_error.
 BusDictionary loadBusDictionary(const std::vector<std::string>& paths);
 
+struct RigFile;
+// The rig's devices as the controller configures them (nodes/rig_file.hpp): the sensor's position,
+// the valve's command and feedback on the rig's COB-IDs, in the rig's scaling; the SYNC period of the
+// rig. A position step read from the device at boot is taken as its EDS's default.
+BusDictionary busDictionaryFromRig(const RigFile& rig);
+
 // Decodes one PDO's fields into engineering values (false on a length mismatch).
 bool decodePdo(const PdoLayout& l, const canopen::Frame& f, std::vector<double>& out);
 

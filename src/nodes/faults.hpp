@@ -32,8 +32,10 @@ enum class Fault : std::uint8_t {
   PositionRange = 17,    // more than 0x2021 positions in a row outside the measuring range 0x2022:01
   // Warning: the slave is left stopped (the loop cannot start with it; a running loop meets ...State).
   SlaveBoot = 18,        // a slave's identity did not match, or it refused or lost its configuration at boot
+  // Safety fault: the loop never started.
+  NoPosition = 19,       // no position PDO within ControllerNodeConfig::no_position_s of entering Operational
 };
-inline constexpr int kFaultCount = 19;
+inline constexpr int kFaultCount = 20;
 
 struct FaultInfo {
   Fault fault;
@@ -66,6 +68,8 @@ inline constexpr FaultInfo kFaults[kFaultCount] = {
     {Fault::PositionRange, "position outside the sensor's measuring range", canopen::kEmcySensorRange, false},
     // CiA 301 has no code for a slave's configuration: "data set" (software, 0x63xx).
     {Fault::SlaveBoot, "slave boot failed (identity or configuration)", canopen::kEmcyDataSet, true},
+    // An RPDO that never came is an RPDO timeout too; the first byte of the EMCY (19) tells it apart.
+    {Fault::NoPosition, "no position since Operational", canopen::kEmcyRpdoTimeout, false},
 };
 
 constexpr bool faultTableInOrder() {

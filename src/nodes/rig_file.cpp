@@ -33,10 +33,10 @@ const std::set<std::string> kBusKeys = {"interface", "bitrate", "period_us"};
 const std::set<std::string> kControllerKeys = {"node_id", "eds", "startup"};
 const std::set<std::string> kSlaveCommon = {"node_id",  "eds",    "device_type", "vendor_id",    "product_code",
                                             "revision", "serial", "heartbeat_ms", "master_heartbeat_ms",
-                                            "boot",     "mandatory", "reset"};
+                                            "boot",     "mandatory", "keep_alive", "retries"};
 const std::set<std::string> kSensorKeys = {"position", "position_step_mm", "tpdo", "cob_id"};
 const std::set<std::string> kValveKeys = {"command", "command_full_counts", "command_zero_counts", "rpdo", "cob_id",
-                                          "feedback", "feedback_tpdo", "feedback_cob_id"};
+                                          "feedback", "feedback_full_counts", "feedback_tpdo", "feedback_cob_id"};
 
 class Reader {
  public:
@@ -56,6 +56,9 @@ class Reader {
     for (const auto& k : s.keys) {
       std::string n = k.name;
       std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (n == "reset")  // the key of the former reading of 0x1F81 bit 4
+        fail(k.line, "reset: 0x1F81 bit 4 is keep alive (CiA 302-2); a slave back after a heartbeat loss is reset "
+                     "unless keep_alive = yes");
       if (a.count(n) == 0 && b.count(n) == 0) fail(k.line, "unknown key '" + k.name + "' in [" + s.name + "]");
     }
   }
@@ -206,7 +209,8 @@ SlaveBuild slaveCommon(const Reader& r, const IniSection& sec, std::uint8_t cont
   std::uint32_t a = canopen::kAssignSlave;
   if (r.boolKey(sec, "boot", true)) a |= canopen::kAssignBoot;
   if (r.boolKey(sec, "mandatory", true)) a |= canopen::kAssignMandatory;
-  if (r.boolKey(sec, "reset", true)) a |= canopen::kAssignResetAllowed;
+  if (r.boolKey(sec, "keep_alive", false)) a |= canopen::kAssignKeepAlive;
+  a |= canopen::assignRetries(static_cast<unsigned>(r.unsignedKey(sec, "retries", 3, 0, 255)));
   s.boot.assignment = a;
   (void)controller_id;
   return s;
@@ -303,7 +307,9 @@ RigFile fromIni(const canopen::IniFile& ini) {
   pdoWrites(r, sensor, tpdo_line, true, tpdo, rig.layout.sensor_cob, pos);
   if (const IniKey* k = ss.find("position_step_mm")) {
     if (k->value == "device") {
-      entry(r, sensor, k->line, 0x6005, 1);
+      // Read at boot; until then (and for decoding a log) the EDS's default, if it has one.
+      const canopen::Entry& step = entry(r, sensor, k->line, 0x6005, 1);
+      if (step.asUnsigned() > 0) rig.layout.scaling.position_step_mm = static_cast<double>(step.asUnsigned()) * 1e-6;
       rig.layout.position_step_from_device = true;
     } else {
       rig.layout.scaling.position_step_mm = r.doubleKey(ss, "position_step_mm", 0, 1e-9, 1e3);
@@ -347,6 +353,8 @@ RigFile fromIni(const canopen::IniFile& ini) {
         r.unsignedKey(vs, "feedback_cob_id", defaultPdoCob(r, line, true, feedback_tpdo, valve.id), 1, 0x7FF));
     otherTpdosOff(valve, feedback_tpdo);
     pdoWrites(r, valve, line, true, feedback_tpdo, rig.layout.feedback_cob, fb);
+    rig.layout.scaling.pressure_full_counts = r.doubleKey(vs, "feedback_full_counts", rig.layout.scaling.pressure_full_counts, 1, 65535);
+    rig.feedback = RigObject{fidx, fsub, fb.dataType()};
   } else {
     rig.layout.feedback = false;
     otherTpdosOff(valve, 0);
@@ -368,6 +376,8 @@ RigFile fromIni(const canopen::IniFile& ini) {
   rig.layout.sensor_boot = std::move(sensor.boot);
   rig.layout.valve_boot = std::move(valve.boot);
   rig.layout.startup = rig.startup;
+  rig.position = RigObject{pidx, psub, pos.dataType()};
+  rig.command = RigObject{cidx, csub, cmd.dataType()};
   return rig;
 }
 }  // namespace

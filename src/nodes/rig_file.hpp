@@ -21,6 +21,13 @@ class RigError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// An object of a slave the cycle carries: where it is and its type (from the slave's EDS).
+struct RigObject {
+  std::uint16_t index = 0;  // 0: none
+  std::uint8_t sub = 0;
+  canopen::DataType type = canopen::DataType::Integer32;
+};
+
 struct RigFile {
   std::string path;
   std::string interface = "can0";
@@ -32,6 +39,7 @@ struct RigFile {
   std::uint8_t sensor_id = 2, valve_id = 3;
   std::string sensor_eds, valve_eds;  // resolved paths
   SlaveLayout layout;                 // COB-IDs, scaling, boot plans
+  RigObject position, command, feedback;  // in the PDOs on layout's sensor_cob, valve_cob, feedback_cob
 };
 
 // Reads and checks a rig file; throws RigError (or EdsError for a bad slave EDS) naming file and line.

@@ -133,7 +133,8 @@ struct Rig;
 
 // One row per bus fault: what it is called, how long it lasts, what the rig needs for it, and how it
 // is injected and cleared. Adding a fault: one enum value (fault_rig.hpp) and one row here.
-enum Needs : unsigned { kPlain = 0, kSyncSource = 1, kTimedBus = 2, kDupController = 4, kDupSensor = 8 };
+// kAtStart: injected after the emulator's start, before the controller's (not into a running loop).
+enum Needs : unsigned { kPlain = 0, kSyncSource = 1, kTimedBus = 2, kDupController = 4, kDupSensor = 8, kAtStart = 16 };
 struct FaultSpec {
   BusFault fault;
   const char* name;         // for --only
@@ -147,6 +148,7 @@ const FaultSpec& spec(BusFault f);
 inline bool consumesSync(BusFault f) { return (spec(f).needs & kSyncSource) != 0; }
 inline bool timedBus(BusFault f) { return (spec(f).needs & kTimedBus) != 0; }
 inline double faultSeconds(BusFault f) { return spec(f).seconds; }
+inline bool atStart(BusFault f) { return (spec(f).needs & kAtStart) != 0; }
 
 // The whole rig of one run.
 struct Rig {
@@ -204,8 +206,17 @@ struct Rig {
       if (t >= emcy_from) emcy.push_back(canopen::getU16(fr.data));
     });
     emu->start(0);
-    ctrl->start(0);
-    if (sync) sync->start(0);
+    if (!atStart(f)) startController();
+  }
+  void startController() {
+    ctrl->start(bus.now());
+    if (sync) sync->start(bus.now());
+  }
+  // An expedited SDO download of 4 bytes to a node, from the rig's own port (answered at the next step).
+  void sdoWrite32(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::uint32_t v) {
+    std::uint8_t d[8] = {0x23, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub};
+    canopen::putU32(d + 4, v);
+    aux.send(canopen::makeFrame(0x600u + node, 8, d));
   }
   void step(TimeUs dt) {
     bus.advanceBy(dt);

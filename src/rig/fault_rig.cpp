@@ -83,6 +83,11 @@ const FaultSpec kFaultSpecs[] = {
      [](Rig& r) { r.aux.send(errorFrame(0x40, 0)); }, [](Rig& r) { r.aux.send(errorFrame(0x100, 0)); }},
     {BusFault::CanOverflow, "can-overflow", "error frame: controller RX overflow", 0.001, kPlain,
      [](Rig& r) { r.aux.send(errorFrame(0x04, 0x01)); }, nothing},
+    // Another master moved the TPDO (CiA 301: disabled first, then the new COB-ID); moved back after it.
+    {BusFault::SensorPdoMovedAtStart, "pdo-moved-at-start",
+     "sensor's position TPDO on COB-ID 0x190 when the controller starts, moved back after 2 s", 2.0, kAtStart,
+     [](Rig& r) { r.sdoWrite32(2, 0x1800, 1, 0x80000182u), r.sdoWrite32(2, 0x1800, 1, 0x190u); },
+     [](Rig& r) { r.sdoWrite32(2, 0x1800, 1, 0x80000190u), r.sdoWrite32(2, 0x1800, 1, 0x182u); }},
 };
 
 const FaultSpec& spec(BusFault f) {
@@ -125,16 +130,22 @@ FaultRun runOne(BusFault setup, BusFault f, double fault_s, const FaultRigOption
   FaultRun out;
   out.fault = f;
   out.fault_s = fault_s;
-  // Settle, then inject right after a SYNC.
+  // Settle, then inject right after a SYNC; or inject, then start the controller.
   const TimeUs limit = static_cast<TimeUs>((o.preroll_s + o.inject_at_s + 30.0) * 1e6);
-  while (r.ctrl->runTime() < o.inject_at_s && r.bus.now() < limit) r.step(kPeriod);
+  if (atStart(setup)) {
+    r.emcy_from = 0;
+    begin(r, f);
+    r.step(kPeriod);
+    r.startController();
+  }
+  while (!atStart(setup) && r.ctrl->runTime() < o.inject_at_s && r.bus.now() < limit) r.step(kPeriod);
   if (r.bus.now() >= limit) throw std::runtime_error("fault rig: the controller did not start");
   const TimeUs t_inj = r.bus.now();
   const TimeUs t_end = t_inj + static_cast<TimeUs>(std::llround(out.fault_s * 1e6));
   const TimeUs t_stop = t_end + static_cast<TimeUs>(std::llround(o.after_s * 1e6));
   r.emcy_from = t_inj;
   const FaultCounters fc0 = r.ctrl->faultCounters();
-  begin(r, f);
+  if (!atStart(setup)) begin(r, f);
   bool injected = true, faulted = false, safe = false;
   const double safe_volts = pd::valveVolts(r.ctrl->safeCommand());
   while (r.bus.now() < t_stop) {
@@ -173,7 +184,8 @@ FaultRun runOne(BusFault setup, BusFault f, double fault_s, const FaultRigOption
   std::uint64_t cycles = 0;
   for (TimeUs t : r.rec_us) cycles += t > t_inj && t <= t_stop;
   const auto expected = static_cast<std::uint64_t>((t_stop - t_inj) / kPeriod);
-  out.cycles_without_sync = expected > cycles ? expected - cycles : 0;
+  // (Before the loop's first start there are no records to count.)
+  out.cycles_without_sync = expected > cycles && !atStart(setup) ? expected - cycles : 0;
   out.fc = r.ctrl->faultCounters();
   out.samples_lost = out.fc.samples_missing - fc0.samples_missing;
   out.safe_cycles_total = out.fc.safe_cycles - fc0.safe_cycles;
@@ -198,6 +210,13 @@ std::vector<BusFault> allBusFaults() {
   std::vector<BusFault> v;
   for (const auto& x : kFaultSpecs)
     if (x.fault != BusFault::None) v.push_back(x.fault);
+  return v;
+}
+
+std::vector<BusFault> runningBusFaults() {
+  std::vector<BusFault> v;
+  for (BusFault f : allBusFaults())
+    if (!atStart(f)) v.push_back(f);
   return v;
 }
 

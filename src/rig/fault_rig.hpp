@@ -45,9 +45,12 @@ enum class BusFault {
   ErrorPassive,         // CAN error frame: controller error passive, error active again 100 ms later
   BusOff,               // CAN error frame: bus off, restarted 100 ms later
   CanOverflow,          // CAN error frame: controller receive overflow
+  // Injected before the controller starts (the loop has never run):
+  SensorPdoMovedAtStart,  // the sensor's position TPDO on COB-ID 0x190 when the controller starts, 2 s
 };
 
 std::vector<BusFault> allBusFaults();
+std::vector<BusFault> runningBusFaults();  // those injected into a running loop (the soak draws from them)
 const char* busFaultName(BusFault f);  // short name for --only
 std::string busFaultDescription(BusFault f);
 

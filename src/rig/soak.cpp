@@ -166,7 +166,7 @@ Soak::Soak(const SoakOptions& o, const std::function<void(const SoakInterval&)>&
     : o_(o),
       on_interval_(on_interval),
       on_progress_(on_progress),
-      catalogue_(o.faults.empty() ? allBusFaults() : o.faults),
+      catalogue_(o.faults.empty() ? runningBusFaults() : o.faults),
       rig_(std::make_unique<Rig>(BusFault::None, rigOptions(o), true)),
       r_(*rig_),
       rng_(o.seed ^ 0x5DEECE66Dull),

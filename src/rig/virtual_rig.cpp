@@ -13,7 +13,7 @@ namespace pamc::nodes {
 
 VirtualRig::VirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, std::uint32_t bitrate,
                        FrameEdit emulator_tx)
-    : cport_(bus_.addPort()), eport_(bus_.addPort()), etx_(eport_, std::move(emulator_tx)) {
+    : cport_(bus_.addPort()), eport_(bus_.addPort()), etx_(eport_, std::move(emulator_tx)), reporter_(c.log) {
   if (bitrate > 0) bus_.setBitrate(bitrate);
   ctrl_ = std::make_unique<ControllerNode>(c, cport_, [this] { return bus_.now(); });
   emu_ = std::make_unique<EmulatorNodes>(e, etx_);
@@ -35,6 +35,7 @@ void VirtualRig::step(canopen::TimeUs dt_us) {
     if (sink_) sink_(rec);
     else records_.push_back(rec);
   }
+  reporter_.step(*ctrl_);
 }
 
 VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, double duration_s,
@@ -53,15 +54,14 @@ VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConf
   if (hooks.tap) bus.addTap(hooks.tap);
   rig.start();
   const bool forever = (hooks.realtime || hooks.until_stopped) && duration_s <= 0;
-  const double limit_s = duration_s + c.preroll_s + 30.0;  // give up if it never starts
+  const RunEnd end(duration_s, c.preroll_s, bus.now());
   using Clock = std::chrono::steady_clock;
   const auto wall0 = Clock::now();
   auto flushed = wall0;
   timespec pace{};
   ::clock_gettime(CLOCK_MONOTONIC, &pace);
-  while (forever || ctrl.runTime() < duration_s) {
+  while (forever || (duration_s > 0 && !end.reached(ctrl, bus.now()))) {
     rig.step();
-    if (!forever && bus.now() * 1e-6 > limit_s) break;
     if (hooks.on_step && !hooks.on_step(bus.now())) break;
     if (log) {
       // A cycle boundary: its lines are complete. Hand them over once per millisecond of wall time.
@@ -93,6 +93,7 @@ VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConf
   r.final_fault = ctrl.fault();
   r.counters = ctrl.node().counters();
   r.bus_busy_us = bus.busyUs();
+  if (auto why = runFailure(ctrl)) r.failure = *why;
   return r;
 }
 

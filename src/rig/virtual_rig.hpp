@@ -9,13 +9,15 @@
 
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
+#include "nodes/fault_report.hpp"
 
 namespace pamc::nodes {
 
 // The rig declared once and then stepped (the shape of a simulation diagram: declare, then step).
 // The constructor builds the bus (with bit timing when bitrate > 0), the controller node and the
 // emulator nodes, and connects them; start() boots them; step() advances the bus by one period and
-// hands the controller's cycle records to the sink (or keeps them). Tools that need their own station
+// hands the controller's cycle records to the sink (or keeps them) and the controller's fault lines to
+// its configuration's log. Tools that need their own station
 // on the bus (an SDO client, an NMT master, a fault injector) take a port with addPort() before start().
 class VirtualRig {
  public:
@@ -73,6 +75,7 @@ class VirtualRig {
   std::unique_ptr<EmulatorNodes> emu_;
   std::function<void(const CycleRecord&)> sink_;
   std::vector<CycleRecord> records_;
+  FaultReporter reporter_;
 };
 
 struct VirtualRigResult {
@@ -86,6 +89,7 @@ struct VirtualRigResult {
   // Paced in real time: how late each wake-up came, and how many came a whole period late or more.
   Histogram wake_late_us;
   std::uint64_t wake_overruns = 0;
+  std::string failure;  // why the run failed (runFailure), empty if it did not
 };
 
 // Optional: a live rig (paced to the wall clock) whose frames and records go elsewhere.
@@ -103,8 +107,9 @@ struct VirtualRigHooks {
   std::function<bool(canopen::TimeUs)> on_step;
 };
 
-// Runs until the controller's trajectory time reaches duration_s (after its pre-roll; with realtime or
-// until_stopped, 0 runs until on_step says stop). candump_log, if not empty, receives every frame in candump -l format
+// Runs until the controller's trajectory time reaches duration_s (after its pre-roll), in bus time at
+// most pre-roll + duration + RunEnd::kStartGraceS (RunEnd; with realtime or until_stopped, 0
+// runs until on_step says stop). candump_log, if not empty, receives every frame in candump -l format
 // with virtual timestamps from epoch_us; it is handed to the kernel (write(2)) at cycle boundaries at
 // least once per millisecond of wall time, so a crash loses at most the last millisecond of frames.
 // bitrate > 0 gives the bus bit timing and CAN arbitration (VirtualBus::setBitrate); 0 is the ideal bus.

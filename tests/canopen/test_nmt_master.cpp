@@ -138,6 +138,56 @@ TEST(NmtMaster, IgnoresNodesItDoesNotSuperviseAndRefusesBadIds) {
 namespace pamc::canopen::test {
 namespace {
 
+// CiA 302-2 0x1F81 bit 4, keep alive: back after a heartbeat loss and Operational, the slave keeps its
+// state - no reset; back in Pre-operational it is reset as any other slave.
+TEST(NmtMaster, AKeptAliveSlaveThatIsOperationalIsNotReset) {
+  MasterRig r;
+  r.ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(kAssignSlave | kAssignKeepAlive);
+  r.master.begin(r.net.bus.now());
+  r.net.send("702#05");
+  r.nmt();
+  r.net.bus.advanceTo(r.net.bus.now() + 400'000);
+  ASSERT_TRUE(r.master.timedOut(2));
+  r.net.send("702#05");
+  EXPECT_EQ(r.nmt(), Frames{}) << "kept alive: no reset";
+  EXPECT_EQ(r.master.counters().reboots, 0u);
+  EXPECT_EQ(r.master.counters().kept_alive, 1u);
+  r.net.bus.advanceTo(r.net.bus.now() + 400'000);
+  ASSERT_TRUE(r.master.timedOut(2));
+  r.net.send("702#7F");  // back, but not Operational
+  EXPECT_EQ(r.nmt(), Frames{"000#8202"}) << "reset communication";
+  EXPECT_EQ(r.master.counters().reboots, 1u);
+}
+
+// At the master's (re)start a boot slave is configured again - unless it is kept alive and running.
+TEST(NmtMasterBoot, AKeptAliveSlaveThatRunsIsNotBootedAgainAtTheMastersStart) {
+  for (bool keep : {false, true}) {
+    Network net;
+    Node& ctrl = net.addEds(odPath("controller.eds"));
+    Node& sensor = net.addEds(odPath("sensor.eds"));
+    NmtMaster master(ctrl);
+    master.addSlave(2);
+    SlaveBoot b;
+    b.assignment = kAssignSlave | kAssignBoot | (keep ? kAssignKeepAlive : 0u);
+    b.writes = {dcfValue(0x1017, 0, 50, 2)};
+    master.setBoot(2, b);
+    ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(b.assignment);
+    net.startAll();
+    master.begin(net.bus.now());
+    net.bus.advanceTo(100'000);
+    ASSERT_EQ(sensor.nmtState(), NmtState::Operational);
+    ASSERT_EQ(master.counters().boots, 1u);
+    const auto sdo = net.recorder.matching("602#").size();
+    master.end();
+    master.begin(net.bus.now());
+    net.bus.advanceTo(200'000);
+    EXPECT_EQ(master.counters().boots, keep ? 1u : 2u) << "keep=" << keep;
+    EXPECT_EQ(net.recorder.matching("602#").size() == sdo, keep) << "keep=" << keep;
+    EXPECT_EQ(master.counters().kept_alive, keep ? 1u : 0u);
+    EXPECT_TRUE(master.configured(2));
+  }
+}
+
 // The boot of a real slave (od/sensor.eds as node 2): identity, a write, its read-back, the start.
 TEST(NmtMasterBoot, ChecksIdentityConfiguresReadsBackThenStarts) {
   Network net;

@@ -102,6 +102,18 @@ check "rig runs on the in-process bus" test -s "$work/rig.csv"
 check "decode of the rig's log" grep -q "^t,u,y,p,t_log" "$work/rig_dec.csv"
 "$PAMC" monitor --log "$work/rig.log" --od "$SRC/od" --once > "$work/mon.txt"
 check "monitor shows the nodes operational" test "$(grep -c operational "$work/mon.txt")" -eq 3
+# A run on devices pamc did not make decodes through the rig file (its COB-IDs and scaling); through the
+# EDS files alone it has no position. Without the rig file the loop never starts: exit 1, the COB-ID named.
+"$PAMC" rig --od "$SRC/od" --rig "$SRC/od/rigs/profile.ini" --profile-defaults --duration 1 --preroll 0.5 \
+  --log "$work/prof.log" > /dev/null 2>&1
+"$PAMC" decode "$work/prof.log" --rig "$SRC/od/rigs/profile.ini" --out "$work/prof_dec.csv" > /dev/null
+check "decode --rig of a run on the profile devices" grep -q "^t,u,y,p,t_log" "$work/prof_dec.csv"
+"$PAMC" decode "$work/prof.log" --od "$SRC/od" --out "$work/prof_eds.csv" > /dev/null 2>&1
+check "the same log through the EDS files has no cycles" test $? -ne 0
+"$PAMC" rig --od "$SRC/od" --profile-defaults --duration 1 --preroll 0.5 > /dev/null 2> "$work/noprof.txt"
+check "rig on devices it cannot read exits non-zero" test $? -ne 0
+check "rig on devices it cannot read names the COB-ID it waits on" \
+  grep -q "no position within 1 s of Operational: waiting for the sensor's (node 2) PDO on COB-ID 0x182" "$work/noprof.txt"
 
 
 # Every subcommand's help, and every option it lists accepted by the parser.

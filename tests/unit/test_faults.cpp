@@ -231,6 +231,20 @@ TEST(Faults, ControllerOverflowIsAnOverrun) {
   expectSafeAndBack(r, Fault::CanOverrun, 0x8110, 1.0, 2.0);
 }
 
+// Injected before the controller starts: the loop never ran, so the reaction is the start-up limit
+// (1 s after Operational); the valve was at its safe value all along; moved back, the loop starts.
+TEST(Faults, ATpdoMovedBeforeTheStartIsNoPositionAfterOneSecond) {
+  const auto r = nodes::runBusFault(BusFault::SensorPdoMovedAtStart, options());
+  EXPECT_EQ(r.first, Fault::NoPosition) << nodes::toString(r.first);
+  EXPECT_NEAR(r.detect_cycles, 1000.0, 5.0);
+  EXPECT_TRUE(sent(r, 0x8250));
+  EXPECT_TRUE(r.emcy_reset);
+  EXPECT_TRUE(r.recovered);
+  EXPECT_GE(r.resume_s, 0.0);
+  EXPECT_LE(r.resume_s, 0.7);
+  EXPECT_LE(r.max_step_v, kStepBound);
+}
+
 TEST(Faults, RunsAreRepeatable) {
   const auto a = nodes::runBusFault(BusFault::PdoDropRandom, options());
   const auto b = nodes::runBusFault(BusFault::PdoDropRandom, options());

@@ -5,6 +5,7 @@
 // that reboots is configured again.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "canopen/bus.hpp"
+#include "nodes/decoder.hpp"
 #include "nodes/rig_file.hpp"
 #include "plant/plant.hpp"
 #include "rig/virtual_rig.hpp"
@@ -97,6 +99,17 @@ struct Tool {
   std::vector<std::uint16_t> emcy;
 };
 
+// od/rigs/profile.ini with its EDS paths made absolute.
+std::string profileRig() {
+  std::ifstream in(kOd + "rigs/profile.ini");
+  std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const char* eds : {"controller.eds", "profile/encoder406.eds", "profile/analog401.eds"}) {
+    const std::string from = std::string("../") + eds;
+    t.replace(t.find(from), from.size(), kOd + eds);
+  }
+  return t;
+}
+
 double trackingRmse(const std::vector<nodes::CycleRecord>& recs, double from_s) {
   double s = 0;
   int n = 0;
@@ -118,6 +131,11 @@ TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
   ASSERT_TRUE(rig.layout.sensor_boot && rig.layout.valve_boot);
   EXPECT_EQ(*rig.layout.sensor_boot->device_type, 0x00080196u);
   EXPECT_EQ(rig.layout.error_value_index, 0x6444);
+  // 0x1F81: slave, boot, mandatory, not kept alive, 3 retries.
+  EXPECT_EQ(rig.layout.sensor_boot->assignment, 0x0000030Du);
+  const auto kept = nodes::readRigFile(writeTemp("kept.ini", rigText({{"mandatory = yes          ; 0x1F81",
+                                                                        "keep_alive = yes\nretries = 5\nmandatory = yes ; 0x1F81"}})));
+  EXPECT_EQ(kept.layout.sensor_boot->assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
   // The sensor's TPDO1: disabled, synchronous, mapped to 0x6004:00 (32 bits), enabled on 0x182.
   const auto& w = rig.layout.sensor_boot->writes;
   auto has = [&](std::uint16_t i, std::uint8_t s, std::uint64_t v, std::size_t n) {
@@ -159,6 +177,8 @@ TEST(RigFile, ABadFileGetsOneLineNamingTheLine) {
       {{{"startup = 0x00000001", "startup = 0x00000010"}}, "only bits 0-3 of 0x1F80"},
       {{{"tpdo = 1 ", "tpdo = 7 "}}, "has no predefined COB-ID"},
       {{{"mandatory = yes          ; 0x1F81", "mandatory = yes\nmandatory = no ; 0x1F81"}}, "duplicate key 'mandatory' in [sensor]"},
+      {{{"mandatory = yes          ; 0x1F81", "reset = yes ; 0x1F81"}}, "reset: 0x1F81 bit 4 is keep alive"},
+      {{{"mandatory = yes          ; 0x1F81", "retries = 256 ; 0x1F81"}}, "retries 256 is outside 0..255"},
   };
   for (const auto& c : cases) {
     const std::string path = writeTemp("rig.ini", rigText(c.edits));
@@ -260,9 +280,11 @@ TEST(RigBoot, ARefusedWriteIsReportedWithItsAbortCode) {
   nodes::VirtualRig rig(controllerFromRig(path, &log), emulator());
   rig.start();
   rig.runFor(2.0);
-  ASSERT_FALSE(log.empty());
-  EXPECT_NE(log.back().find("valve (node 3) not started: 0x6411:01 write refused"), std::string::npos) << log.back();
-  EXPECT_NE(log.back().find("SDO abort 0x06090032"), std::string::npos) << log.back();
+  // The boot report; the loop's own line (no position: the sensor waits for the valve) follows it.
+  const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("valve (node 3)") == 0; });
+  ASSERT_NE(line, log.end());
+  EXPECT_NE(line->find("valve (node 3) not started: 0x6411:01 write refused"), std::string::npos) << *line;
+  EXPECT_NE(line->find("SDO abort 0x06090032"), std::string::npos) << *line;
   EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Stopped);
 }
 
@@ -352,15 +374,7 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
     EXPECT_FALSE(rig.controller().running()) << "pamc's layout on devices that differ";
   }
   std::vector<std::string> log;
-  auto c = controllerFromRig(writeTemp("profile.ini", [] {
-    std::ifstream in(kOd + "rigs/profile.ini");
-    std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    for (const char* eds : {"controller.eds", "profile/encoder406.eds", "profile/analog401.eds"}) {
-      const std::string from = std::string("../") + eds;
-      t.replace(t.find(from), from.size(), kOd + eds);
-    }
-    return t;
-  }()), &log);
+  auto c = controllerFromRig(writeTemp("profile.ini", profileRig()), &log);
   nodes::VirtualRig rig(c, profile);
   rig.start();
   rig.runFor(4.0);
@@ -371,4 +385,80 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
   EXPECT_LT(trackingRmse(rig.records(), 1.0), 1.0);
   // The module watches the controller now: without its heartbeat the valve output goes to its error value.
   EXPECT_FALSE(rig.emulator().valveInError());
+}
+
+// A log of a run with the profile devices decodes through the rig file - its COB-IDs 0x190, 0x220,
+// 0x1A0 and its scaling (5 um steps, 0..20000 counts) - to the positions the controller saw; through
+// the EDS files alone (pamc's own COB-IDs) it has no position at all.
+TEST(RigDecode, ALogOfTheProfileRigDecodesToThePositionsTheControllerSaw) {
+  const auto path = writeTemp("profile.ini", profileRig());
+  nodes::VirtualRig rig(controllerFromRig(path, nullptr), nodes::EmulatorConfig::profileDevices(kOd.substr(0, kOd.size() - 1)));
+  std::vector<canopen::CandumpRecord> log;
+  rig.addTap([&](const Frame& f, canopen::TimeUs t) {
+    canopen::CandumpRecord r;
+    r.unix_time_us = 1700000000000000 + t;
+    r.interface = "vcan0";
+    r.frame = f;
+    log.push_back(r);
+  });
+  rig.start();
+  rig.runFor(3.0);
+  ASSERT_TRUE(rig.controller().running());
+  const auto run = nodes::decodeCandump(log, nodes::busDictionaryFromRig(nodes::readRigFile(path)));
+  ASSERT_GT(run.rows.size(), 2000u);
+  EXPECT_EQ(run.columns.at(2), "y");
+  EXPECT_EQ(run.held, 0u);
+  // The controller works at SYNC k with the position sent after SYNC k-1: the same series one row on.
+  const auto& recs = rig.records();
+  ASSERT_GT(recs.size(), 2000u);
+  std::vector<double> dec;
+  for (const auto& r : run.rows) dec.push_back(r[2]);
+  std::size_t best = 0;
+  for (std::size_t off = 0; off + recs.size() <= dec.size(); ++off) {
+    std::size_t same = 0;
+    for (std::size_t i = 0; i < recs.size(); ++i) same += dec[off + i] == recs[i].y;
+    best = std::max(best, same);
+  }
+  EXPECT_EQ(best, recs.size()) << "every position the controller saw, in order";
+  // Scaled: the positions are millimetres of the sine 10-20 mm, not counts.
+  const auto [lo, hi] = std::minmax_element(dec.begin(), dec.end());
+  EXPECT_GT(*lo, -1.0);
+  EXPECT_LT(*hi, 40.0);
+  EXPECT_GT(*hi - *lo, 5.0);
+  // The command in volts relative to mid-range, from 0..20000 counts.
+  for (const auto& r : run.rows) {
+    EXPECT_GE(r[1], -5.0 - 1e-9);
+    EXPECT_LE(r[1], 5.0 + 1e-9);
+  }
+  EXPECT_TRUE(nodes::decodeCandump(log, nodes::loadBusDictionary({kOd})).rows.empty()) << "pamc's own COB-IDs";
+}
+
+// CiA 302-2 0x1F81 bits 8-15, the retry factor: an answer of the sensor is lost, the step times out
+// (1 s) and is tried again; the boot completes and the loop runs. With `retries = 0` the boot fails there.
+TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
+  for (int retries : {3, 0}) {
+    std::vector<std::string> log;
+    const auto path = writeTemp("rig.ini", retries == 3 ? rigText()
+                                                         : rigText({{"boot = yes               ; configure at boot",
+                                                                     "retries = 0\nboot = yes ; configure at boot"}}));
+    int lost = 0;  // the sensor's first answer to the read of its vendor-ID 0x1018:01
+    nodes::VirtualRig rig(controllerFromRig(path, &log), emulator(), 0, [&](Frame& f) {
+      return !(f.id == 0x582 && f.data[1] == 0x18 && f.data[2] == 0x10 && f.data[3] == 1 && lost++ == 0);
+    });
+    rig.start();
+    rig.runFor(4.0);
+    const auto& mc = rig.controller().master().counters();
+    if (retries == 3) {
+      EXPECT_EQ(mc.boot_retries, 1u);
+      EXPECT_EQ(mc.boots, 2u);
+      EXPECT_EQ(mc.boot_failures, 0u);
+      EXPECT_TRUE(rig.controller().running());
+    } else {
+      EXPECT_EQ(mc.boot_retries, 0u);
+      EXPECT_EQ(mc.boot_failures, 1u);
+      const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; });
+      ASSERT_NE(line, log.end());
+      EXPECT_NE(line->find("sensor (node 2) not started: 0x1018:01 read failed: SDO protocol timed out"), std::string::npos) << *line;
+    }
+  }
 }

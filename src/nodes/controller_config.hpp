@@ -1,0 +1,62 @@
+// The controller node's configuration: what the command line and a rig file choose (the dictionary's
+// defaults otherwise), and the slaves as a rig file describes them.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "canopen/nmt_master.hpp"
+#include "control/controller.hpp"
+#include "control/trajectory.hpp"
+#include "nodes/process_data.hpp"
+
+namespace pamc::nodes {
+
+// The slaves as a rig file describes them (nodes/rig_file.hpp); the defaults are pamc's own devices
+// with the layout of od/*.eds, which need no configuration.
+struct SlaveLayout {
+  pd::Scaling scaling;
+  std::uint32_t sensor_cob = 0;    // COB-ID of the sensor's position PDO (0: the controller EDS's 0x1400:01)
+  std::uint32_t valve_cob = 0;     // COB-ID of the valve's command PDO (0: 0x1800:01)
+  std::uint32_t feedback_cob = 0;  // COB-ID of the valve's feedback PDO (0: 0x1401:01)
+  bool feedback = true;            // the valve sends its pressure; its absence is a fault
+  // The valve's error value (CiA 401 0x6444:n for the output 0x6411:n); index 0: none to write.
+  std::uint16_t error_value_index = 0x6444;
+  std::uint8_t error_value_sub = 1;
+  // Boot of the slaves (NMT master, canopen/nmt_master.hpp): identity check and configuration.
+  std::optional<canopen::SlaveBoot> sensor_boot, valve_boot;
+  bool position_step_from_device = false;  // the step is read from the sensor at its boot (0x6005:01, nm)
+  std::uint32_t startup = 0;               // 0x1F80 (0: the EDS's)
+};
+
+struct ControllerNodeConfig {
+  std::string eds_path = "od/controller.eds";
+  std::uint8_t node_id = 0;           // 0: the EDS's
+  // Overrides of the object dictionary's defaults (unset: the EDS value).
+  int kind = -1;                      // control::Kind
+  control::ControllerConfig ctrl;     // the model (and, with gains_from_config, the gains)
+  bool gains_from_config = false;     // write ctrl's gains into the OD instead of reading them
+  // Cycles from a command to the position that shows it, beyond one sample: 2 with this node's
+  // timing (a synchronous valve RPDO, a sensor sending right after the SYNC); other slaves may differ.
+  int delay_cycles = 2;
+  bool has_trajectory = false;
+  control::Trajectory trajectory;
+  double preroll_s = 5.0;             // hold the first setpoint this long before the trajectory starts
+  bool produce_sync = true;
+  unsigned period_us = 0;             // SYNC period override (0: 0x1006 of the EDS)
+  std::uint8_t sensor_id = 2, valve_id = 3;
+  int recover_cycles = 500;           // a fault must be gone this long before control resumes
+  double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast
+  double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
+  double no_position_s = 1.0;         // no position this long after entering Operational: Fault::NoPosition
+  SlaveLayout layout;
+  // The controller of an SDO commit built on a worker thread instead of in the SDO server (on a rig; in
+  // virtual time the inline build keeps runs deterministic). docs/PERFORMANCE.md has what it saves.
+  bool build_off_cycle = false;
+  // Boot reports of the slaves (configured, or why not); called on the node's thread, outside the cycle.
+  std::function<void(const std::string&)> log;
+};
+
+}  // namespace pamc::nodes

@@ -1,0 +1,74 @@
+// The position sensor as the controller node sees it - a driver in the sense of Lely's coapp Driver:
+// its boot steps (the measuring step read from a CiA 406 device), the position PDO latched at each SYNC
+// (RPDO1 into 0x3000) and its supervision - missing, never come since Operational, two sources, out of
+// the measuring range, stuck while the command moves, the sensor's heartbeat and state - and its scaling.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <optional>
+
+#include "canopen/nmt_master.hpp"
+#include "canopen/node.hpp"
+#include "nodes/control_loop.hpp"
+#include "nodes/controller_parameters.hpp"
+#include "nodes/fault_supervisor.hpp"
+#include "nodes/process_data.hpp"
+
+namespace pamc::nodes {
+
+class SensorDriver {
+ public:
+  // The position latched at a SYNC.
+  struct Sample {
+    std::int32_t raw = 0;
+    double y = 0.0;       // [mm]
+    double y_ctrl = 0.0;  // what the controller gets: y, or NaN outside the measuring range
+    bool fresh = false;   // it arrived in the last cycle
+    bool in_range = false;
+    bool usable() const noexcept { return fresh && in_range; }
+    PositionSample forLoop() const noexcept { return PositionSample{y, y_ctrl, usable()}; }
+  };
+
+  SensorDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
+               double no_position_s);
+  // The master's boot plan for the sensor: the rig's, with the measuring step read from the device.
+  void setBoot(const std::optional<canopen::SlaveBoot>& boot, bool step_from_device);
+  void bind() { position_ = node_.od().ref<std::int32_t>(0x3000, 0); }
+  void onOperational(canopen::TimeUs now) noexcept;
+  void onLeftOperational() noexcept { operational_at_ = canopen::kNever; }
+
+  // The cycle: latch, plausibility (u: the command in effect), supervision.
+  Sample latch(const ParameterSet& ps) const noexcept;
+  void checkPlausibility(const Sample& s, double u) noexcept;
+  void supervise(FaultSupervisor& f, canopen::TimeUs now, bool active, bool usable, const ParameterSet& ps, double Ts) noexcept;
+
+  std::uint8_t id() const noexcept { return id_; }
+  const pd::Scaling& scaling() const noexcept { return scaling_; }
+  std::uint32_t cob() const noexcept { return cob_pub_.load(std::memory_order_relaxed); }  // any thread
+  double noPositionSeconds() const noexcept { return no_position_s_; }
+  std::uint64_t positions() const noexcept { return positions_; }
+  std::uint64_t samplesMissing() const noexcept { return samples_missing_; }
+
+ private:
+  canopen::Node& node_;
+  canopen::NmtMaster& master_;
+  std::uint8_t id_;
+  pd::Scaling scaling_;  // the step may be read at the sensor's boot, before it starts
+  double no_position_s_;
+  canopen::Ref<std::int32_t> position_{nullptr};
+  canopen::TimeUs operational_at_ = canopen::kNever;  // the node entered Operational (kNever: it is not)
+  int conflict_run_ = 0;
+  // Plausibility: positions outside the range in a row; the run of identical positions and the
+  // command's span since it began.
+  unsigned range_run_ = 0;
+  bool have_raw_ = false;
+  std::int32_t raw_last_ = 0;
+  unsigned same_run_ = 0;
+  double run_u_min_ = 0.0, run_u_max_ = 0.0;
+  std::uint64_t positions_ = 0;        // usable positions latched
+  std::uint64_t samples_missing_ = 0;  // cycles after activation without one
+  std::atomic<std::uint32_t> cob_pub_{0};
+};
+
+}  // namespace pamc::nodes

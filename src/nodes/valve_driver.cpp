@@ -1,0 +1,41 @@
+#include "nodes/valve_driver.hpp"
+
+namespace pamc::nodes {
+
+using canopen::TimeUs;
+
+ValveDriver::ValveDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
+                         bool feedback, std::uint16_t error_value_index, std::uint8_t error_value_sub)
+    : node_(node),
+      master_(master),
+      id_(id),
+      scaling_(scaling),
+      feedback_(feedback),
+      error_value_index_(error_value_index),
+      error_value_sub_(error_value_sub) {
+  master_.addSlave(id_);
+}
+
+void ValveDriver::pushErrorValue(double safe_u) noexcept {
+  // CiA 401: the valve outputs 0x6444:n on a communication error; make it the controller's safe value.
+  const std::int32_t v = scaling_.commandCounts(safe_u);
+  auto& sdo = node_.sdoClient();
+  if (sdo.busy()) return;
+  push_ = false;
+  if (error_value_index_ == 0) return;
+  sdo.downloadValue<std::int32_t>(id_, error_value_index_, error_value_sub_, v, [this](std::uint32_t code, const std::uint8_t*, std::size_t) {
+    if (code != canopen::kSdoOk) ++sdo_errors_;
+  });
+}
+
+void ValveDriver::supervise(FaultSupervisor& f, TimeUs now, bool active, std::uint64_t cycle, unsigned missing_limit) noexcept {
+  if (!active) return;
+  if (master_.timedOut(id_)) f.raise(Fault::ValveHeartbeat, id_);
+  if (holdReasons() != 0 || !master_.configured(id_)) return;
+  if (master_.down(id_, now)) f.raise(Fault::ValveState, id_);
+  if (feedback_ && !master_.starting(id_, now) && cycle > missing_limit &&
+      node_.rpdo(2).syncsSinceReception() > missing_limit)
+    f.raise(Fault::ValvePdoMissing);
+}
+
+}  // namespace pamc::nodes

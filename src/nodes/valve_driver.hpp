@@ -1,0 +1,58 @@
+// The valve as the controller node sees it - a driver in the sense of Lely's coapp Driver: its boot
+// steps, the command it gets in the TPDO after each cycle (0x3002, in the valve's counts), its error
+// value (CiA 401 0x6444:n, the controller's safe value, written at start-up and whenever it boots), the
+// supervision of its feedback PDO, heartbeat and state, and the reasons to hold it in Pre-operational.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+
+#include "canopen/nmt_master.hpp"
+#include "canopen/node.hpp"
+#include "nodes/fault_supervisor.hpp"
+#include "nodes/process_data.hpp"
+
+namespace pamc::nodes {
+
+class ValveDriver {
+ public:
+  // Reasons the valve is held in Pre-operational, where it outputs its error value.
+  enum : std::uint8_t { kHoldSync = 1, kHoldCollision = 2, kHoldSelf = 4 };
+
+  // error_value_index 0: the valve has no error value to write.
+  ValveDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
+              bool feedback, std::uint16_t error_value_index, std::uint8_t error_value_sub);
+  void setBoot(const std::optional<canopen::SlaveBoot>& boot) {
+    if (boot) master_.setBoot(id_, *boot);
+  }
+  void bind() { cmd_ = node_.od().ref<std::int16_t>(0x3002, 0); }
+
+  void command(double u) noexcept { cmd_.set(scaling_.commandCounts(u)); }  // relative volts
+  void zero() noexcept { cmd_.set(0); }
+  // The error value follows the safe value: written when the SDO client is free.
+  void errorValueDue() noexcept { push_ = true; }
+  bool errorValuePending() const noexcept { return push_; }
+  void pushErrorValue(double safe_u) noexcept;
+  void supervise(FaultSupervisor& f, canopen::TimeUs now, bool active, std::uint64_t cycle, unsigned missing_limit) noexcept;
+
+  void hold(std::uint8_t reason) noexcept { master_.hold(id_, reason); }
+  void release(std::uint8_t reason, canopen::TimeUs now) noexcept { master_.release(id_, reason, now); }
+  std::uint8_t holdReasons() const noexcept { return master_.holdReasons(id_); }
+
+  std::uint8_t id() const noexcept { return id_; }
+  std::uint64_t sdoErrors() const noexcept { return sdo_errors_; }
+
+ private:
+  canopen::Node& node_;
+  canopen::NmtMaster& master_;
+  std::uint8_t id_;
+  pd::Scaling scaling_;
+  bool feedback_;  // the valve sends its pressure; its absence is a fault
+  std::uint16_t error_value_index_;
+  std::uint8_t error_value_sub_;
+  canopen::Ref<std::int16_t> cmd_{nullptr};
+  bool push_ = false;
+  std::uint64_t sdo_errors_ = 0;  // writing the error value failed
+};
+
+}  // namespace pamc::nodes
