@@ -33,9 +33,7 @@ nlohmann::json toJson(const Comparison& c) {
 }
 
 void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::vector<std::string>* warnings) {
-  ::mkdir(dir.c_str(), 0755);
-  struct stat sb {};
-  if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(dir + ": cannot create the report directory");
+  io::makeDirectory(dir, "report directory");
   const std::string p = dir + "/";
   std::vector<double> e(d.size());
   for (size_t i = 0; i < d.size(); ++i) e[i] = d.y[i] - c.y_model[i];

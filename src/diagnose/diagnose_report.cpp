@@ -63,9 +63,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
 
 void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io::Measurement* val,
                  const DiagnoseSettings& /*s*/, const std::string& dir, std::vector<std::string>* warnings) {
-  ::mkdir(dir.c_str(), 0755);
-  struct stat sb {};
-  if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(dir + ": cannot create the report directory");
+  io::makeDirectory(dir, "report directory");
   const std::string p = dir + "/";
   // Ladder.
   {

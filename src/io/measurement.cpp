@@ -1,5 +1,7 @@
 #include "io/measurement.hpp"
 
+#include <sys/stat.h>
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -219,6 +221,12 @@ bool writeAndSync(int fd, const std::string& content) {
 }
 
 }  // namespace
+
+void makeDirectory(const std::string& dir, const std::string& what) {
+  ::mkdir(dir.c_str(), 0755);
+  struct stat sb {};
+  if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(dir + ": cannot create the " + what);
+}
 
 void writeFileAtomic(const std::string& path, const std::string& content) {
   // First choice: an unnamed file in the target's directory (O_TMPFILE), given its name only when it is

@@ -62,5 +62,8 @@ void writeCsvAtomic(const std::string& path, const std::vector<std::string>& hea
 // a file is replaced) no temporary. Falls back to a named temporary PATH.tmp.PID where O_TMPFILE is
 // not supported.
 void writeFileAtomic(const std::string& path, const std::string& content);
+// Creates the folder `dir` if it is missing (its parent must exist); throws std::runtime_error
+// "<dir>: cannot create the <what>" when it is not a folder afterwards.
+void makeDirectory(const std::string& dir, const std::string& what = "output directory");
 
 }  // namespace pamc::io

@@ -12,7 +12,7 @@ struct Series {
   std::string xcol, ycol;  // column names in the CSV header
   std::string title;
   std::string style = "lines";
-  std::string color;  // gnuplot colour ("#d62728"); empty: gnuplot's sequence
+  std::string color = "";  // gnuplot colour ("#d62728"); empty: gnuplot's sequence
 };
 
 struct Panel {

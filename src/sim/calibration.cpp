@@ -9,6 +9,7 @@
 #include <mutex>
 #include <thread>
 
+#include "io/measurement.hpp"
 #include "io/text.hpp"
 
 namespace pamc::sim {
@@ -49,12 +50,6 @@ std::string key(const CalibratedReading& r) {
   return k;
 }
 
-void makeDirectory(const std::string& d) {
-  ::mkdir(d.c_str(), 0755);
-  struct stat sb {};
-  if (::stat(d.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(d + ": cannot create the directory");
-}
-
 // Every reading of ki on one plant: Table 1 and the identification once, then the triangle per ki.
 std::vector<CalibrationPoint> evaluatePlant(const CalibrationSettings& s, const std::vector<double>& values) {
   ExperimentSettings es = s.base;
@@ -81,6 +76,12 @@ std::vector<CalibrationPoint> evaluatePlant(const CalibrationSettings& s, const 
   return out;
 }
 
+double bestDistance(const std::vector<CalibrationPoint>& pts) {
+  double best = INFINITY;
+  for (const auto& p : pts) best = std::min(best, p.distance);
+  return best;
+}
+
 // The plants of `batch` evaluated on s.threads threads; results in the cache.
 void evaluateBatch(const CalibrationSettings& s, const std::vector<std::vector<double>>& batch,
                    std::map<std::string, std::vector<CalibrationPoint>>& cache, std::mutex& m) {
@@ -89,21 +90,13 @@ void evaluateBatch(const CalibrationSettings& s, const std::vector<std::vector<d
     for (size_t i = next++; i < batch.size(); i = next++) {
       auto pts = evaluatePlant(s, batch[i]);
       std::lock_guard<std::mutex> lock(m);
-      double best = INFINITY;
-      for (const auto& p : pts) best = std::min(best, p.distance);
-      if (s.log) s.log("calibrate: plant " + key({batch[i], 0}) + " best distance " + fmt("%.3f", best));
+      if (s.log) s.log("calibrate: plant " + key({batch[i], 0}) + " best distance " + fmt("%.3f", bestDistance(pts)));
       cache[key({batch[i], 0})] = std::move(pts);
     }
   };
   std::vector<std::thread> pool;
   for (int t = 0; t < std::max(1, s.threads); ++t) pool.emplace_back(worker);
   for (auto& t : pool) t.join();
-}
-
-double bestDistance(const std::vector<CalibrationPoint>& pts) {
-  double best = INFINITY;
-  for (const auto& p : pts) best = std::min(best, p.distance);
-  return best;
 }
 
 }  // namespace
@@ -121,7 +114,7 @@ plant::PlantConfig plantWith(const std::vector<double>& values) {
 }
 
 CalibrationResult runCalibration(const CalibrationSettings& s) {
-  makeDirectory(s.work_dir);
+  io::makeDirectory(s.work_dir);
   const auto& axes = calibrationAxes();
   std::vector<double> current;
   for (const auto& a : axes) current.push_back(a.nominal);

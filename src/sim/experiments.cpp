@@ -174,12 +174,6 @@ bool wanted(const ExperimentSettings& s, const std::string& name) {
   return s.only.empty() || std::find(s.only.begin(), s.only.end(), name) != s.only.end();
 }
 
-void makeDirectory(const std::string& d) {
-  ::mkdir(d.c_str(), 0755);
-  struct stat sb {};
-  if (::stat(d.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(d + ": cannot create the output directory");
-}
-
 void judge(Context& x) {
   const auto results = judgeClaims(x.json);
   const auto n = countClaims(results);
@@ -265,7 +259,7 @@ ModelAccuracy modelAccuracy(const model::Model& m, const estimation::ActiveModel
 }
 
 ExperimentReport runExperiments(const ExperimentSettings& s) {
-  detail::makeDirectory(s.out_dir);
+  io::makeDirectory(s.out_dir);
   detail::Context x(s);
   x.dir = s.out_dir + "/";
   x.figures = s.figures && report::haveGnuplot();

@@ -511,10 +511,7 @@ std::string gridText(const GridResult& g) {
 // ---------------------------------------------------------------- the command's steps
 
 std::string makeOutDir(const std::string& out_dir) {
-  ::mkdir(out_dir.c_str(), 0755);
-  struct stat sb {};
-  if (::stat(out_dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode))
-    throw std::runtime_error(out_dir + ": cannot create the output directory");
+  io::makeDirectory(out_dir);
   return out_dir + "/";
 }
 
