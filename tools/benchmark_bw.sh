@@ -53,7 +53,8 @@ for seed in $seeds; do
     --json "$d.json" > "$d.txt" 2> "$d.log" || { cat "$d.txt" "$d.log" >&2; exit 1; }
   [ -r "$d/model.json" ] || { echo "benchmark_bw: diagnose wrote no model ($W/$d/)" >&2; exit 1; }
   # The last rung of the ladder: its validated RMSE is the last field.
-  val=$(awk '/^Ladder/ { on = 1; next } on && /^  / { v = $NF } on && /^$/ { on = 0 } END { print v }' "$d.txt")
+  val=$(awk '/^Ladder/ { on = 1; next } on && /^  / { for (i = 1; i < NF; i++) if ($i == "validation") v = $(i + 1) }
+             on && /^$/ { on = 0 } END { print v }' "$d.txt")
   echo "-- seed $seed: $(awk '/^Ladder/ { on = 1; next } on && /^  / { l = $0 } on && /^$/ { on = 0 } END { sub(/^ +/, "", l); print l }' "$d.txt")"
   if [ -z "$best_val" ] || awk -v a="$val" -v b="$best_val" 'BEGIN { exit !(a < b) }'; then
     best_val=$val

@@ -61,6 +61,7 @@ class DiagnoseCommand final : public Command {
       std::printf("  %-50s train %-10.5g validation %-10.5g%s\n", e.empty() ? "reference model" : ("+ " + e).c_str(),
                   g.rmse_train, g.rmse_val, g.removed.empty()           ? ""
                   : g.replaced_by.empty() ? ("  (" + g.removed + " taken out)").c_str()
+                  : g.refined             ? ("  (" + g.removed + " refined to " + g.replaced_by + ")").c_str()
                                           : ("  (" + g.removed + " replaced by " + g.replaced_by + ")").c_str());
     }
     if (r.probe_rung) {

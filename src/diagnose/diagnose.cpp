@@ -1,4 +1,5 @@
-// diagnose(): the steps of diagnosis.hpp in order - screen, baseline, candidates, prune, probes, verdict.
+// diagnose(): the steps of diagnosis.hpp in order - screen, baseline, candidates, prune, refine
+// (diagnose_refine.cpp), probes (diagnose_probes.cpp), verdict.
 #include "diagnose/diagnose.hpp"
 
 #include <algorithm>
@@ -35,23 +36,9 @@ constexpr double kTieFactor = 2.0;
 // A validation error whose mean square is at least this much its mean's: an offset between the records.
 constexpr double kOffsetShare = 0.8;
 
-// The bin of compare's breakdown (of at least 5 % of the samples) where a change of model lowers the
-// mean squared error most: where the structure acts, not merely where most samples are.
-std::string mostImprovedRegime(const ResidualReport& before, const ResidualReport& after) {
-  const Bin* best = nullptr;
-  double gain = 0, rb = 0, ra = 0;
-  for (const auto& b : before.bins)
-    for (const auto& a : after.bins)
-      if (a.group == b.group && a.label == b.label && 20 * b.n >= before.n) {
-        const double g = b.rmse * b.rmse - a.rmse * a.rmse;
-        if (g > gain) gain = g, best = &b, rb = b.rmse, ra = a.rmse;
-      }
-  if (!best) return "no regime in particular";
-  return best->group + " " + best->label + " (RMSE " + fmt("%.3g", rb) + " -> " + fmt("%.3g", ra) + ")";
-}
-
-// The list given, or the whole catalogue without the names given with a leading '-'; effects that need
-// a load column only when both records have one.
+// The list given, or the catalogue without the names given with a leading '-' and without the effects
+// that refine others (tried in their place instead: richerPool); effects that need a load column only
+// when both records have one.
 std::vector<std::string> candidatePool(const std::vector<std::string>& given, bool have_load) {
   std::vector<std::string> pool, without;
   for (const auto& c : given) (c.size() > 1 && c[0] == '-' ? without.push_back(c.substr(1)) : pool.push_back(c));
@@ -64,11 +51,23 @@ std::vector<std::string> candidatePool(const std::vector<std::string>& given, bo
   }
   if (pool.empty())
     for (const auto& e : model::catalogue())
-      if (std::find(without.begin(), without.end(), e.name) == without.end()) pool.emplace_back(e.name);
+      if (std::find(without.begin(), without.end(), e.name) == without.end() && e.make()->refines().empty())
+        pool.emplace_back(e.name);
   pool.erase(std::remove_if(pool.begin(), pool.end(),
                             [&](const std::string& c) { return model::makeEffect(c)->needsLoad() && !have_load; }),
              pool.end());
   return pool;
+}
+// The effects that refine others (Effect::refines), unless left out with '-name' or a list of effects to
+// try is given (then they are tried only when it names them, as candidates).
+std::vector<std::string> richerPool(const std::vector<std::string>& given) {
+  std::vector<std::string> richer;
+  for (const auto& c : given)
+    if (!(c.size() > 1 && c[0] == '-')) return richer;
+  for (const auto& e : model::catalogue())
+    if (!e.make()->refines().empty() && std::find(given.begin(), given.end(), "-" + std::string(e.name)) == given.end())
+      richer.emplace_back(e.name);
+  return richer;
 }
 }  // namespace
 
@@ -93,6 +92,7 @@ DiagnoseResult Diagnosis::run() {
   baseline();
   candidates();
   prune();
+  refinements();
   directions();
   probes();
   verdict();
@@ -119,6 +119,7 @@ void Diagnosis::screen() {
   res_.val_samples = v_.data->size() - v_.from;
   threads_ = s_.threads > 0 ? s_.threads : ident::defaultThreads();
   pool_ = candidatePool(s_.candidates, train_.has("load") && v_.data->has("load"));
+  richer_ = richerPool(s_.candidates);
   const size_t max_step = std::max<size_t>(1, static_cast<size_t>(kMaxScreenTs / train_.Ts + 1e-9));
   step_ = std::clamp<size_t>(train_.size() / kScreenSamples, 1, max_step);
   screen_ = step_ > 1 ? train_.decimate(step_) : train_;
@@ -143,7 +144,7 @@ void Diagnosis::baseline() {
   plain.setOutputForm(s_.output_form);
   auto b = ident::fit(plain, screen_, base);
   if (step_ > 1) b = refitOnAll(b.model);
-  const Rung rung{{}, b.rmse, v_.rmse(b.model), b.model, {}, {}};
+  const Rung rung{{}, b.rmse, v_.rmse(b.model), b.model, {}, {}, {}, false};
   res_.ladder.push_back(rung);
   log("  reference model: RMSE train " + fmt("%.5g", rung.rmse_train) + ", validation " + fmt("%.5g", rung.rmse_val) +
       " (" + fmt("%.1f", seconds(bt)) + " s)");
@@ -193,17 +194,20 @@ std::vector<CandidateResult> Diagnosis::searchRound(const Rung& cur, const std::
       break;
     }
   }
-  if (s_.method == ident::FitMethod::MultiStart && !results.front().confirmed) {
-    // Levenberg-Marquardt from a few starts can end in a wrong basin of the new effect (a mass-spring's
-    // frequency) where the GA, searching its whole range, does not: the round's best is searched
-    // again by the GA, and the better fit kept - unless its quick and full searches, from different
-    // starts, already ended in the same place.
-    model::Model st = cur.model;
-    st.addEffect(results.front().effect);
-    const auto g = fitEach({st}, cur.model, {results.front().effect}, round, rr, "GA: ", ident::FitMethod::Ga);
-    if (g.front().rmse_val < results.front().rmse_val) results.front() = g.front();
-  }
+  if (!results.front().confirmed) secondOpinion(results.front(), cur.model, round, rr);
   return results;
+}
+
+// Levenberg-Marquardt from a few starts can end in a wrong basin of the new effect (a mass-spring's
+// frequency) where the GA, searching its whole range, does not: a round's best is searched again by the
+// GA (method lm), and the better fit kept - unless its quick and full searches, from different starts,
+// already ended in the same place (CandidateResult::confirmed).
+void Diagnosis::secondOpinion(CandidateResult& best, const model::Model& base, int round, const ResidualReport& rr) const {
+  if (s_.method != ident::FitMethod::MultiStart) return;
+  model::Model st = base;
+  st.addEffect(best.effect);
+  const auto g = fitEach({st}, base, {best.effect}, round, rr, "GA: ", ident::FitMethod::Ga);
+  if (g.front().rmse_val < best.rmse_val) best = g.front();
 }
 
 // Rounds that add the effect that lowers the validated error most, while it lowers it by min_gain.
@@ -237,7 +241,7 @@ void Diagnosis::candidates() {
     CandidateResult taken = results.front();
     if (round < s_.max_effects && nearTie(results, cur)) taken = breakTie(results, cur, round, ahead);
     else refitIfBetter(taken);
-    Rung next_rung{cur.effects, taken.rmse_train, taken.rmse_val, taken.model, {}, {}};
+    Rung next_rung{cur.effects, taken.rmse_train, taken.rmse_val, taken.model, {}, {}, {}, false};
     next_rung.effects.push_back(taken.effect);
     res_.ladder.push_back(next_rung);
     log("  -> added " + taken.effect + ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " +
@@ -276,7 +280,7 @@ CandidateResult Diagnosis::breakTie(std::vector<CandidateResult>& results, const
   bool at_noise[2];  // the branch explains the training record to the noise
   for (int i = 0; i < 2; ++i) {
     refitIfBetter(pick[i]);
-    Rung r{cur.effects, pick[i].rmse_train, pick[i].rmse_val, pick[i].model, {}, {}};
+    Rung r{cur.effects, pick[i].rmse_train, pick[i].rmse_val, pick[i].model, {}, {}, {}, false};
     r.effects.push_back(pick[i].effect);
     const auto todo = candidatesOnTop(r.model);
     if (!todo.empty()) {
@@ -360,7 +364,7 @@ void Diagnosis::prune() {
       refitIfBetter(fits[best]);
     }
     const double rv = fits[best].rmse_val;
-    Rung pruned{{}, fits[best].rmse_train, rv, fits[best].model, {}, {}};
+    Rung pruned{{}, fits[best].rmse_train, rv, fits[best].model, {}, {}, {}, false};
     for (const auto& e : cur.effects)
       if (e != out[best]) pruned.effects.push_back(e);
       else if (!in[best].empty()) pruned.effects.push_back(in[best]);
@@ -372,152 +376,21 @@ void Diagnosis::prune() {
   }
 }
 
-namespace {
-
-// The final model with `effect` in its direction-dependent version, both parameter sets at its fit.
-model::Model withDirections(const Rung& fin, const std::string& effect) {
-  const std::string updown = effect + model::kDirectionalSuffix;
-  model::Model m(fin.model.core());
-  m.setOutputForm(fin.model.outputForm());
-  for (const auto& e : fin.effects) m.addEffect(e == effect ? updown : e);
-  for (int i = 0; i < fin.model.numEffects(); ++i) {
-    const auto& eff = fin.model.effect(i);
-    const std::string name = eff.name();
-    for (size_t q = 0; q < eff.params().size(); ++q) {
-      const double v = fin.model.effectParams(i)[q];
-      if (name != effect) {
-        m.setEffectParam(name, eff.params()[q].name, v);
-      } else {
-        m.setEffectParam(updown, eff.params()[q].name + "_up", v);
-        m.setEffectParam(updown, eff.params()[q].name + "_down", v);
-      }
-    }
-  }
-  return m;
-}
-
-// What differs, in words: the first parameter rising against falling, and for a time constant on the
-// command which way the muscle is faster ("fills faster than it vents").
-std::string directionWords(const model::Model& m, const std::string& effect) {
-  const std::string updown = effect + model::kDirectionalSuffix;
-  for (int i = 0; i < m.numEffects(); ++i) {
-    if (m.effect(i).name() != updown) continue;
-    const auto& specs = m.effect(i).params();
-    const size_t half = specs.size() / 2;
-    const double up = m.effectParams(i)[0], down = m.effectParams(i)[half];
-    const std::string& base = specs[0].name.substr(0, specs[0].name.size() - 3);
-    std::string w = effect + " with " + base + " " + fmt("%.3g", up) + " rising and " + fmt("%.3g", down) + " falling";
-    if (specs[0].unit == "s" && m.effect(i).stage() == model::Stage::Input)
-      w += up < down ? ": the muscle fills faster than it vents" : ": the muscle vents faster than it fills";
-    return w;
-  }
-  return effect;
-}
-
-}  // namespace
-
-// Each direction-dependent effect of the final model once more with separate parameters for a rising
-// and a falling input, started from its symmetric fit and refitted on all the training samples; taken
-// into the ladder when it lowers the validated RMSE by min_gain. Not when the final model is at the noise.
-void Diagnosis::directions() {
-  const Rung fin = res_.ladder.back();
-  if (noise_ > 0 && fin.rmse_val < kAtNoise * noise_) return;
-  for (const auto& e : fin.effects) {
-    if (!model::makeEffect(e)->directional()) continue;
-    const Rung& cur = res_.ladder.back();
-    // Fitted on the screening record; refitted on all the samples only when it is taken.
-    const auto f = refitOn(withDirections(cur, e), screen_);
-    CandidateResult c;
-    c.model = f.model;
-    c.rmse_val = v_.rmse(f.model);
-    log("directions: " + e + " with separate rising and falling parameters: validation " + fmt("%.5g", c.rmse_val) +
-        " (was " + fmt("%.5g", cur.rmse_val) + ")");
-    if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain) continue;
-    c.rmse_train = ident::rmseFrom(c.model, train_);
-    refitIfBetter(c);
-    Rung r;
-    for (const auto& x : cur.effects) r.effects.push_back(x == e ? e + model::kDirectionalSuffix : x);
-    r.model = c.model;
-    r.rmse_train = c.rmse_train;
-    r.rmse_val = c.rmse_val;
-    r.removed = e;
-    r.replaced_by = e + model::kDirectionalSuffix;
-    r.direction = directionWords(f.model, e);
-    res_.ladder.push_back(std::move(r));
-  }
-}
-
-// The final model's residual and validation offset; when the catalogue leaves the validated error above
-// the noise, which kind of structure explains what is left, and where.
-void Diagnosis::probes() {
-  const Rung& fin = res_.ladder.back();
-  {
-    const auto ym = simulate(fin.model, train_);
-    res_.final_residual = analyze(train_, ym);
-    std::vector<double> e(ym.size());
-    for (size_t i = 0; i < ym.size(); ++i) e[i] = train_.y[i] - ym[i];
-    res_.spectrum = residualSpectrum(e, train_.u, train_.Ts, noise_);
-  }
-  {
-    const auto yv = simulate(fin.model, *v_.data);
-    double sum = 0.0;
-    for (size_t i = v_.from; i < yv.size(); ++i) sum += v_.data->y[i] - yv[i];
-    res_.val_offset = yv.size() > v_.from ? sum / static_cast<double>(yv.size() - v_.from) : 0.0;
-  }
-  if (!s_.probes || fin.rmse_val < kAtNoise * noise_) return;
-  std::vector<std::string> names;
-  for (const auto& p : model::probes()) names.emplace_back(p.name);
-  log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
-  // A probe says what kind of structure is missing, it is not a model: LM from starts spread over its
-  // parameters (lm_warm_starts) around the final model, whatever the method.
-  const auto fits = searchOnTop(fin.model, names, s_.max_effects + 1, res_.final_residual, "probe ",
-                                ident::FitMethod::MultiStart, kFullProbes, 0);
-  for (const auto& c : fits) {
-    ProbeResult p;
-    p.probe = c.effect;
-    p.rmse_train = c.rmse_train;
-    p.rmse_val = c.rmse_val;
-    p.explains = std::max(0.0, 1.0 - (c.rmse_val * c.rmse_val) / std::max(fin.rmse_val * fin.rmse_val, 1e-300));
-    p.meaning = model::findProbe(c.effect)->meaning;
-    p.model = c.model;
-    res_.probes.push_back(std::move(p));
-  }
-  // Where each probe acts: its residual's breakdown on all the training samples, one probe per worker.
-  onWorkers(res_.probes.size(), threads_, [&](size_t i) {
-    res_.probes[i].regime = mostImprovedRegime(res_.final_residual, analyze(train_, simulate(res_.probes[i].model, train_)));
-  });
-  std::stable_sort(res_.probes.begin(), res_.probes.end(),
-                   [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
-  preferSimplestProbe();
-  res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
-}
-
-// Among the probes that explain about as much as the best (validated RMSE within kProbeTie of it), the
-// one with the fewest parameters goes first: a dead zone fitted by a two-parameter probe says more than
-// the same shape drawn by an eight-parameter curve.
-void Diagnosis::preferSimplestProbe() {
-  if (res_.probes.empty()) return;
-  auto size = [](const ProbeResult& p) { return model::findProbe(p.probe)->make()->params().size(); };
-  const double limit = kProbeTie * res_.probes.front().rmse_val;
-  size_t best = 0;
-  for (size_t i = 1; i < res_.probes.size() && res_.probes[i].rmse_val <= limit; ++i)
-    if (size(res_.probes[i]) < size(res_.probes[best])) best = i;
-  std::rotate(res_.probes.begin(), res_.probes.begin() + static_cast<long>(best), res_.probes.begin() + static_cast<long>(best) + 1);
-}
-
 // What the ladder did, in words.
 std::string Diagnosis::ladderText() const {
   const Rung& fin = res_.ladder.back();
   if (res_.ladder.size() == 1) return "No effect in the catalogue explains the residual: " + stop_reason_ + ".";
-  std::string removed, replaced, directions;
+  std::string removed, replaced, directions, refined;
   for (const auto& g : res_.ladder)
     if (g.removed.empty()) continue;
     else if (!g.direction.empty()) directions += (directions.empty() ? "" : "; ") + g.direction;
+    else if (g.refined) refined += (refined.empty() ? "" : ", ") + g.removed + " refined to " + g.replaced_by;
     else if (g.replaced_by.empty()) removed += (removed.empty() ? "" : ", ") + g.removed;
     else replaced += (replaced.empty() ? "" : ", ") + g.removed + " by " + g.replaced_by;
   std::string notes;
   if (!removed.empty()) notes += removed + " taken out again: no longer needed";
   if (!replaced.empty()) notes += (notes.empty() ? "" : "; ") + replaced + " replaced: the simpler form is enough";
+  if (!refined.empty()) notes += (notes.empty() ? "" : "; ") + refined + ": a richer form that holds it as a special case";
   if (!directions.empty()) notes += (notes.empty() ? "" : "; ") + directions;
   return "Added " + join(fin.effects) + (notes.empty() ? "" : " (" + notes + ")") + ": validated RMSE " +
          fmt("%.4g", res_.ladder.front().rmse_val) + " -> " + fmt("%.4g", fin.rmse_val) + " (" +

@@ -54,6 +54,7 @@ struct Rung {
   std::string removed;  // a pruning rung: the effect taken out of the previous rung
   std::string replaced_by;  // ... and, if not empty, the simpler alternative put in its place
   std::string direction;    // a direction rung: what differs between rising and falling, in words
+  bool refined = false;     // a refinement rung: replaced_by is a richer form that holds `removed` as a special case
 };
 
 // A probe fitted on top of the final physical model.

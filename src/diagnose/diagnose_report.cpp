@@ -36,6 +36,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
     l.push_back({{"effects", g.effects}, {"rmse_train", g.rmse_train}, {"rmse_val", g.rmse_val}, {"probe", false}});
     if (!g.removed.empty()) l.back()["removed"] = g.removed;
     if (!g.replaced_by.empty()) l.back()["replaced_by"] = g.replaced_by;
+    if (g.refined) l.back()["refined"] = true;
   }
   if (r.probe_rung) {
     auto e = r.ladder.back().effects;

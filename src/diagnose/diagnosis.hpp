@@ -3,6 +3,7 @@
 //   baseline   the reference model and the sensor noise the ladder stops at
 //   candidates the rounds that add the effect that lowers the validated error most
 //   prune      effects that lost their use taken out again, or replaced by a simpler alternative
+//   refine     the final model's effects in richer forms and direction-dependent versions
 //   probes     when the catalogue stops above the noise: which kind of structure explains the rest
 //   verdict    what it all means, in words
 // The searches they share (fits of many structures on the screening record, in parallel; refits on the
@@ -81,6 +82,10 @@ class Diagnosis {
   void baseline();
   void candidates();
   void prune();
+  // diagnose_refine.cpp: the final model in richer forms and direction-dependent versions.
+  void refinements();
+  void tryRefinement(const std::string& effect, const std::string& richer);
+  void searchByGa(CandidateResult& c, const model::Model& base) const;
   void directions();
   void probes();
   void preferSimplestProbe();
@@ -89,6 +94,7 @@ class Diagnosis {
   // candidates(): the effects that can go on top of the current model; one round's search.
   std::vector<std::string> candidatesOnTop(const model::Model& m) const;
   std::vector<CandidateResult> searchRound(const Rung& cur, const std::vector<std::string>& todo, int round);
+  void secondOpinion(CandidateResult& best, const model::Model& base, int round, const ResidualReport& rr) const;
   bool nearTie(const std::vector<CandidateResult>& results, const Rung& cur) const;
   CandidateResult breakTie(std::vector<CandidateResult>& results, const Rung& cur, int round,
                            std::vector<CandidateResult>& ahead);
@@ -124,6 +130,7 @@ class Diagnosis {
   io::Measurement screen_;          // the training record decimated for the searches
   size_t step_ = 1;                 // its decimation
   std::vector<std::string> pool_;   // candidate effects
+  std::vector<std::string> richer_;  // effects tried only in the place of those they refine
   double noise_ = 0;                // sensor noise of the records (rms)
   std::string stop_reason_ = "the catalogue is exhausted";
   DiagnoseResult res_;

@@ -66,6 +66,12 @@ class Effect {
   // An effect that stands for the same physics in another form (nullptr if none): a model holds
   // at most one of the two (Model::addEffect refuses the second).
   virtual const char* alternativeTo() const { return nullptr; }
+  // The effects this one holds as special cases when it is a richer form of them (hysteretic_spring:
+  // mass_spring at zmax 0, force_loop at hardening 0); empty for the catalogue's own effects. Such an
+  // effect is no candidate of diagnose's own unless named (--candidates): it is tried in their place once
+  // the ladder ends above the noise with one of them (Diagnosis::refinements). A model holds at most one
+  // of them and it (Model::addEffect).
+  virtual std::vector<std::string> refines() const { return {}; }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }
   // Whether the effect has a direction-dependent version ("<name>_updown": separate parameters for a

@@ -35,6 +35,14 @@ Model& Model::operator=(const Model& o) {
   return *this;
 }
 
+namespace {
+// `a` holds `b` as a special case (Effect::refines).
+bool refinesEffect(const Effect& a, const std::string& b) {
+  const auto r = a.refines();
+  return std::find(r.begin(), r.end(), b) != r.end();
+}
+}  // namespace
+
 void Model::addEffect(const std::string& name) {
   if (hasEffect(name)) throw std::invalid_argument("effect '" + name + "' is already in the model");
   auto e = makeEffect(name);
@@ -43,7 +51,8 @@ void Model::addEffect(const std::string& name) {
   for (const auto& s : effects_) {
     const char* mine = e->alternativeTo();
     const char* theirs = s.impl->alternativeTo();
-    if ((mine && s.impl->name() == std::string(mine)) || (theirs && name == theirs))
+    if ((mine && s.impl->name() == std::string(mine)) || (theirs && name == theirs) || refinesEffect(*e, s.impl->name()) ||
+        refinesEffect(*s.impl, name))
       throw std::invalid_argument("effects '" + std::string(s.impl->name()) + "' and '" + name +
                                   "' are alternatives for the same physics; a model takes one of them");
     if (s.impl->stage() == Stage::Output) filter_states += s.impl->numFilterStates();

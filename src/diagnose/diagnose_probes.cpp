@@ -1,0 +1,89 @@
+// The probes step of a diagnosis: the final model's residual, its spectrum and validation offset, and when
+// the catalogue leaves the validated error above the noise, which kind of structure explains what is left.
+#include <algorithm>
+
+#include "diagnose/diagnosis.hpp"
+#include "io/text.hpp"
+#include "model/probe.hpp"
+
+namespace pamc::diagnose::detail {
+
+namespace {
+using io::fmt;
+
+// The bin of compare's breakdown (of at least 5 % of the samples) where a change of model lowers the
+// mean squared error most: where the structure acts, not merely where most samples are.
+std::string mostImprovedRegime(const ResidualReport& before, const ResidualReport& after) {
+  const Bin* best = nullptr;
+  double gain = 0, rb = 0, ra = 0;
+  for (const auto& b : before.bins)
+    for (const auto& a : after.bins)
+      if (a.group == b.group && a.label == b.label && 20 * b.n >= before.n) {
+        const double g = b.rmse * b.rmse - a.rmse * a.rmse;
+        if (g > gain) gain = g, best = &b, rb = b.rmse, ra = a.rmse;
+      }
+  if (!best) return "no regime in particular";
+  return best->group + " " + best->label + " (RMSE " + fmt("%.3g", rb) + " -> " + fmt("%.3g", ra) + ")";
+}
+
+}  // namespace
+
+// The final model's residual and validation offset; when the catalogue leaves the validated error above
+// the noise, which kind of structure explains what is left, and where.
+void Diagnosis::probes() {
+  const Rung& fin = res_.ladder.back();
+  {
+    const auto ym = simulate(fin.model, train_);
+    res_.final_residual = analyze(train_, ym);
+    std::vector<double> e(ym.size());
+    for (size_t i = 0; i < ym.size(); ++i) e[i] = train_.y[i] - ym[i];
+    res_.spectrum = residualSpectrum(e, train_.u, train_.Ts, noise_);
+  }
+  {
+    const auto yv = simulate(fin.model, *v_.data);
+    double sum = 0.0;
+    for (size_t i = v_.from; i < yv.size(); ++i) sum += v_.data->y[i] - yv[i];
+    res_.val_offset = yv.size() > v_.from ? sum / static_cast<double>(yv.size() - v_.from) : 0.0;
+  }
+  if (!s_.probes || fin.rmse_val < kAtNoise * noise_) return;
+  std::vector<std::string> names;
+  for (const auto& p : model::probes()) names.emplace_back(p.name);
+  log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
+  // A probe says what kind of structure is missing, it is not a model: LM from starts spread over its
+  // parameters (lm_warm_starts) around the final model, whatever the method.
+  const auto fits = searchOnTop(fin.model, names, s_.max_effects + 1, res_.final_residual, "probe ",
+                                ident::FitMethod::MultiStart, kFullProbes, 0);
+  for (const auto& c : fits) {
+    ProbeResult p;
+    p.probe = c.effect;
+    p.rmse_train = c.rmse_train;
+    p.rmse_val = c.rmse_val;
+    p.explains = std::max(0.0, 1.0 - (c.rmse_val * c.rmse_val) / std::max(fin.rmse_val * fin.rmse_val, 1e-300));
+    p.meaning = model::findProbe(c.effect)->meaning;
+    p.model = c.model;
+    res_.probes.push_back(std::move(p));
+  }
+  // Where each probe acts: its residual's breakdown on all the training samples, one probe per worker.
+  onWorkers(res_.probes.size(), threads_, [&](size_t i) {
+    res_.probes[i].regime = mostImprovedRegime(res_.final_residual, analyze(train_, simulate(res_.probes[i].model, train_)));
+  });
+  std::stable_sort(res_.probes.begin(), res_.probes.end(),
+                   [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
+  preferSimplestProbe();
+  res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
+}
+
+// Among the probes that explain about as much as the best (validated RMSE within kProbeTie of it), the
+// one with the fewest parameters goes first: a dead zone fitted by a two-parameter probe says more than
+// the same shape drawn by an eight-parameter curve.
+void Diagnosis::preferSimplestProbe() {
+  if (res_.probes.empty()) return;
+  auto size = [](const ProbeResult& p) { return model::findProbe(p.probe)->make()->params().size(); };
+  const double limit = kProbeTie * res_.probes.front().rmse_val;
+  size_t best = 0;
+  for (size_t i = 1; i < res_.probes.size() && res_.probes[i].rmse_val <= limit; ++i)
+    if (size(res_.probes[i]) < size(res_.probes[best])) best = i;
+  std::rotate(res_.probes.begin(), res_.probes.begin() + static_cast<long>(best), res_.probes.begin() + static_cast<long>(best) + 1);
+}
+
+}  // namespace pamc::diagnose::detail
