@@ -66,14 +66,15 @@ class DiagnoseCommand final : public Command {
     }
     if (r.probe_rung) {
       std::string e;
-      for (const auto& x : r.ladder.back().effects) e += "+ " + x + " ";
-      std::printf("  %-50s train %-10.5g validation %-10.5g  (probe, not added)\n",
-                  (e + "+ " + r.probes.front().probe).c_str(), r.probes.front().rmse_train, r.probes.front().rmse_val);
+      for (const auto& x : r.probes.front().effectsWith(r.ladder.back().effects)) e += (e.empty() ? "+ " : " + ") + x;
+      const auto& p = r.probes.front();
+      std::printf("  %-50s train %-10.5g validation %-10.5g  (probe%s, not added)\n", e.c_str(), p.rmse_train, p.rmse_val,
+                  p.replaces.empty() ? "" : (" in place of " + p.replaces).c_str());
     }
     if (!r.probes.empty()) {
-      std::printf("\nProbes (on top of the final model), best first:\n");
+      std::printf("\nProbes (on top of the final model, or \"for\" an effect: in its place), best first:\n");
       for (const auto& p : r.probes)
-        std::printf("  %-14s validation RMSE %-10.5g explains %3.0f %%  at %s\n", p.probe.c_str(), p.rmse_val,
+        std::printf("  %-14s validation RMSE %-10.5g explains %3.0f %%  at %s\n", p.label().c_str(), p.rmse_val,
                     100 * p.explains, p.regime.c_str());
     }
     std::printf("\n%s\n", r.verdict.c_str());

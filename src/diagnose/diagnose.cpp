@@ -434,11 +434,11 @@ void Diagnosis::verdict() {
   if (!res_.probes.empty()) {
     const auto& p = res_.probes.front();
     if (res_.probe_rung)
-      v += " The probe " + p.probe + " explains " + fmt("%.0f", 100 * p.explains) + " % of what is left (validated RMSE " +
+      v += " The probe " + p.probe + (p.replaces.empty() ? "" : " (in place of " + p.replaces + ")") + " explains " + fmt("%.0f", 100 * p.explains) + " % of what is left (validated RMSE " +
            fmt("%.4g", fin.rmse_val) + " -> " + fmt("%.4g", p.rmse_val) + "), most of it at " + p.regime + ": " +
            p.meaning + ". It is a probe, not part of the model.";
     else if (!val_off)
-      v += " No probe explains what is left either (the best, " + p.probe + ", " + fmt("%.0f", 100 * p.explains) +
+      v += " No probe explains what is left either (the best, " + p.label() + ", " + fmt("%.0f", 100 * p.explains) +
            " %): structure none of the probes has.";
   }
   v += " The residual: " + describeSpectrum(res_.spectrum) + ".";

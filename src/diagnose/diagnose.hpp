@@ -45,6 +45,8 @@ struct CandidateResult {
   // Searched quickly and in full, from different starts, with validated errors within kAgree of each
   // other: the two searches found the same basin.
   bool confirmed = false;
+  // A probe fitted in place of this effect of the final model (ProbeEntry::stands_for); empty: on top.
+  std::string replaces;
 };
 
 struct Rung {
@@ -64,7 +66,12 @@ struct ProbeResult {
   double explains = 0;   // fraction of the validated residual's mean square the probe removes
   std::string regime;    // where in compare's breakdown (training data) it removes the most
   std::string meaning;   // the kind of physics it points to (model/probes/probes.inc)
+  std::string replaces;  // the final model's effect it was fitted in place of (empty: on top of the model)
   model::Model model;
+  // "dead_zone", or "dead_zone for dead_band" when fitted in place of an effect.
+  std::string label() const { return replaces.empty() ? probe : probe + " for " + replaces; }
+  // The final model's effects with this probe: the replaced one left out.
+  std::vector<std::string> effectsWith(const std::vector<std::string>& final_effects) const;
 };
 
 struct DiagnoseResult {

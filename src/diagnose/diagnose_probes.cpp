@@ -51,11 +51,18 @@ void Diagnosis::probes() {
   log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
   // A probe says what kind of structure is missing, it is not a model: LM from starts spread over its
   // parameters (lm_warm_starts) around the final model, whatever the method.
-  const auto fits = searchOnTop(fin.model, names, s_.max_effects + 1, res_.final_residual, "probe ",
-                                ident::FitMethod::MultiStart, kFullProbes, 0);
+  auto fits = searchOnTop(fin.model, names, s_.max_effects + 1, res_.final_residual, "probe ",
+                          ident::FitMethod::MultiStart, kFullProbes, 0);
+  // ... and in the place of the effects they may stand for; the best of those searched in full as well
+  // when it is the best of all.
+  for (auto& c : probesInPlace(fin, res_.final_residual)) fits.push_back(std::move(c));
+  std::stable_sort(fits.begin(), fits.end(),
+                   [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
+  if (!fits.front().replaces.empty()) searchInPlaceFully(fits.front(), fin, res_.final_residual);
   for (const auto& c : fits) {
     ProbeResult p;
     p.probe = c.effect;
+    p.replaces = c.replaces;
     p.rmse_train = c.rmse_train;
     p.rmse_val = c.rmse_val;
     p.explains = std::max(0.0, 1.0 - (c.rmse_val * c.rmse_val) / std::max(fin.rmse_val * fin.rmse_val, 1e-300));
@@ -73,6 +80,36 @@ void Diagnosis::probes() {
   res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
 }
 
+// Each probe that may stand for an effect of the final model (ProbeEntry::stands_for) fitted in that
+// effect's place, searched quickly as the probes on top are: an effect added before the probes run can
+// absorb the physics a probe stands for in a simpler form (a play taken for Dahl friction, orifice flow
+// for a first-order lag), and a probe on top of it then explains little.
+std::vector<CandidateResult> Diagnosis::probesInPlace(const Rung& fin, const ResidualReport& rr) const {
+  std::vector<CandidateResult> out;
+  for (const auto& e : fin.effects) {
+    std::vector<std::string> names;
+    for (const auto& p : model::probes())
+      if (p.standsFor(e)) names.emplace_back(p.name);
+    if (names.empty()) continue;
+    auto fits = fitOnTop(withReplacement(fin, e, ""), names, s_.max_effects + 1, rr, "probe for " + e + ": ",
+                         ident::FitMethod::MultiStart, Search::Quick, 0);
+    for (auto& c : fits) {
+      c.replaces = e;
+      out.push_back(std::move(c));
+    }
+  }
+  return out;
+}
+
+void Diagnosis::searchInPlaceFully(CandidateResult& c, const Rung& fin, const ResidualReport& rr) const {
+  auto full = fitOnTop(withReplacement(fin, c.replaces, ""), {c.effect}, s_.max_effects + 1, rr,
+                       "full: probe for " + c.replaces + ": ", ident::FitMethod::MultiStart, Search::Full);
+  if (full.front().rmse_val < c.rmse_val) {
+    full.front().replaces = c.replaces;
+    c = std::move(full.front());
+  }
+}
+
 // Among the probes that explain about as much as the best (validated RMSE within kProbeTie of it), the
 // one with the fewest parameters goes first: a dead zone fitted by a two-parameter probe says more than
 // the same shape drawn by an eight-parameter curve.
@@ -87,3 +124,13 @@ void Diagnosis::preferSimplestProbe() {
 }
 
 }  // namespace pamc::diagnose::detail
+
+namespace pamc::diagnose {
+std::vector<std::string> ProbeResult::effectsWith(const std::vector<std::string>& final_effects) const {
+  std::vector<std::string> e;
+  for (const auto& x : final_effects)
+    if (x != replaces) e.push_back(x);
+  e.push_back(probe);
+  return e;
+}
+}  // namespace pamc::diagnose

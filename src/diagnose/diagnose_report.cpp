@@ -39,8 +39,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
     if (g.refined) l.back()["refined"] = true;
   }
   if (r.probe_rung) {
-    auto e = r.ladder.back().effects;
-    e.push_back(r.probes.front().probe);
+    const auto e = r.probes.front().effectsWith(r.ladder.back().effects);
     l.push_back({{"effects", e}, {"rmse_train", r.probes.front().rmse_train}, {"rmse_val", r.probes.front().rmse_val}, {"probe", true}});
   }
   j["ladder"] = l;
@@ -53,6 +52,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
           params[p.model.effect(i).params()[q].name] = p.model.effectParams(i)[q];
     pj.push_back({{"probe", p.probe}, {"rmse_val", p.rmse_val}, {"rmse_train", p.rmse_train}, {"explains", p.explains},
                   {"regime", p.regime}, {"meaning", p.meaning}, {"params", params}});
+    if (!p.replaces.empty()) pj.back()["replaces"] = p.replaces;
   }
   j["probes"] = pj;
   j["spectrum"] = toJson(r.spectrum);
@@ -113,7 +113,7 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
     for (const auto& q : r.probes) {
       std::string regime = q.regime;
       std::replace(regime.begin(), regime.end(), ',', ';');
-      t += q.probe + "," + fmt("%.2f", 100 * q.explains) + "," + fmt("%.6g", q.rmse_val) + "," + regime + "\n";
+      t += q.label() + "," + fmt("%.2f", 100 * q.explains) + "," + fmt("%.6g", q.rmse_val) + "," + regime + "\n";
     }
     io::writeFileAtomic(p + "probes.csv", t);
   }
@@ -122,8 +122,11 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
   // (pamc rig --model, pamc experiments --model) whether the structure it points to matters there.
   if (r.probe_rung)
     io::writeModelFile(p + "probe_model.json", r.probes.front().model,
-                       {{"probe", r.probes.front().probe},
-                        {"note", "the final model with a probe on top: a kind of structure, not a physical model"},
+                       {{"probe", r.probes.front().label()},
+                        {"note", r.probes.front().replaces.empty()
+                                     ? "the final model with a probe on top: a kind of structure, not a physical model"
+                                     : "the final model with a probe in place of " + r.probes.front().replaces +
+                                           ": a kind of structure, not a physical model"},
                         {"rmse_val", r.probes.front().rmse_val}});
   else
     std::remove((p + "probe_model.json").c_str());

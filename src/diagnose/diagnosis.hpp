@@ -70,6 +70,9 @@ struct Validation {
 std::vector<double> simulate(const model::Model& m, const io::Measurement& d);
 // "a + b + c", or "(reference model)" for none.
 std::string join(const std::vector<std::string>& v);
+// The rung's model with `effect` replaced by `by` (empty: taken out), the parameters they share by name at
+// its fit (diagnose_refine.cpp).
+model::Model withReplacement(const Rung& fin, const std::string& effect, const std::string& by);
 
 class Diagnosis {
  public:
@@ -88,6 +91,9 @@ class Diagnosis {
   void searchByGa(CandidateResult& c, const model::Model& base) const;
   void directions();
   void probes();
+  // diagnose_probes.cpp: the probes fitted in the place of the effects they may stand for.
+  std::vector<CandidateResult> probesInPlace(const Rung& fin, const ResidualReport& rr) const;
+  void searchInPlaceFully(CandidateResult& c, const Rung& fin, const ResidualReport& rr) const;
   void preferSimplestProbe();
   void verdict();
 

@@ -5,6 +5,9 @@
 
 #include <filesystem>
 
+#include <algorithm>
+#include <string>
+
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -45,7 +48,7 @@ double same(double u) { return u; }
 
 std::string table(const diagnose::DiagnoseResult& r) {
   std::string s = r.verdict + "\nprobes:";
-  for (const auto& p : r.probes) s += "\n  " + p.probe + " " + std::to_string(p.rmse_val) + " " + std::to_string(p.explains);
+  for (const auto& p : r.probes) s += "\n  " + p.label() + " " + std::to_string(p.rmse_val) + " " + std::to_string(p.explains);
   return s;
 }
 double sameOut(double, double y) { return y; }
@@ -118,7 +121,8 @@ TEST(Probes, JsonContractAndNames) {
   const auto r = run(same, [](double t, double y) { return y + 0.5 * (1.0 - std::exp(-t / 5.0)); }, {"delay", "creep"});
   const auto j = diagnose::toJson(r);
   ASSERT_TRUE(j["probes"].is_array());
-  ASSERT_EQ(j["probes"].size(), model::probes().size());
+  // Every probe on top of the final model, and those that may stand for one of its effects in its place.
+  ASSERT_GE(j["probes"].size(), model::probes().size());
   double last = 0;
   for (const auto& p : j["probes"]) {
     ASSERT_TRUE(p["probe"].is_string());
@@ -130,12 +134,46 @@ TEST(Probes, JsonContractAndNames) {
     EXPECT_TRUE(p["regime"].is_string());
     EXPECT_FALSE(p["meaning"].get<std::string>().empty());
     EXPECT_EQ(p["params"].size(), model::makeEffect(p["probe"].get<std::string>())->params().size());
+    if (p.contains("replaces")) {
+      const auto& fin = r.ladder.back().effects;
+      EXPECT_NE(std::find(fin.begin(), fin.end(), p["replaces"].get<std::string>()), fin.end());
+      EXPECT_TRUE(model::findProbe(p["probe"].get<std::string>())->standsFor(p["replaces"].get<std::string>()));
+    }
   }
   // The ladder marks the probe's rung; the model holds physical effects only.
   const auto& last_rung = j["ladder"].back();
   EXPECT_TRUE(last_rung["probe"].get<bool>());
   EXPECT_EQ(last_rung["effects"].back(), j["probes"][0]["probe"]);
   for (const auto& e : j["model"]["effects"]) EXPECT_EQ(model::findProbe(e["name"].get<std::string>()), nullptr);
+}
+
+// The second column of probes.inc names catalogue effects only (not probes, not unknown names).
+TEST(Probes, StandForCatalogueEffectsOnly) {
+  int standing = 0;
+  for (const auto& p : model::probes()) {
+    std::string list = p.stands_for;
+    for (size_t at = 0; !list.empty(); list = at == std::string::npos ? "" : list.substr(at + 1)) {
+      at = list.find(',');
+      const std::string e = list.substr(0, at);
+      EXPECT_EQ(model::findProbe(e), nullptr) << p.name << " stands for a probe: " << e;
+      EXPECT_NO_THROW(model::makeEffect(e)) << p.name << " stands for an unknown effect: " << e;
+      EXPECT_TRUE(p.standsFor(e));
+      ++standing;
+    }
+  }
+  EXPECT_GT(standing, 0);
+  EXPECT_FALSE(model::findProbe("dead_zone")->standsFor(""));
+  EXPECT_FALSE(model::findProbe("dead_zone")->standsFor("dead"));
+}
+
+// A regulator whose gain falls to half above 0.8 V (data made here): the catalogue stands in for the knee
+// with what it has, and the piecewise-linear gain probe - on top of the final model or in the place of the
+// effect that took the knee - names it and brings the validated error down at least 5x.
+TEST(Probes, AKneeInTheCommandGainIsNamedByThePiecewiseGain) {
+  const auto r = run([](double u) { return u <= 0.8 ? u : 0.8 + 0.5 * (u - 0.8); }, sameOut);
+  ASSERT_FALSE(r.probes.empty()) << r.verdict;
+  EXPECT_EQ(r.probes.front().probe, "piecewise_gain") << table(r);
+  EXPECT_LE(5.0 * r.probes.front().rmse_val, r.ladder.back().rmse_val) << table(r);
 }
 
 TEST(Probes, AreNotCandidatesAndCanBeLeftOut) {

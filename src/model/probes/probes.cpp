@@ -2,13 +2,13 @@
 
 namespace pamc::model {
 
-#define PAMC_PROBE(n, meaning) std::unique_ptr<Effect> make_##n();
+#define PAMC_PROBE(n, stands_for, meaning) std::unique_ptr<Effect> make_##n();
 #include "model/probes/probes.inc"
 #undef PAMC_PROBE
 
 const std::vector<ProbeEntry>& probes() {
   static const std::vector<ProbeEntry> list = {
-#define PAMC_PROBE(n, meaning) {#n, &make_##n, meaning},
+#define PAMC_PROBE(n, stands_for, meaning) {#n, &make_##n, meaning, stands_for},
 #include "model/probes/probes.inc"
 #undef PAMC_PROBE
   };
@@ -19,6 +19,11 @@ const ProbeEntry* findProbe(const std::string& name) {
   for (const auto& p : probes())
     if (name == p.name) return &p;
   return nullptr;
+}
+
+bool ProbeEntry::standsFor(const std::string& effect) const {
+  const std::string list = std::string(",") + stands_for + ",";
+  return !effect.empty() && list.find("," + effect + ",") != std::string::npos;
 }
 
 std::string knownProbeNames() {
