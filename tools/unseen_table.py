@@ -69,7 +69,8 @@ def judge(case, diag):
     fall = final_val / with_named if with_named else None
     peaks = diag.get("spectrum", {}).get("peaks", [])
     line = "%.2f Hz %s" % (peaks[0]["hz"], "coherent" if peaks[0]["coherent"] else "not coherent") if peaks else "none"
-    return {"top": top, "named": by_probe or by_spectrum, "by": "probe" if by_probe else ("spectrum" if by_spectrum else "-"),
+    label = top + (" for " + probes[0]["replaces"] if probes and "replaces" in probes[0] else "")
+    return {"top": label, "named": by_probe or by_spectrum, "by": "probe" if by_probe else ("spectrum" if by_spectrum else "-"),
             "final_val": final_val, "fall": fall, "line": line,
             "effects": "+".join(final["effects"]) or "-"}
 

@@ -436,7 +436,8 @@ void Diagnosis::verdict() {
     if (res_.probe_rung)
       v += " The probe " + p.probe + (p.replaces.empty() ? "" : " (in place of " + p.replaces + ")") + " explains " + fmt("%.0f", 100 * p.explains) + " % of what is left (validated RMSE " +
            fmt("%.4g", fin.rmse_val) + " -> " + fmt("%.4g", p.rmse_val) + "), most of it at " + p.regime + ": " +
-           p.meaning + ". It is a probe, not part of the model.";
+           p.meaning + (p.direction.empty() ? "" : "; fitted with separate parameters rising and falling, " + p.direction) +
+           ". It is a probe, not part of the model.";
     else if (!val_off)
       v += " No probe explains what is left either (the best, " + p.label() + ", " + fmt("%.0f", 100 * p.explains) +
            " %): structure none of the probes has.";

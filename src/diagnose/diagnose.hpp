@@ -67,9 +67,12 @@ struct ProbeResult {
   std::string regime;    // where in compare's breakdown (training data) it removes the most
   std::string meaning;   // the kind of physics it points to (model/probes/probes.inc)
   std::string replaces;  // the final model's effect it was fitted in place of (empty: on top of the model)
+  std::string direction;  // fitted with separate parameters rising and falling: what differs, in words
   model::Model model;
   // "dead_zone", or "dead_zone for dead_band" when fitted in place of an effect.
-  std::string label() const { return replaces.empty() ? probe : probe + " for " + replaces; }
+  std::string label() const {
+    return (direction.empty() ? probe : probe + " (rising/falling)") + (replaces.empty() ? "" : " for " + replaces);
+  }
   // The final model's effects with this probe: the replaced one left out.
   std::vector<std::string> effectsWith(const std::vector<std::string>& final_effects) const;
 };

@@ -1,6 +1,7 @@
 // The probes step of a diagnosis: the final model's residual, its spectrum and validation offset, and when
 // the catalogue leaves the validated error above the noise, which kind of structure explains what is left.
 #include <algorithm>
+#include <cmath>
 
 #include "diagnose/diagnosis.hpp"
 #include "io/text.hpp"
@@ -10,6 +11,9 @@ namespace pamc::diagnose::detail {
 
 namespace {
 using io::fmt;
+
+// Phases the periodic probe is started from at a line of the spectrum (Diagnosis::fitTheLine).
+constexpr int kLinePhases = 4;
 
 // The bin of compare's breakdown (of at least 5 % of the samples) where a change of model lowers the
 // mean squared error most: where the structure acts, not merely where most samples are.
@@ -56,6 +60,7 @@ void Diagnosis::probes() {
   // ... and in the place of the effects they may stand for; the best of those searched in full as well
   // when it is the best of all.
   for (auto& c : probesInPlace(fin, res_.final_residual)) fits.push_back(std::move(c));
+  fitTheLine(fin, fits);
   std::stable_sort(fits.begin(), fits.end(),
                    [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
   if (!fits.front().replaces.empty()) searchInPlaceFully(fits.front(), fin, res_.final_residual);
@@ -77,6 +82,7 @@ void Diagnosis::probes() {
   std::stable_sort(res_.probes.begin(), res_.probes.end(),
                    [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
   preferSimplestProbe();
+  probeDirections(fin);
   res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
 }
 
@@ -108,6 +114,57 @@ void Diagnosis::searchInPlaceFully(CandidateResult& c, const Rung& fin, const Re
     full.front().replaces = c.replaces;
     c = std::move(full.front());
   }
+}
+
+// A line of the residual's spectrum that is not coherent with the input names a sinusoid from elsewhere:
+// that structure fitted - the `periodic` probe started at the line's frequency and amplitude, from
+// kLinePhases phases (its cost in frequency is a comb with a tooth per 1 / record length, which no start
+// spread over 0.5-200 Hz finds). It takes the place of the probe's own fit when it is better.
+void Diagnosis::fitTheLine(const Rung& fin, std::vector<CandidateResult>& fits) const {
+  const auto& peaks = res_.spectrum.peaks;
+  const auto line = std::find_if(peaks.begin(), peaks.end(), [](const SpectrumPeak& p) { return !p.coherent; });
+  if (line == peaks.end()) return;
+  std::vector<model::Model> starts;
+  for (int k = 0; k < kLinePhases; ++k) {
+    model::Model m = fin.model;
+    m.addEffect("periodic");
+    m.setEffectParam("periodic", "freq", line->hz);
+    m.setEffectParam("periodic", "amplitude", line->amplitude);
+    m.setEffectParam("periodic", "phase", -M_PI + 2 * M_PI * (k + 0.5) / kLinePhases);
+    starts.push_back(std::move(m));
+  }
+  std::vector<CandidateResult> tries;
+  for (const auto& m : starts)  // each from its own phase
+    tries.push_back(fitEach({m}, m, {"periodic"}, s_.max_effects + 1, res_.final_residual,
+                            "line at " + fmt("%.2f", line->hz) + " Hz: ", ident::FitMethod::MultiStart, Search::Quick, 0)
+                        .front());
+  auto best = std::min_element(tries.begin(), tries.end(),
+                               [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
+  // The best phase searched to the end (Levenberg-Marquardt to convergence from it).
+  auto full = fitEach({best->model}, best->model, {"periodic"}, s_.max_effects + 1, res_.final_residual,
+                      "full: line at " + fmt("%.2f", line->hz) + " Hz: ", ident::FitMethod::MultiStart, Search::Full, 0);
+  if (full.front().rmse_val < best->rmse_val) *best = std::move(full.front());
+  for (auto& c : fits)
+    if (c.effect == "periodic" && c.replaces.empty() && best->rmse_val < c.rmse_val) c = *best;
+}
+
+// The top probe once more with separate parameters for a rising and a falling input (when it has that
+// version), started from its fit and fitted on the screening record: it takes the symmetric fit's place
+// when it lowers the validated RMSE by min_gain, and what differs is said in words.
+void Diagnosis::probeDirections(const Rung& fin) {
+  ProbeResult& top = res_.probes.front();
+  if (!model::makeEffect(top.probe)->directional()) return;
+  const Rung with{top.effectsWith(fin.effects), top.rmse_train, top.rmse_val, top.model, {}, {}, {}, false};
+  const auto f = refitOn(withDirections(with, top.probe), screen_);
+  const double rv = v_.rmse(f.model);
+  log("directions: probe " + top.probe + " with separate rising and falling parameters: validation " + fmt("%.5g", rv) +
+      " (was " + fmt("%.5g", top.rmse_val) + ")");
+  if (1.0 - rv / top.rmse_val < s_.min_gain) return;
+  top.model = f.model;
+  top.rmse_val = rv;
+  top.rmse_train = ident::rmseFrom(f.model, train_);
+  top.explains = std::max(0.0, 1.0 - (rv * rv) / std::max(fin.rmse_val * fin.rmse_val, 1e-300));
+  top.direction = directionWords(f.model, top.probe);
 }
 
 // Among the probes that explain about as much as the best (validated RMSE within kProbeTie of it), the

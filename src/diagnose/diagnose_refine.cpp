@@ -115,8 +115,6 @@ void Diagnosis::tryRefinement(const std::string& effect, const std::string& rich
   res_.ladder.push_back(std::move(r));
 }
 
-namespace {
-
 // The final model with `effect` in its direction-dependent version, both parameter sets at its fit.
 model::Model withDirections(const Rung& fin, const std::string& effect) {
   const std::string updown = effect + model::kDirectionalSuffix;
@@ -156,8 +154,6 @@ std::string directionWords(const model::Model& m, const std::string& effect) {
   }
   return effect;
 }
-
-}  // namespace
 
 // Each direction-dependent effect of the final model once more with separate parameters for a rising
 // and a falling input, started from its symmetric fit and refitted on all the training samples; taken

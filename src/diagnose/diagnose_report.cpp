@@ -47,12 +47,13 @@ nlohmann::json toJson(const DiagnoseResult& r) {
   for (const auto& p : r.probes) {
     nlohmann::json params = nlohmann::json::object();  // the probe's fitted parameters: a first guess at the physics
     for (int i = 0; i < p.model.numEffects(); ++i)
-      if (p.probe == p.model.effect(i).name())
+      if (p.probe == p.model.effect(i).name() || p.probe + model::kDirectionalSuffix == p.model.effect(i).name())
         for (size_t q = 0; q < p.model.effect(i).params().size(); ++q)
           params[p.model.effect(i).params()[q].name] = p.model.effectParams(i)[q];
     pj.push_back({{"probe", p.probe}, {"rmse_val", p.rmse_val}, {"rmse_train", p.rmse_train}, {"explains", p.explains},
                   {"regime", p.regime}, {"meaning", p.meaning}, {"params", params}});
     if (!p.replaces.empty()) pj.back()["replaces"] = p.replaces;
+    if (!p.direction.empty()) pj.back()["direction"] = p.direction;
   }
   j["probes"] = pj;
   j["spectrum"] = toJson(r.spectrum);

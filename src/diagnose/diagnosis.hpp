@@ -73,6 +73,10 @@ std::string join(const std::vector<std::string>& v);
 // The rung's model with `effect` replaced by `by` (empty: taken out), the parameters they share by name at
 // its fit (diagnose_refine.cpp).
 model::Model withReplacement(const Rung& fin, const std::string& effect, const std::string& by);
+// The rung's model with `effect` in its direction-dependent version, both parameter sets at its fit; what
+// differs between them, in words (diagnose_refine.cpp).
+model::Model withDirections(const Rung& fin, const std::string& effect);
+std::string directionWords(const model::Model& m, const std::string& effect);
 
 class Diagnosis {
  public:
@@ -94,6 +98,8 @@ class Diagnosis {
   // diagnose_probes.cpp: the probes fitted in the place of the effects they may stand for.
   std::vector<CandidateResult> probesInPlace(const Rung& fin, const ResidualReport& rr) const;
   void searchInPlaceFully(CandidateResult& c, const Rung& fin, const ResidualReport& rr) const;
+  void fitTheLine(const Rung& fin, std::vector<CandidateResult>& fits) const;
+  void probeDirections(const Rung& fin);
   void preferSimplestProbe();
   void verdict();
 

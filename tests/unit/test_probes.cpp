@@ -133,7 +133,9 @@ TEST(Probes, JsonContractAndNames) {
     EXPECT_LE(p["explains"].get<double>(), 1.0);
     EXPECT_TRUE(p["regime"].is_string());
     EXPECT_FALSE(p["meaning"].get<std::string>().empty());
-    EXPECT_EQ(p["params"].size(), model::makeEffect(p["probe"].get<std::string>())->params().size());
+    // Twice as many when fitted with separate parameters rising and falling.
+    EXPECT_EQ(p["params"].size(), (p.contains("direction") ? 2 : 1) *
+                                      model::makeEffect(p["probe"].get<std::string>())->params().size());
     if (p.contains("replaces")) {
       const auto& fin = r.ladder.back().effects;
       EXPECT_NE(std::find(fin.begin(), fin.end(), p["replaces"].get<std::string>()), fin.end());
@@ -174,6 +176,33 @@ TEST(Probes, AKneeInTheCommandGainIsNamedByThePiecewiseGain) {
   ASSERT_FALSE(r.probes.empty()) << r.verdict;
   EXPECT_EQ(r.probes.front().probe, "piecewise_gain") << table(r);
   EXPECT_LE(5.0 * r.probes.front().rmse_val, r.ladder.back().rmse_val) << table(r);
+}
+
+// Every probe driven by the command or the displacement has a direction-dependent version ("<name>_updown",
+// diagnose tries it for the top probe): with both parameter sets equal it is the probe itself.
+TEST(Probes, DirectionDependentVersionsAreTheProbeWithEqualSets) {
+  int versions = 0;
+  for (const auto& e : model::probes()) {
+    if (!e.make()->directional()) continue;
+    ++versions;
+    model::Model plain(kCore), both(kCore);
+    plain.addEffect(e.name);
+    const std::string updown = std::string(e.name) + model::kDirectionalSuffix;
+    both.addEffect(updown);
+    const auto& specs = e.make()->params();
+    for (const auto& p : specs) {
+      const double v = p.lo + 0.37 * (p.hi - p.lo);
+      plain.setEffectParam(e.name, p.name, v);
+      both.setEffectParam(updown, p.name + "_up", v);
+      both.setEffectParam(updown, p.name + "_down", v);
+    }
+    std::vector<double> u(3000);
+    for (size_t k = 0; k < u.size(); ++k) u[k] = 2.0 * std::sin(2 * M_PI * 0.7 * static_cast<double>(k) * 1e-3);
+    const auto a = plain.simulate(u, 1e-3), b = both.simulate(u, 1e-3);
+    for (size_t k = 0; k < u.size(); ++k) ASSERT_NEAR(a[k], b[k], 1e-12) << e.name << " at " << k;
+  }
+  EXPECT_GE(versions, 10);
+  for (const char* none : {"drift", "periodic", "direction_lag"}) EXPECT_FALSE(model::findProbe(none)->make()->directional()) << none;
 }
 
 TEST(Probes, AreNotCandidatesAndCanBeLeftOut) {

@@ -27,6 +27,7 @@ class MonotoneCurve final : public Effect {
     return stage_ == Stage::Input ? in : out;
   }
   int numStates() const override { return 0; }
+  bool directional() const override { return true; }  // separate parameters rising and falling
   void init(const double*, double*, double, const StepContext&) const noexcept override {}
   double step(const double* p, double*, double in, const StepContext&) const noexcept override {
     const double lo = std::min(p[0], p[1]), hi = std::max(p[0], p[1]);

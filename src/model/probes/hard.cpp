@@ -22,6 +22,7 @@ class DeadZone final : public Effect {
     return p;
   }
   int numStates() const override { return 0; }
+  bool directional() const override { return true; }  // separate parameters rising and falling
   void init(const double*, double*, double, const StepContext&) const noexcept override {}
   double step(const double* p, double*, double in, const StepContext&) const noexcept override {
     const double e = in - p[0], w = std::fabs(p[1]);
@@ -42,6 +43,7 @@ class CommandClip final : public Effect {
     return p;
   }
   int numStates() const override { return 0; }
+  bool directional() const override { return true; }  // separate parameters rising and falling
   void init(const double*, double*, double, const StepContext&) const noexcept override {}
   double step(const double* p, double*, double in, const StepContext&) const noexcept override {
     return std::clamp(in, std::min(p[0], p[1]), std::max(p[0], p[1]));
@@ -60,6 +62,7 @@ class PiecewiseGain final : public Effect {
     return p;
   }
   int numStates() const override { return 0; }
+  bool directional() const override { return true; }  // separate parameters rising and falling
   void init(const double*, double*, double, const StepContext&) const noexcept override {}
   double step(const double* p, double*, double in, const StepContext&) const noexcept override {
     return in > p[0] ? p[0] + p[1] * (in - p[0]) : in;
@@ -78,6 +81,7 @@ class Backlash final : public Effect {
     return p;
   }
   int numStates() const override { return 1; }
+  bool directional() const override { return true; }  // separate parameters rising and falling
   void init(const double*, double* s, double in0, const StepContext&) const noexcept override { s[0] = in0; }
   double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
     const double h = 0.5 * std::fabs(p[0]);

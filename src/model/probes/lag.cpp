@@ -56,6 +56,8 @@ class Placed final : public Effect {
   const std::vector<ParamSpec>& params() const override { return impl_->params(); }
   int numStates() const override { return impl_->numStates(); }
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override { impl_->init(p, s, in0, c); }
+  bool directional() const override { return impl_->directional(); }
+  void retune(const double* p, double* s, const StepContext& c) const noexcept override { impl_->retune(p, s, c); }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
     return impl_->step(p, s, in, c);
   }

@@ -52,6 +52,10 @@ class RateGain final : public Effect {
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     s[0] = 0.0;
     s[1] = in0;
+    retune(p, s, c);
+  }
+  bool directional() const override { return true; }
+  void retune(const double* p, double* s, const StepContext& c) const noexcept override {
     s[2] = 1.0 - std::exp(-c.Ts / std::max(p[2], 1e-6));
   }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
