@@ -12,6 +12,8 @@ namespace pamc::diagnose::detail {
 namespace {
 using io::fmt;
 
+// A probe explaining less than this share of what is left gets no regime.
+constexpr double kRegimeShare = 0.05;
 // Phases the periodic probe is started from at a line of the spectrum (Diagnosis::fitTheLine).
 constexpr int kLinePhases = 4;
 
@@ -53,17 +55,10 @@ void Diagnosis::probes() {
   std::vector<std::string> names;
   for (const auto& p : model::probes()) names.emplace_back(p.name);
   log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
-  // A probe says what kind of structure is missing, it is not a model: LM from starts spread over its
-  // parameters (lm_warm_starts) around the final model, whatever the method.
-  auto fits = searchOnTop(fin.model, names, s_.max_effects + 1, res_.final_residual, "probe ",
-                          ident::FitMethod::MultiStart, kFullProbes, 0);
-  // ... and in the place of the effects they may stand for; the best of those searched in full as well
-  // when it is the best of all.
-  for (auto& c : probesInPlace(fin, res_.final_residual)) fits.push_back(std::move(c));
+  auto fits = searchProbes(fin);
   fitTheLine(fin, fits);
   std::stable_sort(fits.begin(), fits.end(),
                    [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
-  if (!fits.front().replaces.empty()) searchInPlaceFully(fits.front(), fin, res_.final_residual);
   for (const auto& c : fits) {
     ProbeResult p;
     p.probe = c.effect;
@@ -75,9 +70,11 @@ void Diagnosis::probes() {
     p.model = c.model;
     res_.probes.push_back(std::move(p));
   }
-  // Where each probe acts: its residual's breakdown on all the training samples, one probe per worker.
+  // Where each probe that explains something acts: its residual's breakdown on all the training samples,
+  // one probe per worker ("-" for one that explains less than kRegimeShare: its regime would be noise).
   onWorkers(res_.probes.size(), threads_, [&](size_t i) {
-    res_.probes[i].regime = mostImprovedRegime(res_.final_residual, analyze(train_, simulate(res_.probes[i].model, train_)));
+    ProbeResult& p = res_.probes[i];
+    p.regime = p.explains < kRegimeShare ? "-" : mostImprovedRegime(res_.final_residual, analyze(train_, simulate(p.model, train_)));
   });
   std::stable_sort(res_.probes.begin(), res_.probes.end(),
                    [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
@@ -86,34 +83,48 @@ void Diagnosis::probes() {
   res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
 }
 
-// Each probe that may stand for an effect of the final model (ProbeEntry::stands_for) fitted in that
-// effect's place, searched quickly as the probes on top are: an effect added before the probes run can
-// absorb the physics a probe stands for in a simpler form (a play taken for Dahl friction, orifice flow
-// for a first-order lag), and a probe on top of it then explains little.
-std::vector<CandidateResult> Diagnosis::probesInPlace(const Rung& fin, const ResidualReport& rr) const {
-  std::vector<CandidateResult> out;
-  for (const auto& e : fin.effects) {
-    std::vector<std::string> names;
-    for (const auto& p : model::probes())
-      if (p.standsFor(e)) names.emplace_back(p.name);
-    if (names.empty()) continue;
-    auto fits = fitOnTop(withReplacement(fin, e, ""), names, s_.max_effects + 1, rr, "probe for " + e + ": ",
-                         ident::FitMethod::MultiStart, Search::Quick, 0);
-    for (auto& c : fits) {
-      c.replaces = e;
-      out.push_back(std::move(c));
-    }
+// Every probe on top of the final model, and each probe that may stand for an effect of it
+// (ProbeEntry::stands_for) in that effect's place as well: an effect added before the probes run can absorb
+// the physics a probe stands for in a simpler form (a play taken for Dahl friction, orifice flow for a
+// first-order lag), and a probe on top of it then explains little. A probe says what kind of structure is
+// missing, it is not a model: all are searched quickly in one parallel batch (Levenberg-Marquardt from
+// starts spread over the probe's parameters around the final model, whatever the method), the best again
+// in full, and the better fit of it kept: it is fitted on top of whatever basin the catalogue's model ended
+// in, and only a full search can move the core out of it (a curved valve characteristic: the quick search
+// explained 50 % of what was left, the full one 97 %).
+std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin) const {
+  std::vector<model::Model> structures;
+  std::vector<std::string> labels, replaces;
+  for (const auto& p : model::probes()) {
+    structures.push_back(fin.model);
+    structures.back().addEffect(p.name);
+    labels.emplace_back(p.name);
+    replaces.emplace_back();
+    for (const auto& e : fin.effects)
+      if (p.standsFor(e)) {
+        structures.push_back(withReplacement(fin, e, p.name));
+        labels.push_back(std::string(p.name) + " for " + e);
+        replaces.push_back(e);
+      }
   }
-  return out;
-}
-
-void Diagnosis::searchInPlaceFully(CandidateResult& c, const Rung& fin, const ResidualReport& rr) const {
-  auto full = fitOnTop(withReplacement(fin, c.replaces, ""), {c.effect}, s_.max_effects + 1, rr,
-                       "full: probe for " + c.replaces + ": ", ident::FitMethod::MultiStart, Search::Full);
-  if (full.front().rmse_val < c.rmse_val) {
-    full.front().replaces = c.replaces;
-    c = std::move(full.front());
+  const int round = s_.max_effects + 1;
+  const auto method = ident::FitMethod::MultiStart;
+  auto fits = fitEach(structures, fin.model, labels, round, res_.final_residual, "probe ", method, Search::Quick, 0);
+  for (size_t i = 0; i < fits.size(); ++i) {
+    fits[i].effect = labels[i].substr(0, labels[i].find(' '));
+    fits[i].replaces = replaces[i];
   }
+  const auto best = static_cast<size_t>(std::min_element(fits.begin(), fits.end(), [](const CandidateResult& a, const CandidateResult& b) {
+                                          return a.rmse_val < b.rmse_val;
+                                        }) - fits.begin());
+  auto full = fitEach({structures[best]}, fin.model, {labels[best]}, round, res_.final_residual, "full: probe ", method,
+                      Search::Full, 0);
+  if (full.front().rmse_val < fits[best].rmse_val) {
+    fits[best].model = full.front().model;
+    fits[best].rmse_train = full.front().rmse_train;
+    fits[best].rmse_val = full.front().rmse_val;
+  }
+  return fits;
 }
 
 // A line of the residual's spectrum that is not coherent with the input names a sinusoid from elsewhere:

@@ -25,7 +25,7 @@ namespace pamc::diagnose::detail {
 // kQuickStarts starts spread over the new structure's parameters, no Nelder-Mead polish - enough to
 // rank. Full: the fit's own number of starts and the polish. Every candidate and probe is searched
 // quickly; the best of them are searched in full (kFullSearches candidates - the ladder is built from
-// them - and kFullProbes probes), and the better fit is kept.
+// them - and the best probe), and the better fit is kept.
 enum class Search { Quick, Full };
 // ... but a new structure with few parameters gets kQuickCover / (their number) starts: the cost of a
 // threshold, a knee or a delay is flat away from the right value, and LM finds that only from a start
@@ -33,10 +33,6 @@ enum class Search { Quick, Full };
 // they say what kind of structure is missing, to the few percent their ranking needs.
 constexpr int kQuickCover = 8;
 constexpr size_t kFullSearches = 2;
-// The best probe is searched in full as well: it is fitted on top of whatever basin the catalogue's model
-// ended in, and only a full search (with starts spread over the whole box) can move the core out of it
-// (a curved valve characteristic: the quick search explained 50 % of what was left, the full one 97 %).
-constexpr size_t kFullProbes = 1;
 // A validated error below this multiple of the sensor noise leaves nothing to explain: the ladder
 // stops adding effects and the probes are not run.
 constexpr double kAtNoise = 1.5;
@@ -95,9 +91,8 @@ class Diagnosis {
   void searchByGa(CandidateResult& c, const model::Model& base) const;
   void directions();
   void probes();
-  // diagnose_probes.cpp: the probes fitted in the place of the effects they may stand for.
-  std::vector<CandidateResult> probesInPlace(const Rung& fin, const ResidualReport& rr) const;
-  void searchInPlaceFully(CandidateResult& c, const Rung& fin, const ResidualReport& rr) const;
+  // diagnose_probes.cpp: the probes on top of the final model and in the place of its effects.
+  std::vector<CandidateResult> searchProbes(const Rung& fin) const;
   void fitTheLine(const Rung& fin, std::vector<CandidateResult>& fits) const;
   void probeDirections(const Rung& fin);
   void preferSimplestProbe();
