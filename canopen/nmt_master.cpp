@@ -1,6 +1,7 @@
 #include "canopen/nmt_master.hpp"
 
 #include <algorithm>
+#include <iterator>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -41,6 +42,12 @@ const char* slaveEventName(SlaveEvent e) {
 
 NmtMaster::NmtMaster(Node& node) : node_(node) {
   node_.onHeartbeat([this](std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) { onHeartbeat(id, ev, st, now); });
+  // A concise DCF written over SDO must decode: the next boot runs it.
+  if (node_.od().hasObject(kObjConciseDcf))
+    node_.od().addValidator(kObjConciseDcf, [](const Entry& e, const std::uint8_t* d, std::size_t len) {
+      ConciseDcf dcf;
+      return e.subIndex() == 0 || len == 0 || decodeConciseDcf(d, len, dcf, nullptr) ? kSdoOk : kAbortValueRange;
+    });
 }
 
 void NmtMaster::addSlave(std::uint8_t id) {
@@ -51,28 +58,78 @@ void NmtMaster::addSlave(std::uint8_t id) {
   slaves_.back().id = id;
 }
 
+namespace {
+// The identity entries of the master (0x1F84 + k) and of the slave they are checked against.
+struct IdentityEntry {
+  std::optional<std::uint32_t> SlaveBoot::*field;
+  std::uint16_t index;
+  std::uint8_t sub;
+};
+constexpr IdentityEntry kIdentity[] = {{&SlaveBoot::device_type, 0x1000, 0},
+                                       {&SlaveBoot::vendor_id, 0x1018, 1},
+                                       {&SlaveBoot::product_code, 0x1018, 2},
+                                       {&SlaveBoot::revision, 0x1018, 3},
+                                       {&SlaveBoot::serial, 0x1018, 4}};
+}  // namespace
+
+bool bootFromDictionary(const ObjectDictionary& od, std::uint8_t id, SlaveBoot& out, std::string* why) {
+  out = SlaveBoot{};
+  if (const Entry* a = od.find(kObjAssignment, id)) out.assignment = static_cast<std::uint32_t>(a->asUnsigned());
+  for (std::size_t k = 0; k < std::size(kIdentity); ++k) {
+    const Entry* e = od.find(static_cast<std::uint16_t>(kObjDeviceType + k), id);
+    if (e != nullptr && e->asUnsigned() != 0) out.*kIdentity[k].field = static_cast<std::uint32_t>(e->asUnsigned());
+  }
+  const Entry* dcf = od.find(kObjConciseDcf, id);
+  if (dcf == nullptr || dcf->size() == 0) return true;
+  std::string problem;
+  if (decodeConciseDcf(dcf->data(), dcf->size(), out.writes, &problem)) return true;
+  if (why) *why = where(kObjConciseDcf, id) + " is not a concise DCF: " + problem;
+  return false;
+}
+
+void bootToDictionary(ObjectDictionary& od, std::uint8_t id, const SlaveBoot& boot) {
+  od.entry(kObjAssignment, id).set<std::uint32_t>(boot.assignment);
+  for (std::size_t k = 0; k < std::size(kIdentity); ++k)
+    od.entry(static_cast<std::uint16_t>(kObjDeviceType + k), id).set<std::uint32_t>((boot.*kIdentity[k].field).value_or(0));
+  const auto bytes = encodeConciseDcf(boot.writes);
+  Entry& dcf = od.entry(kObjConciseDcf, id);
+  if (!dcf.write(bytes.data(), bytes.size()))
+    throw OdError(where(kObjConciseDcf, id) + ": a concise DCF of " + std::to_string(bytes.size()) + " bytes does not fit");
+}
+
 void NmtMaster::setBoot(std::uint8_t id, SlaveBoot boot) {
   Slave* s = find(id);
   if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
-  s->ops.clear();
-  const std::pair<std::optional<std::uint32_t>, std::pair<std::uint16_t, std::uint8_t>> identity[] = {
-      {boot.device_type, {0x1000, 0}}, {boot.vendor_id, {0x1018, 1}}, {boot.product_code, {0x1018, 2}},
-      {boot.revision, {0x1018, 3}},    {boot.serial, {0x1018, 4}}};
-  for (const auto& [value, at] : identity)
-    if (value) s->ops.push_back(Op{OpKind::Expect, at.first, at.second, *value, 0});
+  bootToDictionary(node_.od(), id, boot);
+  s->reads = std::move(boot.reads);
+  s->state = Boot::Idle;
+}
+
+void NmtMaster::setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads) {
+  Slave* s = find(id);
+  if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
+  s->reads = std::move(reads);
+}
+
+void NmtMaster::loadPlan(Slave& s) {
+  s.plan_error.clear();
+  if (!bootFromDictionary(node_.od(), s.id, s.boot, &s.plan_error)) s.boot.writes.clear();
+  s.boot.reads = s.reads;
+  const SlaveBoot& boot = s.boot;
+  s.ops.clear();
+  for (const auto& k : kIdentity)
+    if (const auto& value = boot.*k.field) s.ops.push_back(Op{OpKind::Expect, k.index, k.sub, *value, 0});
   for (std::size_t i = 0; i < boot.reads.size(); ++i)
-    s->ops.push_back(Op{OpKind::Read, boot.reads[i].index, boot.reads[i].sub, 0, i});
+    s.ops.push_back(Op{OpKind::Read, boot.reads[i].index, boot.reads[i].sub, 0, i});
   for (std::size_t i = 0; i < boot.writes.size(); ++i)
-    s->ops.push_back(Op{OpKind::Write, boot.writes[i].index, boot.writes[i].sub, 0, i});
+    s.ops.push_back(Op{OpKind::Write, boot.writes[i].index, boot.writes[i].sub, 0, i});
   // Read back what each entry holds in the end: its last write.
   for (std::size_t i = 0; i < boot.writes.size(); ++i) {
     const auto& w = boot.writes[i];
     const bool later = std::any_of(boot.writes.begin() + static_cast<std::ptrdiff_t>(i) + 1, boot.writes.end(),
                                    [&](const DcfEntry& e) { return e.index == w.index && e.sub == w.sub; });
-    if (!later) s->ops.push_back(Op{OpKind::Verify, w.index, w.sub, 0, i});
+    if (!later) s.ops.push_back(Op{OpKind::Verify, w.index, w.sub, 0, i});
   }
-  s->boot = std::move(boot);
-  s->state = Boot::Idle;
 }
 
 NmtMaster::Slave* NmtMaster::find(std::uint8_t id) noexcept {
@@ -83,13 +140,14 @@ const NmtMaster::Slave* NmtMaster::find(std::uint8_t id) const noexcept {
   return const_cast<NmtMaster*>(this)->find(id);
 }
 
-namespace {
-bool needsBoot(const SlaveBoot& b, std::size_t ops) { return (b.assignment & kAssignBoot) != 0 && ops > 0; }
-}  // namespace
+bool NmtMaster::bootable(const Slave& s) noexcept {
+  return (s.boot.assignment & kAssignBoot) != 0 && (!s.ops.empty() || !s.plan_error.empty());
+}
+
 
 bool NmtMaster::mandatoryReady() const noexcept {
   return std::all_of(slaves_.begin(), slaves_.end(), [](const Slave& s) {
-    return (s.boot.assignment & kAssignMandatory) == 0 || !needsBoot(s.boot, s.ops.size()) || s.state == Boot::Done;
+    return (s.boot.assignment & kAssignMandatory) == 0 || !bootable(s) || s.state == Boot::Done;
   });
 }
 
@@ -101,7 +159,7 @@ bool NmtMaster::keptAlive(const Slave& s) const noexcept {
 bool NmtMaster::mayStart(const Slave& s) const noexcept {
   if (!begun_ || (startup_ & kStartupMaster) == 0 || (startup_ & kStartupNoSlaveStart) != 0) return false;
   if (s.hold != 0) return false;
-  if (needsBoot(s.boot, s.ops.size()) && s.state != Boot::Done) return false;
+  if (bootable(s) && s.state != Boot::Done) return false;
   return mandatoryReady();
 }
 
@@ -126,16 +184,15 @@ void NmtMaster::startReady(TimeUs now) noexcept {
 }
 
 void NmtMaster::begin(TimeUs now) {
-  auto& od = node_.od();
-  if (const Entry* e = od.find(0x1F80, 0)) startup_ = e->get<std::uint32_t>();
+  if (const Entry* e = node_.od().find(kObjStartup, 0)) startup_ = e->get<std::uint32_t>();
   for (auto& s : slaves_)
-    if (const Entry* e = od.find(0x1F81, s.id)) s.boot.assignment = e->get<std::uint32_t>();
+    if (s.state != Boot::Running) loadPlan(s);
   begun_ = true;
   if ((startup_ & kStartupMaster) == 0) return;
   // Every slave is booted at the master's start (CiA 302-2): whatever another master left in it - but one
   // kept alive that is running is left as it is.
   for (auto& s : slaves_) {
-    if (!needsBoot(s.boot, s.ops.size()) || s.state == Boot::Running) continue;
+    if (!bootable(s) || s.state == Boot::Running) continue;
     if (keptAlive(s)) {
       s.state = Boot::Done;
       ++counters_.kept_alive;
@@ -154,6 +211,7 @@ void NmtMaster::poll(TimeUs) noexcept {
     if (s.state != Boot::Waiting) continue;
     if (node_.sdoClient().busy()) return;
     s.state = Boot::Running;
+    if (!s.plan_error.empty()) return bootFailed(s, 0, s.plan_error);
     if (!s.resume) {
       s.next_op = 0;
       s.retries_left = retriesOf(s.boot.assignment);
@@ -166,7 +224,7 @@ void NmtMaster::poll(TimeUs) noexcept {
 }
 
 void NmtMaster::bootSlave(Slave& s, TimeUs now) noexcept {
-  if (!begun_ || !needsBoot(s.boot, s.ops.size()) || (startup_ & kStartupMaster) == 0) return;
+  if (!begun_ || !bootable(s) || (startup_ & kStartupMaster) == 0) return;
   s.state = Boot::Waiting;
   s.resume = false;
   poll(now);
@@ -310,7 +368,7 @@ bool NmtMaster::starting(std::uint8_t id, TimeUs now) const noexcept {
 
 bool NmtMaster::configured(std::uint8_t id) const noexcept {
   const Slave* s = find(id);
-  return s != nullptr && (!needsBoot(s->boot, s->ops.size()) || s->state == Boot::Done);
+  return s != nullptr && (!bootable(*s) || s->state == Boot::Done);
 }
 
 bool NmtMaster::booting(std::uint8_t id) const noexcept {
@@ -337,7 +395,7 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
       // A slave that rebooted lost its state and waits in Pre-operational: boot it and start it again.
       s->lost = false;
       emit(id, SlaveEvent::BootUp, now);
-      if (needsBoot(s->boot, s->ops.size())) {
+      if (bootable(*s)) {
         // It lost its configuration; a boot cut short starts over.
         s->state = Boot::Idle;
         bootSlave(*s, now);

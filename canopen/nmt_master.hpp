@@ -4,21 +4,25 @@
 // concise DCF written and read back), then started; one that comes back after a heartbeat loss is
 // re-booted (reset communication), so it boots up and goes through all of it again - unless it is kept
 // alive and reports Operational; one that stays in Pre-operational after a start gets another. A boot
-// step the slave does not answer (SDO timeout) is tried again, up to the slave's retry factor. The application may hold a slave in Pre-operational for
-// reasons of its own (a bit per reason); it is started when the last reason is released.
+// step the slave does not answer (SDO timeout) is tried again, up to the slave's retry factor. The
+// application may hold a slave in Pre-operational for reasons of its own (a bit per reason); it is
+// started when the last reason is released.
 //
-// Settings: 0x1F80 NMT start-up (bit 0 master, bit 1 start the slaves with one broadcast, bit 2 do not
-// enter Operational by itself - read by the application, bit 3 do not start the slaves) and 0x1F81
-// slave assignment as CiA 302-2 defines it (bit 0 slave, bit 2 boot: check and configure, bit 3
-// mandatory: no slave is started before it is configured, bit 4 keep alive: a slave that is Operational
-// with a live heartbeat is neither reset nor configured again - at the master's start and when it comes
-// back after a heartbeat loss, bits 8-15 retry factor: how often an unanswered boot step is tried again),
-// taken from the node's dictionary when it has them (begin()), otherwise from setStartup() / SlaveBoot.
+// What a boot does comes from the master's own dictionary, as CiA 302-2 defines it, read at begin():
+// 0x1F80 NMT start-up (bit 0 master, bit 1 start the slaves with one broadcast, bit 2 do not enter
+// Operational by itself - read by the application, bit 3 do not start the slaves); 0x1F81 slave
+// assignment (bit 0 slave, bit 2 boot: check and configure, bit 3 mandatory: no slave is started
+// before it is configured, bit 4 keep alive: a slave that is Operational with a live heartbeat is
+// neither reset nor configured again - at the master's start and when it comes back after a heartbeat
+// loss, bits 8-15 retry factor: how often an unanswered boot step is tried again); 0x1F84-0x1F88 the
+// expected device type, vendor-ID, product code, revision and serial number (0: not checked); 0x1F22
+// the concise DCF written into the slave (CiA 302-3). The application adds reads of its own
+// (setReads(): a driver's values it needs before the slave starts).
 //
 // The master takes the node's heartbeat hook and passes what the application must react to on as
 // SlaveEvents. All of it runs on the node's thread; the boot uses the node's SDO client between
-// cycles (poll() retries while the client is busy). Nothing is allocated after setBoot() except by
-// the SDO transfers of a boot.
+// cycles (poll() retries while the client is busy). begin() builds the boot plans from the
+// dictionary; after it nothing is allocated except by the SDO transfers of a boot.
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -40,6 +44,13 @@ enum class SlaveEvent : std::uint8_t {
 };
 const char* slaveEventName(SlaveEvent e);
 
+// The master's objects (CiA 302-2, CiA 302-3), entries per node-ID.
+inline constexpr std::uint16_t kObjConciseDcf = 0x1F22;
+inline constexpr std::uint16_t kObjStartup = 0x1F80;
+inline constexpr std::uint16_t kObjAssignment = 0x1F81;
+inline constexpr std::uint16_t kObjDeviceType = 0x1F84;  // 0x1F85 vendor-ID ... 0x1F88 serial number
+inline constexpr std::uint16_t kObjBootTime = 0x1F89;
+
 // 0x1F80 bits.
 inline constexpr std::uint32_t kStartupMaster = 0x01;
 inline constexpr std::uint32_t kStartupBroadcastStart = 0x02;
@@ -55,10 +66,11 @@ inline constexpr unsigned kAssignRetryShift = 8;  // bits 8-15: retry factor
 constexpr std::uint32_t assignRetries(unsigned n) { return (n & 0xFFu) << kAssignRetryShift; }
 constexpr unsigned retriesOf(std::uint32_t assignment) { return (assignment >> kAssignRetryShift) & 0xFFu; }
 
-// What the master checks, reads and writes at a slave's boot.
+// What the master checks, reads and writes at a slave's boot: the master's entries for the slave
+// (0x1F81, 0x1F84-0x1F88, 0x1F22) and the application's reads.
 struct SlaveBoot {
   std::uint32_t assignment = kAssignSlave;  // 0x1F81 bits
-  // Expected identity: 0x1000, 0x1018:01..04 (unset: not checked).
+  // Expected identity: 0x1000, 0x1018:01..04 (unset or 0: not checked).
   std::optional<std::uint32_t> device_type, vendor_id, product_code, revision, serial;
   // Read before the writes; on_value returns false (with why) to fail the boot.
   struct Read {
@@ -69,6 +81,13 @@ struct SlaveBoot {
   std::vector<Read> reads;
   ConciseDcf writes;  // in order; then the last value of every entry is read back and compared
 };
+
+// The slave's boot as the master's dictionary holds it (0x1F81, 0x1F84-0x1F88, 0x1F22; reads stay
+// empty); false with why when 0x1F22:id is not a concise DCF.
+bool bootFromDictionary(const ObjectDictionary& od, std::uint8_t id, SlaveBoot& out, std::string* why);
+// The other way: a plan into the master's entries for the slave. Throws OdError when the dictionary
+// lacks one of the objects or the concise DCF does not fit 0x1F22:id.
+void bootToDictionary(ObjectDictionary& od, std::uint8_t id, const SlaveBoot& boot);
 
 struct BootError {
   std::uint32_t abort_code = 0;  // SDO abort code (0: a mismatch, see text)
@@ -97,14 +116,17 @@ class NmtMaster {
 
   // Supervise this node-ID (its heartbeat must be consumed: 0x1016 of the master's dictionary).
   void addSlave(std::uint8_t id);
-  // What to check and write at its boot (throws for an unknown slave).
+  // What to check and write at its boot, into the master's dictionary (bootToDictionary), its reads
+  // kept (throws for an unknown slave or a dictionary without the master's objects).
   void setBoot(std::uint8_t id, SlaveBoot boot);
+  // The application's reads at the slave's boot, after its identity, before its configuration.
+  void setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads);
   void setStartup(std::uint32_t bits) { startup_ = bits; }
   std::uint32_t startup() const noexcept { return startup_; }
   void onEvent(EventHook hook) { hook_ = std::move(hook); }
 
-  // The master's own start (it entered Operational): 0x1F80/0x1F81 from the dictionary, then every
-  // slave is booted or started.
+  // The master's own start (it entered Operational): 0x1F80 and every slave's boot from the dictionary
+  // (bootFromDictionary), then every slave is booted or started.
   void begin(TimeUs now);
   // The master's own stop (it left Operational or was reset): until the next begin() it boots and
   // starts nothing; it still reports what it hears.
@@ -149,8 +171,10 @@ class NmtMaster {
     bool lost = false;             // heartbeat timed out: re-boot it when it is back
     TimeUs start_sent = kNever;    // NMT start sent, no Operational heartbeat yet
     std::uint8_t hold = 0;         // reasons to keep it in Pre-operational
-    SlaveBoot boot;
+    SlaveBoot boot;                // from the dictionary at begin(), with reads
+    std::vector<SlaveBoot::Read> reads;  // the application's (setReads)
     std::vector<Op> ops;           // the boot, flattened
+    std::string plan_error;        // 0x1F22:id did not decode: the boot fails with this
     Boot state = Boot::Idle;
     std::size_t next_op = 0;
     unsigned retries_left = 0;     // of this boot
@@ -159,6 +183,8 @@ class NmtMaster {
   };
   Slave* find(std::uint8_t id) noexcept;
   const Slave* find(std::uint8_t id) const noexcept;
+  void loadPlan(Slave& s);  // boot and ops from the dictionary (allocates)
+  static bool bootable(const Slave& s) noexcept;  // 0x1F81 bit 2 and something to check or write
   bool mayStart(const Slave& s) const noexcept;
   bool mandatoryReady() const noexcept;
   // Kept alive (0x1F81 bit 4) and Operational with a live heartbeat: leave it as it is.

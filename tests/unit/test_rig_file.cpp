@@ -93,6 +93,31 @@ struct Tool {
     rig.bus().flush();
     return last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
   }
+  // An SDO upload as the frames on the wire have it: expedited, or segmented with the toggle bit.
+  std::vector<std::uint8_t> upload(std::uint8_t node, std::uint16_t idx, std::uint8_t sub, std::uint32_t* abort = nullptr) {
+    const std::uint8_t init[8] = {0x40, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, 0, 0, 0, 0};
+    port.send(canopen::makeFrame(0x600 + node, 8, init));
+    rig.bus().flush();
+    std::vector<std::uint8_t> out;
+    if (abort) *abort = last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
+    if (last.data[0] == 0x80) return out;
+    if (last.data[0] & 0x02) {  // expedited
+      const int n = (last.data[0] & 0x01) ? 4 - ((last.data[0] >> 2) & 3) : 4;
+      return std::vector<std::uint8_t>(last.data + 4, last.data + 4 + n);
+    }
+    for (std::uint8_t toggle = 0;; toggle ^= 0x10) {
+      const std::uint8_t seg[8] = {static_cast<std::uint8_t>(0x60 | toggle), 0, 0, 0, 0, 0, 0, 0};
+      port.send(canopen::makeFrame(0x600 + node, 8, seg));
+      rig.bus().flush();
+      const int n = 7 - ((last.data[0] >> 1) & 7);
+      out.insert(out.end(), last.data + 1, last.data + 1 + n);
+      if (last.data[0] & 0x01) return out;
+    }
+  }
+  std::uint32_t read32(std::uint8_t node, std::uint16_t idx, std::uint8_t sub) {
+    const auto b = upload(node, idx, sub);
+    return b.size() == 4 ? canopen::getU32(b.data()) : 0xDEADBEEFu;
+  }
   nodes::VirtualRig& rig;
   canopen::VirtualBus::Port& port;
   Frame last{};
@@ -128,16 +153,15 @@ TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
   EXPECT_EQ(rig.layout.valve_cob, 0x203u);
   EXPECT_EQ(rig.layout.feedback_cob, 0x183u);
   EXPECT_TRUE(rig.layout.scaling.isDefault());
-  ASSERT_TRUE(rig.layout.sensor_boot && rig.layout.valve_boot);
-  EXPECT_EQ(*rig.layout.sensor_boot->device_type, 0x00080196u);
+  EXPECT_EQ(*rig.sensor_boot.device_type, 0x00080196u);
   EXPECT_EQ(rig.layout.error_value_index, 0x6444);
   // 0x1F81: slave, boot, mandatory, not kept alive, 3 retries.
-  EXPECT_EQ(rig.layout.sensor_boot->assignment, 0x0000030Du);
+  EXPECT_EQ(rig.sensor_boot.assignment, 0x0000030Du);
   const auto kept = nodes::readRigFile(writeTemp("kept.ini", rigText({{"mandatory = yes          ; 0x1F81",
                                                                         "keep_alive = yes\nretries = 5\nmandatory = yes ; 0x1F81"}})));
-  EXPECT_EQ(kept.layout.sensor_boot->assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
+  EXPECT_EQ(kept.sensor_boot.assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
   // The sensor's TPDO1: disabled, synchronous, mapped to 0x6004:00 (32 bits), enabled on 0x182.
-  const auto& w = rig.layout.sensor_boot->writes;
+  const auto& w = rig.sensor_boot.writes;
   auto has = [&](std::uint16_t i, std::uint8_t s, std::uint64_t v, std::size_t n) {
     return std::find(w.begin(), w.end(), canopen::dcfValue(i, s, v, n)) != w.end();
   };
@@ -235,6 +259,7 @@ TEST(RigBoot, SlavesScrambledBeforeTheControllerStartsAreConfigured) {
   {
     nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
     c.layout = nodes::SlaveLayout{};  // the built-in layout: nothing is configured
+    c.dictionary.clear();
     nodes::VirtualRig rig(c, emulator());
     Tool tool(rig);
     scramble(rig, tool);
@@ -345,6 +370,7 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
   {
     nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
     c.layout = nodes::SlaveLayout{};
+    c.dictionary.clear();
     nodes::VirtualRig rig(c, profile);
     Tool tool(rig);
     std::vector<std::pair<canopen::TimeUs, Frame>> frames;
@@ -441,9 +467,9 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
     const auto path = writeTemp("rig.ini", retries == 3 ? rigText()
                                                          : rigText({{"boot = yes               ; configure at boot",
                                                                      "retries = 0\nboot = yes ; configure at boot"}}));
-    int lost = 0;  // the sensor's first answer to the read of its vendor-ID 0x1018:01
+    int lost = 0;  // the sensor's first answer to the read of its product code 0x1018:02
     nodes::VirtualRig rig(controllerFromRig(path, &log), emulator(), 0, [&](Frame& f) {
-      return !(f.id == 0x582 && f.data[1] == 0x18 && f.data[2] == 0x10 && f.data[3] == 1 && lost++ == 0);
+      return !(f.id == 0x582 && f.data[1] == 0x18 && f.data[2] == 0x10 && f.data[3] == 2 && lost++ == 0);
     });
     rig.start();
     rig.runFor(4.0);
@@ -458,7 +484,65 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
       EXPECT_EQ(mc.boot_failures, 1u);
       const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; });
       ASSERT_NE(line, log.end());
-      EXPECT_NE(line->find("sensor (node 2) not started: 0x1018:01 read failed: SDO protocol timed out"), std::string::npos) << *line;
+      EXPECT_NE(line->find("sensor (node 2) not started: 0x1018:02 read failed: SDO protocol timed out"), std::string::npos) << *line;
     }
   }
+}
+
+// The rig file compiled into the controller's own dictionary, as CiA 302 has it: what an SDO upload of
+// 0x1F22:<node-ID> shows is the concise DCF the controller writes at the slave's boot, and it decodes
+// back to the rig's entries; the expected identity is in 0x1F84-0x1F88, the assignment in 0x1F81, the
+// consumer heartbeat times in 0x1016 (twice the slave's period plus 50 ms).
+TEST(RigMaster, AnSdoUploadOfTheMastersObjectsShowsTheRigsBoot) {
+  const auto path = writeTemp("rig.ini", rigText({{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = 1000 ; 0x1017"}}));
+  const auto rig = nodes::readRigFile(path);
+  nodes::VirtualRig vr(controllerFromRig(path, nullptr), emulator());
+  Tool tool(vr);
+  vr.start();
+  vr.runFor(0.2);
+  for (const auto& [id, boot] : {std::pair<std::uint8_t, const canopen::SlaveBoot*>{2, &rig.sensor_boot}, {3, &rig.valve_boot}}) {
+    const auto bytes = tool.upload(1, 0x1F22, id);
+    ASSERT_GT(bytes.size(), 8u) << "node " << int(id) << ": a segmented upload";
+    canopen::ConciseDcf back;
+    std::string why;
+    ASSERT_TRUE(canopen::decodeConciseDcf(bytes.data(), bytes.size(), back, &why)) << why;
+    EXPECT_EQ(back, boot->writes) << "node " << int(id);
+    EXPECT_EQ(tool.read32(1, 0x1F81, id), boot->assignment);
+  }
+  EXPECT_EQ(tool.read32(1, 0x1F84, 2), 0x00080196u) << "device type";
+  EXPECT_EQ(tool.read32(1, 0x1F85, 2), 0u) << "vendor-ID 0: not checked";
+  EXPECT_EQ(tool.read32(1, 0x1F86, 2), 2u) << "product code";
+  EXPECT_EQ(tool.read32(1, 0x1F84, 3), 0x000C0191u);
+  EXPECT_EQ(tool.read32(1, 0x1F88, 3), 0u) << "serial number not checked";
+  EXPECT_EQ(tool.read32(1, 0x1F89, 0), 0u) << "no boot time";
+  EXPECT_EQ(tool.read32(1, 0x1016, 1), 0x00020000u | 2050u) << "the sensor's 1000 ms heartbeat";
+  EXPECT_EQ(tool.read32(1, 0x1016, 2), 0x00030000u | 250u) << "the valve's 100 ms heartbeat";
+  EXPECT_EQ(tool.read32(1, 0x1F22, 4), 0xDEADBEEFu) << "node 4: nothing to write (empty)";
+  // A concise DCF written over SDO must decode.
+  std::uint32_t code = 0;
+  tool.upload(1, 0x1F22, 2, &code);
+  EXPECT_EQ(code, 0u);
+  EXPECT_EQ(tool.write32(1, 0x1F22, 5, 0x00000002u), 0x06090030u) << "two entries announced, none there";
+}
+
+// The boot follows the dictionary, not the rig file: an expected device type changed over SDO makes the
+// sensor's next boot (the controller's next start) fail on it.
+TEST(RigMaster, TheBootFollowsTheMastersDictionary) {
+  std::vector<std::string> log;
+  const auto path = writeTemp("default.ini", rigText());
+  nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+  Tool tool(vr);
+  vr.start();
+  vr.runFor(2.0);
+  ASSERT_TRUE(vr.controller().running());
+  EXPECT_EQ(tool.write32(1, 0x1F84, 2, 0x00020196u), 0u);
+  const std::uint8_t preop[2] = {0x80, 0x01}, start[2] = {0x01, 0x01};
+  tool.port.send(canopen::makeFrame(0x000, 2, preop));
+  vr.runFor(0.1);
+  tool.port.send(canopen::makeFrame(0x000, 2, start));
+  vr.runFor(2.0);
+  EXPECT_EQ(vr.controller().faultCounters().slave_boot_failures, 1u);
+  const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2) not started") == 0; });
+  ASSERT_NE(line, log.end());
+  EXPECT_NE(line->find("device type is 0x00080196, expected 0x00020196"), std::string::npos) << *line;
 }
