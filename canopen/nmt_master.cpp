@@ -97,6 +97,13 @@ void bootToDictionary(ObjectDictionary& od, std::uint8_t id, const SlaveBoot& bo
     throw OdError(where(kObjConciseDcf, id) + ": a concise DCF of " + std::to_string(bytes.size()) + " bytes does not fit");
 }
 
+std::string checkMasterEntry(const DcfEntry& e) {
+  if (e.index != kObjConciseDcf || e.sub == 0 || e.data.empty()) return "";
+  ConciseDcf dcf;
+  std::string why;
+  return decodeConciseDcf(e.data.data(), e.data.size(), dcf, &why) ? "" : where(e.index, e.sub) + " is not a concise DCF: " + why;
+}
+
 void NmtMaster::setBoot(std::uint8_t id, SlaveBoot boot) {
   Slave* s = find(id);
   if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");

@@ -89,6 +89,10 @@ bool bootFromDictionary(const ObjectDictionary& od, std::uint8_t id, SlaveBoot& 
 // lacks one of the objects or the concise DCF does not fit 0x1F22:id.
 void bootToDictionary(ObjectDictionary& od, std::uint8_t id, const SlaveBoot& boot);
 
+// A value for one of the master's objects, as a DCF or a tool gives it: "" if the master can take it,
+// otherwise the problem (0x1F22: not a concise DCF).
+std::string checkMasterEntry(const DcfEntry& e);
+
 struct BootError {
   std::uint32_t abort_code = 0;  // SDO abort code (0: a mismatch, see text)
   std::string text;              // "0x1000 device type is 0x00020192, expected 0x00080196", ...

@@ -13,7 +13,9 @@
 #include <vector>
 
 #include "canopen/bus.hpp"
+#include "canopen/dcf.hpp"
 #include "nodes/decoder.hpp"
+#include "nodes/master_dcf.hpp"
 #include "nodes/rig_file.hpp"
 #include "plant/plant.hpp"
 #include "rig/virtual_rig.hpp"
@@ -545,4 +547,92 @@ TEST(RigMaster, TheBootFollowsTheMastersDictionary) {
   const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2) not started") == 0; });
   ASSERT_NE(line, log.end());
   EXPECT_NE(line->find("device type is 0x00080196, expected 0x00020196"), std::string::npos) << *line;
+}
+
+// A master DCF written by hand (tests/dcf/moved_pdos.dcf): the sensor's position on 0x190 and the valve's
+// command on 0x210 instead of the rig's 0x182 and 0x203, a 200 ms sensor heartbeat, both slaves kept
+// alive with a retry factor of 2. On top of the shipped rig, the controller boots the slaves as the DCF
+// says and tracks; the same with the sensor's concise DCF in a binary file named by UploadFile.
+TEST(MasterDcf, TheControllerBootsTheSlavesFromAHandWrittenDcf) {
+  const std::string fixture = std::string(PAMC_SOURCE_DIR) + "/tests/dcf/moved_pdos.dcf";
+  std::ifstream in(fixture);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // The second form: 0x1F22:02 from a file (the bytes of the hand-written hex).
+  std::string with_file = text;
+  const auto at = with_file.find("ParameterValue=07000000");
+  ASSERT_NE(at, std::string::npos);
+  const auto eol = with_file.find('\n', at);
+  std::string hex = with_file.substr(at + 15, eol - at - 15), bytes;
+  hex.erase(std::remove(hex.begin(), hex.end(), ' '), hex.end());
+  for (std::size_t i = 0; i + 1 < hex.size(); i += 2) bytes.push_back(static_cast<char>(std::stoi(hex.substr(i, 2), nullptr, 16)));
+  std::ofstream(writeTemp("node2.bin", "")) << bytes;
+  with_file.replace(at, eol - at, "UploadFile=" + ::testing::TempDir() + "MasterDcf.TheControllerBootsTheSlavesFromAHandWrittenDcf.node2.bin");
+  for (const std::string& dcf : {fixture, writeTemp("moved.dcf", with_file)}) {
+    std::vector<std::string> log;
+    auto c = controllerFromRig(writeTemp("default.ini", rigText()), &log);
+    nodes::applyMasterDcf(dcf, c);
+    nodes::VirtualRig vr(c, emulator());
+    Tool tool(vr);
+    int old_cobs = 0, new_cobs = 0;
+    vr.addTap([&](const Frame& f, canopen::TimeUs t) {
+      if (t < 1'000'000) return;
+      old_cobs += f.id == 0x182 || f.id == 0x203;
+      new_cobs += f.id == 0x190 || f.id == 0x210;
+    });
+    vr.start();
+    vr.runFor(4.0);
+    const auto fc = vr.controller().faultCounters();
+    EXPECT_EQ(fc.slave_boots, 2u) << dcf;
+    EXPECT_EQ(fc.slave_boot_failures, 0u);
+    EXPECT_EQ(fc.episodes, 0u);
+    EXPECT_TRUE(vr.controller().running());
+    EXPECT_LT(trackingRmse(vr.records(), 1.0), 1.0);
+    EXPECT_EQ(tool.read32(2, 0x1800, 1), 0x190u) << "the sensor's TPDO1";
+    EXPECT_EQ(tool.read32(3, 0x1400, 1), 0x210u) << "the valve's RPDO1";
+    EXPECT_EQ(tool.upload(2, 0x1017, 0), (std::vector<std::uint8_t>{200, 0})) << "the sensor's heartbeat";
+    EXPECT_EQ(tool.read32(1, 0x1F81, 2), 0x0000021Du) << "kept alive, 2 retries";
+    EXPECT_EQ(tool.read32(1, 0x1016, 1), 0x000201C2u);
+    EXPECT_EQ(old_cobs, 0);
+    EXPECT_GT(new_cobs, 5000) << "position and command every cycle on their new COB-IDs";
+  }
+}
+
+// A DCF that is not one, or gives the controller what it cannot take: one line, "file:line: problem".
+TEST(MasterDcf, AMalformedDcfIsOneLineNamingFileAndLine) {
+  std::ifstream in(std::string(PAMC_SOURCE_DIR) + "/tests/dcf/moved_pdos.dcf");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  struct Case {
+    std::string from, to, expect;
+  };
+  const std::vector<Case> cases = {
+      {"ParameterValue=0x00000190", "ParameterValue=0x190Z", "[1400sub1] ParameterValue: '0x190Z' is not a valid UNSIGNED32"},
+      {"NrOfEntries=2\n2=0x00000002", "NrOfEntries=3\n2=0x00000002", "NrOfEntries is 3 but 2 entries follow"},
+      {"ParameterValue=07000000", "ParameterValue=08000000", "0x1F22:02 is not a concise DCF: entry 8 of 8: header beyond the end"},
+      {"ParameterValue=07000000", "ParameterValue=0700000", "is not a sequence of hex bytes for DOMAIN"},
+      {"2=0x0000021D", "2=0x10000021D", "'0x10000021D' is out of range for UNSIGNED32"},
+      {"[1F86Value]\nNrOfEntries=2\n2=0x00000002", "[1F86Value]\nNrOfEntries=2\n200=0x00000002", "not a sub-index of the object (1..127)"},
+      {"7=0x1F86", "7=0x1F8A", "listed object has no section"},
+      {"ObjectType=0x7\nDataType=0x000F\nAccessType=rw\nParameterValue=07", "ObjectType=0x7\nDataType=0x000A\nAccessType=rw\nParameterValue=07",
+       "0x1F22:02 is OCTET_STRING here but DOMAIN in"},
+      {"[1F22sub2]", "[1F22sub80]", "the device"},
+      {"[1F22sub2]", "[1F22subZZ]", "neither an object"},
+  };
+  for (const auto& c : cases) {
+    std::string bad = text;
+    const auto at = bad.find(c.from);
+    ASSERT_NE(at, std::string::npos) << c.from;
+    bad.replace(at, c.from.size(), c.to);
+    const std::string path = writeTemp("bad.dcf", bad);
+    auto cfg = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
+    try {
+      nodes::applyMasterDcf(path, cfg);
+      ADD_FAILURE() << "accepted: " << c.expect;
+    } catch (const canopen::EdsError& e) {
+      const std::string m = e.what();
+      EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+      EXPECT_EQ(m.rfind(path + ":", 0), 0u) << m;
+      EXPECT_GT(e.line(), 0) << m;
+      EXPECT_NE(m.find(c.expect), std::string::npos) << m;
+    }
+  }
 }
