@@ -48,7 +48,7 @@ struct ControllerNodeConfig {
   int recover_cycles = 500;           // a fault must be gone this long before control resumes
   double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast
   double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
-  double no_position_s = 1.0;         // no position this long after entering Operational: Fault::NoPosition
+  double no_position_s = 1.0;         // no position this long after entering Operational (or after the sensor's boot): Fault::NoPosition
   SlaveLayout layout;
   // Values of the controller's own dictionary in place of the EDS defaults (a reset restores them):
   // a rig file compiled (masterValues), a DCF (--dcf). The boot of the slaves follows them: 0x1F22,

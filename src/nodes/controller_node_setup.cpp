@@ -163,7 +163,14 @@ void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
   const char* role = is_valve ? "valve" : "sensor";
   switch (ev) {
     case SlaveEvent::Configured:
+      if (!is_valve) sensor_->onBooted(node_->now());
       if (log_) log_(std::string(role) + " (node " + std::to_string(id) + "): identity checked, configuration written and read back");
+      break;
+    case SlaveEvent::KeptAlive:
+      if (!is_valve) sensor_->onBooted(node_->now());
+      if (log_)
+        log_(std::string(role) + " (node " + std::to_string(id) +
+             "): kept alive (Operational, heartbeat live): identity checked, not reset or configured again");
       break;
     case SlaveEvent::BootFailed: {
       const auto* e = master_->bootError(id);
@@ -172,7 +179,8 @@ void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
       if (log_ && e) {
         char code[32] = "";
         if (e->abort_code) std::snprintf(code, sizeof code, " (SDO abort 0x%08X)", e->abort_code);
-        log_(std::string(role) + " (node " + std::to_string(id) + ") not started: " + e->text + code);
+        log_(std::string(role) + " (node " + std::to_string(id) + ") not started, " + canopen::bootStepName(e->step) + ": " +
+             e->text + code);
       }
       break;
     }

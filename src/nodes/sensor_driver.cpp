@@ -74,7 +74,8 @@ void SensorDriver::supervise(FaultSupervisor& f, TimeUs now, bool active, bool u
   if (active && !usable) ++samples_missing_;
   if (usable) ++positions_;
   // The loop never started: say so once no_position_s has passed (the reporter names the COB-ID).
-  if (!active && operational_at_ != canopen::kNever && static_cast<double>(now - operational_at_) >= no_position_s_ * 1e6)
+  if (!active && operational_at_ != canopen::kNever && !master_.booting(id_) &&
+      static_cast<double>(now - operational_at_) >= no_position_s_ * 1e6)
     f.raise(Fault::NoPosition, id_);
   if (active && rp.syncsSinceReception() > limit) f.raise(Fault::PositionMissing);
   if (rp.conflictInLastCycle()) {

@@ -37,6 +37,11 @@ class SensorDriver {
   void readStepAtBoot();
   void bind() { position_ = node_.od().ref<std::int32_t>(0x3000, 0); }
   void onOperational(canopen::TimeUs now) noexcept;
+  // Its boot finished: the time for a first position runs from here (a boot may take a while - a
+  // keep-alive check, a slow heartbeat - and is supervised by the master itself).
+  void onBooted(canopen::TimeUs now) noexcept {
+    if (operational_at_ != canopen::kNever) operational_at_ = now;
+  }
   void onLeftOperational() noexcept { operational_at_ = canopen::kNever; }
 
   // The cycle: latch, plausibility (u: the command in effect), supervision.

@@ -291,7 +291,7 @@ TEST(RigBoot, AWrongIdentityIsReportedAndTheSlaveLeftStopped) {
   EXPECT_EQ(fc.slave_boot_failures, 1u);
   EXPECT_NE(std::find(tool.emcy.begin(), tool.emcy.end(), 0x6300), tool.emcy.end()) << "EMCY 0x6300";
   ASSERT_FALSE(log.empty());
-  EXPECT_NE(log.front().find("sensor (node 2) not started: 0x1000:00 device type is 0x00080196, expected 0x00020196"),
+  EXPECT_NE(log.front().find("sensor (node 2) not started, identity check: 0x1000:00 device type is 0x00080196, expected 0x00020196"),
             std::string::npos)
       << log.back();
   EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(2), canopen::NmtState::Stopped);
@@ -310,7 +310,7 @@ TEST(RigBoot, ARefusedWriteIsReportedWithItsAbortCode) {
   // The boot report; the loop's own line (no position: the sensor waits for the valve) follows it.
   const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("valve (node 3)") == 0; });
   ASSERT_NE(line, log.end());
-  EXPECT_NE(line->find("valve (node 3) not started: 0x6411:01 write refused"), std::string::npos) << *line;
+  EXPECT_NE(line->find("valve (node 3) not started, configuration: 0x6411:01 write refused"), std::string::npos) << *line;
   EXPECT_NE(line->find("SDO abort 0x06090032"), std::string::npos) << *line;
   EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Stopped);
 }
@@ -486,7 +486,7 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
       EXPECT_EQ(mc.boot_failures, 1u);
       const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; });
       ASSERT_NE(line, log.end());
-      EXPECT_NE(line->find("sensor (node 2) not started: 0x1018:02 read failed: SDO protocol timed out"), std::string::npos) << *line;
+      EXPECT_NE(line->find("sensor (node 2) not started, identity check: 0x1018:02 read failed: SDO protocol timed out (SDO abort 0x05040000)"), std::string::npos) << *line;
     }
   }
 }
