@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "canopen/bus.hpp"
+#include "canopen/candump_log.hpp"
 #include "canopen/dcf.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/master_dcf.hpp"
@@ -116,6 +117,12 @@ struct Tool {
       if (last.data[0] & 0x01) return out;
     }
   }
+  std::uint64_t value(std::uint8_t node, std::uint16_t idx, std::uint8_t sub) {
+    const auto b = upload(node, idx, sub);
+    std::uint64_t v = 0;
+    for (std::size_t i = 0; i < b.size() && i < 8; ++i) v |= static_cast<std::uint64_t>(b[i]) << (8 * i);
+    return v;
+  }
   std::uint32_t read32(std::uint8_t node, std::uint16_t idx, std::uint8_t sub) {
     const auto b = upload(node, idx, sub);
     return b.size() == 4 ? canopen::getU32(b.data()) : 0xDEADBEEFu;
@@ -135,6 +142,24 @@ std::string profileRig() {
     t.replace(t.find(from), from.size(), kOd + eds);
   }
   return t;
+}
+
+// One of od/'s EDS files with some DefaultValues changed ({section, value}): a device whose configuration
+// another master changed and stored (CiA 301 0x1010), so that a reset communication brings back that,
+// not pamc's layout.
+std::string edsWith(const std::string& file, const std::vector<std::pair<std::string, std::string>>& defaults) {
+  std::ifstream in(kOd + file);
+  std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const auto& [section, value] : defaults) {
+    const auto sec = t.find("[" + section + "]\n");
+    const auto key = t.find("DefaultValue=", sec);
+    if (sec == std::string::npos || key == std::string::npos) {
+      ADD_FAILURE() << file << " has no [" << section << "] DefaultValue";
+      continue;
+    }
+    t.replace(key + 13, t.find('\n', key) - key - 13, value);
+  }
+  return writeTemp(file, t);
 }
 
 double trackingRmse(const std::vector<nodes::CycleRecord>& recs, double from_s) {
@@ -294,8 +319,11 @@ TEST(RigBoot, AWrongIdentityIsReportedAndTheSlaveLeftStopped) {
   EXPECT_NE(log.front().find("sensor (node 2) not started, identity check: 0x1000:00 device type is 0x00080196, expected 0x00020196"),
             std::string::npos)
       << log.back();
+  EXPECT_EQ(std::count_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; }), 1)
+      << "one line for the failure";
   EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(2), canopen::NmtState::Stopped);
   EXPECT_FALSE(rig.controller().running()) << "no position: the loop does not start";
+  EXPECT_TRUE(nodes::runFailure(rig.controller())) << "the run fails: pamc controller exits non-zero";
   // The valve is mandatory-gated too: nothing was started while the sensor failed.
   EXPECT_NE(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Operational);
 }
@@ -633,6 +661,133 @@ TEST(MasterDcf, AMalformedDcfIsOneLineNamingFileAndLine) {
       EXPECT_EQ(m.rfind(path + ":", 0), 0u) << m;
       EXPECT_GT(e.line(), 0) << m;
       EXPECT_NE(m.find(c.expect), std::string::npos) << m;
+    }
+  }
+}
+
+// Slaves another master left otherwise - and stored, so that a reset communication does not undo it (their
+// EDS defaults changed) - started by it before the controller comes: a moved TPDO COB-ID, a changed
+// mapping, an asynchronous transmission type, a disabled RPDO, heartbeat 0 or 1000 ms. Without the rig
+// file's configuration the loop does not run on most of them (an asynchronous position sent on every
+// change and no heartbeat at all go unnoticed); with it the controller resets, checks and
+// configures them (read back), waits for their first heartbeat, starts them, and the loop tracks.
+TEST(RigBoot, SlavesAnotherMasterLeftOtherwiseAreConfiguredBeforeTheStart) {
+  struct Case {
+    const char* what;
+    std::vector<std::pair<std::string, std::string>> sensor, valve;
+    std::uint8_t node;
+    std::uint16_t index;
+    std::uint8_t sub;
+    std::uint64_t left, configured;
+    bool runs_unconfigured;
+  };
+  const std::vector<Case> cases = {
+      {"a moved TPDO COB-ID", {{"1800sub1", "0x190"}}, {}, 2, 0x1800, 1, 0x190, 0x182, false},
+      {"a changed mapping", {{"1A00sub1", "0x65030010"}}, {}, 2, 0x1A00, 1, 0x65030010, 0x60040020, false},
+      // Sent on every change of the position, as often as it is sampled: the loop runs on it unconfigured.
+      {"an asynchronous TPDO", {{"1800sub2", "254"}, {"1800sub5", "10"}}, {}, 2, 0x1800, 2, 254, 1, true},
+      {"a disabled RPDO", {}, {{"1400sub1", "0x80000203"}}, 3, 0x1400, 1, 0x80000203, 0x203, false},
+      {"heartbeat 0", {{"1017", "0"}}, {{"1017", "0"}}, 2, 0x1017, 0, 0, 100, true},
+      {"heartbeat 1000 ms", {{"1017", "1000"}}, {{"1017", "1000"}}, 3, 0x1017, 0, 1000, 100, false},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.what);
+    nodes::EmulatorConfig e = emulator();
+    if (!c.sensor.empty()) e.sensor_eds = edsWith("sensor.eds", c.sensor);
+    if (!c.valve.empty()) e.valve_eds = edsWith("valve.eds", c.valve);
+    for (bool configured : {false, true}) {
+      std::vector<std::string> log;
+      auto cfg = controllerFromRig(writeTemp("default.ini", rigText()), &log);
+      if (!configured) cfg.dictionary.clear(), cfg.layout = nodes::SlaveLayout{};  // pamc's layout assumed
+      nodes::VirtualRig vr(cfg, e);
+      Tool tool(vr);
+      vr.startEmulator();
+      const std::uint8_t all[2] = {0x01, 0x00};  // the other master started them
+      tool.port.send(canopen::makeFrame(0x000, 2, all));
+      vr.bus().flush();
+      ASSERT_EQ(tool.value(c.node, c.index, c.sub), c.left);
+      vr.startController();
+      vr.runFor(5.0);
+      const double rmse = trackingRmse(vr.records(), 2.0);
+      if (!configured) {
+        if (!c.runs_unconfigured) {
+          EXPECT_TRUE(!vr.controller().running() || rmse > 3.0 || vr.controller().faultsRaised() > 0);
+        }
+        continue;
+      }
+      const auto fc = vr.controller().faultCounters();
+      EXPECT_EQ(fc.slave_boots, 2u);
+      EXPECT_EQ(fc.slave_boot_failures, 0u);
+      EXPECT_EQ(fc.episodes, 0u);
+      EXPECT_EQ(vr.controller().master().counters().resets, 2u);
+      EXPECT_TRUE(vr.controller().running());
+      EXPECT_LT(rmse, 1.0);
+      EXPECT_EQ(tool.value(c.node, c.index, c.sub), c.configured) << "read back after the boot";
+    }
+  }
+}
+
+// The rig's own heartbeat of 1000 ms: consumed with 2050 ms (0x1016), a start grace of 3 s - the slaves
+// report Operational only with their next heartbeat, up to a second after the start, which is no fault.
+TEST(RigBoot, SlowHeartbeatsGiveALongerConsumerTimeAndStartGrace) {
+  const auto path = writeTemp("rig.ini", rigText({{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = 1000 ; 0x1017"},
+                                                  {"heartbeat_ms = 100\nmaster", "heartbeat_ms = 1000\nmaster"}}));
+  std::vector<std::string> log;
+  nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+  Tool tool(vr);
+  vr.start();
+  vr.runFor(6.0);
+  EXPECT_EQ(tool.read32(1, 0x1016, 1), 0x00020000u | 2050u);
+  EXPECT_EQ(tool.read32(1, 0x1016, 2), 0x00030000u | 2050u);
+  EXPECT_EQ(vr.controller().master().startGraceUs(2), 3'000'000);
+  const auto fc = vr.controller().faultCounters();
+  EXPECT_EQ(fc.slave_boots, 2u);
+  EXPECT_EQ(fc.episodes, 0u) << "no slave taken for down while its Operational heartbeat is due";
+  EXPECT_EQ(vr.controller().master().counters().starts, 2u) << "one start each";
+  EXPECT_TRUE(vr.controller().running());
+  EXPECT_LT(trackingRmse(vr.records(), 3.0), 1.0);
+}
+
+// 0x1F81 bit 4, keep alive: slaves another master left Operational, their heartbeats live, are neither
+// reset nor configured at the controller's start (their identity is checked) - not one NMT reset on the
+// bus for them - and the loop runs on them; left in Pre-operational they are reset and booted as any other.
+TEST(RigBoot, KeptAliveSlavesThatRunAreNotResetAtTheControllersStart) {
+  const auto path = writeTemp("rig.ini", rigText({{"mandatory = yes          ; 0x1F81", "keep_alive = yes\nmandatory = yes ; 0x1F81"},
+                                                  {"boot = yes\nmandatory = yes\n", "boot = yes\nmandatory = yes\nkeep_alive = yes\n"}}));
+  for (bool operational : {true, false}) {
+    SCOPED_TRACE(operational ? "Operational" : "Pre-operational");
+    std::vector<std::string> log;
+    nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+    Tool tool(vr);
+    std::vector<std::string> nmt;
+    vr.addTap([&](const Frame& f, canopen::TimeUs) {
+      if (f.id == 0x000 && f.len == 2) nmt.push_back(canopen::formatFrame(f));
+    });
+    vr.startEmulator();
+    if (operational) {
+      const std::uint8_t all[2] = {0x01, 0x00};
+      tool.port.send(canopen::makeFrame(0x000, 2, all));
+    }
+    vr.runFor(0.3);  // their heartbeats go on
+    nmt.clear();
+    vr.startController();
+    vr.runFor(4.0);
+    const auto& mc = vr.controller().master().counters();
+    auto resets = [&](const char* id) {
+      return std::count(nmt.begin(), nmt.end(), std::string("000#82") + id) + std::count(nmt.begin(), nmt.end(), std::string("000#81") + id);
+    };
+    EXPECT_TRUE(vr.controller().running());
+    EXPECT_LT(trackingRmse(vr.records(), 1.0), 1.0);
+    if (operational) {
+      EXPECT_EQ(resets("02") + resets("03") + resets("00"), 0) << "no reset on the bus";
+      EXPECT_EQ(mc.kept_alive, 2u);
+      EXPECT_EQ(mc.resets, 0u);
+      EXPECT_EQ(mc.boots, 0u) << "not configured again";
+      EXPECT_EQ(std::count_if(log.begin(), log.end(), [](const std::string& l) { return l.find("kept alive") != std::string::npos; }), 2);
+    } else {
+      EXPECT_EQ(resets("02"), 1);
+      EXPECT_EQ(resets("03"), 1);
+      EXPECT_EQ(mc.boots, 2u);
     }
   }
 }
