@@ -14,6 +14,8 @@
 #include <set>
 #include <sstream>
 
+#include <sys/stat.h>
+
 namespace pamc::canopen {
 
 namespace {
@@ -29,6 +31,9 @@ std::string_view trim(std::string_view s) {
   while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);
   return s;
 }
+
+// A DOMAIN's file (UploadFile / DownloadFile) is read whole: a concise DCF, not a firmware image.
+constexpr long kMaxDomainFile = 65536;
 
 bool isHex(std::string_view s) {
   return !s.empty() &&
@@ -160,6 +165,10 @@ class Checker {
     const std::string name(trim(k.value));
     if (name.empty()) fail(s, k, "no file named");
     const std::string path = name[0] == '/' ? name : dir_ + name;
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) fail(s, k, path + ": cannot open file: " + std::strerror(errno));
+    if (!S_ISREG(st.st_mode)) fail(s, k, path + ": not a regular file");
+    if (st.st_size > kMaxDomainFile) fail(s, k, path + ": larger than " + std::to_string(kMaxDomainFile) + " bytes");
     std::ifstream in(path, std::ios::binary);
     if (!in) fail(s, k, path + ": cannot open file: " + std::strerror(errno));
     std::string hex;

@@ -76,7 +76,9 @@ void NmtMaster::steps(Slave& s, bool kept) noexcept {
   s.end_op = kept ? s.config_op : s.ops.size();
   s.tries_left = retriesOf(s.boot.assignment);
   s.deadline = kNever;
-  s.resume = false;
+  // Decided here, not in poll() - which the SYNC callback runs and which must not format a failure.
+  if (!kept && !s.plan_error.empty()) return bootFailed(s, BootStep::Configuration, 0, s.plan_error);
+  if (s.end_op == 0) return awaitHeartbeat(s, node_.now());  // no SDO step
   s.state = Boot::Waiting;
   poll(node_.now());
 }
@@ -96,10 +98,7 @@ void NmtMaster::runBoot(Slave& s) noexcept {
   } else {
     sent = sdo.upload(id, op.index, op.sub, reply);
   }
-  if (!sent) {
-    s.state = Boot::Waiting;  // the client is busy: poll() goes on from this operation
-    s.resume = true;
-  }
+  if (!sent) s.state = Boot::Waiting;  // the client is busy: poll() goes on from this operation
 }
 
 void NmtMaster::onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept {

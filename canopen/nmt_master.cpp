@@ -216,8 +216,6 @@ void NmtMaster::poll(TimeUs) noexcept {
     if (s.state != Boot::Waiting) continue;
     if (node_.sdoClient().busy()) return;
     s.state = Boot::Running;
-    if (!s.plan_error.empty()) return bootFailed(s, BootStep::Configuration, 0, s.plan_error);
-    s.resume = false;
     runBoot(s);
     return;
   }

@@ -211,7 +211,6 @@ class NmtMaster {
     bool kept = false;             // this boot checks the identity of a running kept-alive slave only
     std::size_t next_op = 0, end_op = 0;
     unsigned tries_left = 0;       // of the present step
-    bool resume = false;           // Waiting for the SDO client in the middle of a boot: go on at next_op
     TimeUs deadline = kNever;      // Checking, Resetting, Heartbeat
     BootError error;
   };
