@@ -14,6 +14,8 @@
 #include <set>
 #include <sstream>
 
+#include <sys/stat.h>
+
 namespace pamc::canopen {
 
 namespace {
@@ -29,6 +31,9 @@ std::string_view trim(std::string_view s) {
   while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);
   return s;
 }
+
+// A DOMAIN's file (UploadFile / DownloadFile) is read whole: a concise DCF, not a firmware image.
+constexpr long kMaxDomainFile = 65536;
 
 bool isHex(std::string_view s) {
   return !s.empty() &&
@@ -51,7 +56,10 @@ std::string quoted(std::string_view s) { return "'" + std::string(s) + "'"; }
 
 class Checker {
  public:
-  explicit Checker(std::string file) : file_(std::move(file)) {}
+  explicit Checker(std::string file) : file_(std::move(file)) {
+    const auto slash = file_.find_last_of('/');
+    dir_ = slash == std::string::npos ? std::string() : file_.substr(0, slash + 1);
+  }
 
   [[noreturn]] void fail(int line, const std::string& section, const std::string& problem) const {
     throw EdsError(file_, line, section, problem);
@@ -96,13 +104,24 @@ class Checker {
     else fail(s, at, quoted(at.value) + " is not one of ro, wo, rw, rwr, rww, const");
     if (const IniKey* k = s.find("pdomapping")) e.pdo_mapping = number(s, *k, 1) != 0;
 
-    // DCF files carry the configured value in ParameterValue; it wins over DefaultValue.
+    // DCF files carry the configured value in ParameterValue; it wins over DefaultValue. A DOMAIN's
+    // bytes may be in a file instead (CiA 306 UploadFile / DownloadFile), as hex in the value otherwise.
     const IniKey* dv = s.find("parametervalue");
-    if (dv == nullptr) dv = s.find("defaultvalue");
+    const IniKey* file = nullptr;
+    if (dv == nullptr && e.data_type == DataType::Domain) {
+      file = s.find("uploadfile");
+      if (file == nullptr) file = s.find("downloadfile");
+    }
+    if (dv == nullptr && file == nullptr) dv = s.find("defaultvalue");
     std::vector<std::uint8_t> def, low, high;
-    if (dv != nullptr) {
+    if (file != nullptr) {
+      e.default_value = domainFile(s, *file);
+      e.default_line = file->line;
+      e.valued = true;
+    } else if (dv != nullptr) {
       e.default_value = std::string(trim(dv->value));
       e.default_line = dv->line;
+      e.valued = true;
       check(s, *dv, e.data_type, def);
     } else {
       e.default_line = s.line;
@@ -141,9 +160,57 @@ class Checker {
     if (!err.empty()) fail(s, k, err);
   }
 
+  // The bytes of a DOMAIN's file (relative to this file's folder), as the hex text of a value.
+  std::string domainFile(const IniSection& s, const IniKey& k) const {
+    const std::string name(trim(k.value));
+    if (name.empty()) fail(s, k, "no file named");
+    const std::string path = name[0] == '/' ? name : dir_ + name;
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) fail(s, k, path + ": cannot open file: " + std::strerror(errno));
+    if (!S_ISREG(st.st_mode)) fail(s, k, path + ": not a regular file");
+    if (st.st_size > kMaxDomainFile) fail(s, k, path + ": larger than " + std::to_string(kMaxDomainFile) + " bytes");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) fail(s, k, path + ": cannot open file: " + std::strerror(errno));
+    std::string hex;
+    static const char digits[] = "0123456789ABCDEF";
+    for (char c; in.get(c);) {
+      const auto b = static_cast<unsigned char>(c);
+      hex += digits[b >> 4];
+      hex += digits[b & 0xF];
+    }
+    return hex;
+  }
+
  private:
   std::string file_;
+  std::string dir_;
 };
+
+// [xxxxName] / [xxxxValue] of a CompactSubObj object (CiA 306): NrOfEntries, then "<sub-index>=<name or
+// value>" for the sub-objects that differ from the object's own ParameterName / DefaultValue.
+void compactList(const Checker& c, const IniSection& s, EdsObject& obj, bool values) {
+  const IniKey& count = c.require(s, "nrofentries", "NrOfEntries");
+  const std::uint64_t n = c.number(s, count, 254);
+  std::uint64_t seen = 0;
+  for (const IniKey& k : s.keys) {
+    if (&k == &count) continue;
+    std::uint64_t sub = 0;
+    if (!parseUnsigned(k.name, sub, 10) || sub == 0 || sub >= obj.subs.size())
+      c.fail(s, k, "not a sub-index of the object (1.." + std::to_string(obj.subs.size() - 1) + ")");
+    EdsSubObject& e = obj.subs[sub];
+    ++seen;
+    if (!values) {
+      e.name = k.value;
+      continue;
+    }
+    e.default_value = std::string(trim(k.value));
+    e.default_line = k.line;
+    e.valued = true;
+    std::vector<std::uint8_t> bytes;
+    c.check(s, k, e.data_type, bytes);
+  }
+  if (seen != n) c.fail(s, count, "NrOfEntries is " + std::to_string(n) + " but " + std::to_string(seen) + " entries follow");
+}
 
 bool startsWithHex4(const std::string& lname) { return lname.size() >= 4 && isHex(std::string_view(lname).substr(0, 4)); }
 
@@ -170,6 +237,7 @@ void buildFile(const IniFile& ini, EdsFile& eds) {
   // Object sections.
   std::map<std::uint16_t, const IniSection*> object_sections;
   std::map<std::uint16_t, std::map<std::uint8_t, const IniSection*>> sub_sections;
+  std::map<std::uint16_t, const IniSection*> name_sections, value_sections;  // of CompactSubObj objects
   for (const IniSection* s : order) {
     std::string ln = lower(s->name);
     if (!startsWithHex4(ln)) continue;
@@ -181,7 +249,7 @@ void buildFile(const IniFile& ini, EdsFile& eds) {
       auto sub = static_cast<std::uint8_t>(std::strtoul(rest.substr(3).c_str(), nullptr, 16));
       sub_sections[index][sub] = s;
     } else if (rest == "name" || rest == "value") {
-      c.fail(*s, "[xxxxName]/[xxxxValue] sections (compact sub-object names/values) are not supported");
+      (rest == "name" ? name_sections : value_sections)[index] = s;
     } else if (rest != "objectlinks") {
       c.fail(*s, "section name is neither an object [xxxx] nor a sub-object [xxxxsubN]");
     }
@@ -189,6 +257,12 @@ void buildFile(const IniFile& ini, EdsFile& eds) {
   for (const auto& kv : sub_sections) {
     if (object_sections.count(kv.first) == 0) {
       c.fail(*kv.second.begin()->second, "sub-object of an object that has no section");
+    }
+  }
+  for (const auto* list : {&name_sections, &value_sections}) {
+    for (const auto& kv : *list) {
+      const IniKey* compact = object_sections.count(kv.first) ? object_sections[kv.first]->find("compactsubobj") : nullptr;
+      if (compact == nullptr) c.fail(*kv.second, "names or values of sub-objects need an object with CompactSubObj");
     }
   }
 
@@ -232,6 +306,8 @@ void buildFile(const IniFile& ini, EdsFile& eds) {
           e.name = proto.name + " " + std::to_string(i);
           obj.subs.push_back(e);
         }
+        if (auto it = name_sections.find(obj.index); it != name_sections.end()) compactList(c, *it->second, obj, false);
+        if (auto it = value_sections.find(obj.index); it != value_sections.end()) compactList(c, *it->second, obj, true);
       } else {
         const IniKey& sn = c.require(s, "subnumber", "SubNumber");
         std::uint64_t count = c.number(s, sn, 255);

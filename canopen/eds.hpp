@@ -36,8 +36,11 @@ struct EdsSubObject {
   DataType data_type = DataType::Unsigned8;
   Access access = Access::ReadOnly;
   bool pdo_mapping = false;
-  std::string default_value;  // raw EDS text, may contain $NODEID
+  std::string default_value;  // raw EDS text, may contain $NODEID (DOMAIN: hex bytes, also from a file)
   int default_line = 0;
+  // The file gives this entry a value: ParameterValue, DefaultValue, UploadFile / DownloadFile (DOMAIN)
+  // or a line of the object's [xxxxValue] section. A DCF applies only these (canopen/dcf.hpp).
+  bool valued = false;
   std::string low_limit;
   int low_line = 0;
   std::string high_limit;

@@ -1,10 +1,11 @@
 #include "canopen/eds_dictionary.hpp"
 
+#include <algorithm>
 #include <utility>
 
 namespace pamc::canopen {
 
-ObjectDictionary dictionaryFromEds(const EdsFile& eds, std::uint8_t node_id) {
+ObjectDictionary dictionaryFromEds(const EdsFile& eds, std::uint8_t node_id, const ConciseDcf& values) {
   std::vector<ObjectInfo> objects;
   std::vector<EntrySpec> specs;
   for (const EdsObject& obj : eds.objects) {
@@ -30,6 +31,15 @@ ObjectDictionary dictionaryFromEds(const EdsFile& eds, std::uint8_t node_id) {
       if (!sub.high_limit.empty()) encode(sub.high_limit, sub.high_line, "HighLimit", s.high_limit);
       specs.push_back(std::move(s));
     }
+  }
+  for (const DcfEntry& v : values) {
+    auto it = std::find_if(specs.begin(), specs.end(), [&](const EntrySpec& s) { return s.index == v.index && s.sub == v.sub; });
+    if (it == specs.end()) throw OdError(eds.file + " has no entry " + entryName(v.index, v.sub) + " for the value given");
+    const std::size_t fixed = dataTypeSize(it->type);
+    if (fixed != 0 && v.data.size() != fixed)
+      throw OdError(entryName(v.index, v.sub) + ": a value of " + std::to_string(v.data.size()) + " bytes for " +
+                    dataTypeName(it->type));
+    it->default_value = v.data;
   }
   return ObjectDictionary(std::move(objects), std::move(specs));
 }

@@ -1,5 +1,7 @@
 #include "canopen/heartbeat.hpp"
 
+#include <algorithm>
+
 #include "canopen/nmt.hpp"
 
 namespace pamc::canopen {
@@ -47,7 +49,8 @@ const char* heartbeatEventName(HeartbeatEvent e) {
 void HeartbeatConsumer::registerHooks() {
   const Entry* count = ctx_.od.find(kConsumerHeartbeat, 0);
   if (count == nullptr) return;
-  slots_.resize(count->asUnsigned());
+  consumer_slots_ = count->asUnsigned();
+  slots_.resize(consumer_slots_ + watched_.size());
   // Two entries for the same node are refused (CiA 301: general parameter incompatibility).
   ctx_.od.addValidator(kConsumerHeartbeat, [this](const Entry& e, const std::uint8_t* d, std::size_t len) {
     if (e.subIndex() == 0 || len != 4) return kSdoOk;
@@ -55,7 +58,7 @@ void HeartbeatConsumer::registerHooks() {
     std::uint32_t node = (v >> 16) & 0xFF;
     if ((v >> 24) != 0 || node > 127) return kAbortValueRange;
     if (node == 0 || (v & 0xFFFF) == 0) return kSdoOk;
-    for (std::size_t i = 1; i <= slots_.size(); ++i) {
+    for (std::size_t i = 1; i <= consumer_slots_; ++i) {
       const Entry* other = ctx_.od.find(kConsumerHeartbeat, static_cast<std::uint8_t>(i));
       if (other == nullptr || other == &e) continue;
       auto ov = static_cast<std::uint32_t>(other->asUnsigned());
@@ -71,7 +74,7 @@ void HeartbeatConsumer::configure() {
     if (s.status != Status::Unused) ctx_.dispatcher.unsubscribe(kHeartbeatCobIdBase + s.node_id, this);
     s = Slot{};
   }
-  for (std::size_t i = 0; i < slots_.size(); ++i) {
+  for (std::size_t i = 0; i < consumer_slots_; ++i) {
     const Entry* e = ctx_.od.find(kConsumerHeartbeat, static_cast<std::uint8_t>(i + 1));
     if (e == nullptr) continue;
     auto v = static_cast<std::uint32_t>(e->asUnsigned());
@@ -85,6 +88,21 @@ void HeartbeatConsumer::configure() {
     s.status = Status::Waiting;
     ctx_.dispatcher.subscribe<&HeartbeatConsumer::onFrame>(kHeartbeatCobIdBase + node, this);
   }
+  for (std::size_t k = 0; k < watched_.size(); ++k) {
+    const std::uint8_t node = watched_[k];
+    if (node == ctx_.node_id || slotFor(node) != nullptr) continue;
+    Slot& s = slots_[consumer_slots_ + k];
+    s.node_id = node;
+    s.status = Status::Waiting;
+    ctx_.dispatcher.subscribe<&HeartbeatConsumer::onFrame>(kHeartbeatCobIdBase + node, this);
+  }
+}
+
+void HeartbeatConsumer::watch(std::uint8_t node_id) {
+  if (std::find(watched_.begin(), watched_.end(), node_id) != watched_.end()) return;
+  watched_.push_back(node_id);
+  slots_.resize(consumer_slots_ + watched_.size());
+  configure();
 }
 
 const HeartbeatConsumer::Slot* HeartbeatConsumer::slotFor(std::uint8_t node_id) const {
@@ -123,7 +141,7 @@ void HeartbeatConsumer::onFrame(const Frame& f, TimeUs now) {
 
 void HeartbeatConsumer::advance(TimeUs now) {
   for (Slot& s : slots_) {
-    if (s.status == Status::Active && now >= s.last_us + s.timeout_us) {
+    if (s.status == Status::Active && s.timeout_us > 0 && now >= s.last_us + s.timeout_us) {
       s.status = Status::TimedOut;
       emit(s, HeartbeatEvent::Timeout, now);
     }
@@ -133,7 +151,7 @@ void HeartbeatConsumer::advance(TimeUs now) {
 TimeUs HeartbeatConsumer::nextDeadline() const {
   TimeUs next = kNever;
   for (const Slot& s : slots_) {
-    if (s.status == Status::Active && s.last_us + s.timeout_us < next) next = s.last_us + s.timeout_us;
+    if (s.status == Status::Active && s.timeout_us > 0 && s.last_us + s.timeout_us < next) next = s.last_us + s.timeout_us;
   }
   return next;
 }
@@ -148,9 +166,19 @@ bool HeartbeatConsumer::timedOut(std::uint8_t node_id) const {
   return s != nullptr && s->status == Status::TimedOut;
 }
 
+bool HeartbeatConsumer::alive(std::uint8_t node_id) const {
+  const Slot* s = slotFor(node_id);
+  return s != nullptr && s->status == Status::Active;
+}
+
+TimeUs HeartbeatConsumer::timeoutUs(std::uint8_t node_id) const {
+  const Slot* s = slotFor(node_id);
+  return s != nullptr ? s->timeout_us : 0;
+}
+
 std::size_t HeartbeatConsumer::monitoredCount() const {
   std::size_t n = 0;
-  for (const Slot& s : slots_) n += s.status != Status::Unused ? 1 : 0;
+  for (const Slot& s : slots_) n += s.status != Status::Unused && s.timeout_us > 0 ? 1 : 0;
   return n;
 }
 

@@ -49,16 +49,24 @@ class HeartbeatConsumer {
   void advance(TimeUs now);
   TimeUs nextDeadline() const;
 
-  // State last reported by a monitored node (Initialising if unknown or not monitored).
+  // Also report this node's boot-up and state when 0x1016 gives it no consumer time (never a timeout):
+  // an NMT master hears the boot-up of every slave it resets (configuration time).
+  void watch(std::uint8_t node_id);
+
+  // State last reported by a monitored or watched node (Initialising if unknown or neither).
   NmtState remoteState(std::uint8_t node_id) const;
   bool timedOut(std::uint8_t node_id) const;
+  // A heartbeat came since the node's last boot-up (or since monitoring began) and has not timed out.
+  bool alive(std::uint8_t node_id) const;
+  // Its consumer heartbeat time from 0x1016 (0: not supervised).
+  TimeUs timeoutUs(std::uint8_t node_id) const;
   std::size_t monitoredCount() const;
 
  private:
   enum class Status : std::uint8_t { Unused, Waiting, Active, TimedOut };
   struct Slot {
     std::uint8_t node_id = 0;
-    TimeUs timeout_us = 0;
+    TimeUs timeout_us = 0;  // 0: watched only
     TimeUs last_us = 0;
     NmtState state = NmtState::Initialising;
     Status status = Status::Unused;
@@ -73,7 +81,9 @@ class HeartbeatConsumer {
 
   NodeContext& ctx_;
   EventHook hook_;
-  std::vector<Slot> slots_;  // one per 0x1016 sub-index, sized once
+  std::vector<Slot> slots_;  // one per 0x1016 sub-index, then one per watched node; sized at configuration
+  std::size_t consumer_slots_ = 0;
+  std::vector<std::uint8_t> watched_;
 };
 
 }  // namespace pamc::canopen

@@ -29,12 +29,39 @@ struct State {
   int lineno = 0;
   int err_line = 0;
   std::string err;
+  // Values too long for inih's line buffer (a DOMAIN's hex bytes): inih gets a stand-in, onKey the value.
+  std::vector<std::pair<int, std::string>> long_values;
   void fail(int line, std::string problem) {
     if (err_line != 0) return;  // the first problem in file order
     err_line = line;
     err = std::move(problem);
   }
 };
+
+constexpr const char* kLongValue = "\x01long value\x01";
+
+// A "key = value" line beyond inih's buffer keeps its key; the value (trimmed, without an inline
+// "; comment", as inih would leave it) waits in the state for onKey.
+void shortenValue(State& st, std::string& line, std::size_t max_len) {
+  const auto eq = line.find('=');
+  const auto first = line.find_first_not_of(" \t");
+  if (eq == std::string::npos || first == std::string::npos || line[first] == '[' || line[first] == ';' ||
+      eq + 1 + std::strlen(kLongValue) > max_len) {
+    st.fail(st.lineno, "line longer than " + std::to_string(max_len) + " characters");
+    line.resize(max_len);
+    return;
+  }
+  std::string value = line.substr(eq + 1);
+  for (std::size_t c = value.find(';'); c != std::string::npos; c = value.find(';', c + 1))
+    if (c > 0 && std::isspace(static_cast<unsigned char>(value[c - 1]))) {
+      value.resize(c);
+      break;
+    }
+  value.erase(0, value.find_first_not_of(" \t"));
+  value.erase(value.find_last_not_of(" \t") + 1);
+  st.long_values.emplace_back(st.lineno, std::move(value));
+  line = line.substr(0, eq + 1) + kLongValue;
+}
 
 // fgets-style reader for ini_parse_stream: counting lines here gives every key its line.
 char* readLine(char* str, int num, void* stream) {
@@ -45,10 +72,7 @@ char* readLine(char* str, int num, void* stream) {
   if (st->lineno == 1 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);
   if (!line.empty() && line.back() == '\r') line.pop_back();
   const std::size_t max_len = static_cast<std::size_t>(num) - 3;  // inih needs room for "\r\n\0"
-  if (line.size() > max_len) {
-    st->fail(st->lineno, "line longer than " + std::to_string(max_len) + " characters");
-    line.resize(max_len);
-  }
+  if (line.size() > max_len) shortenValue(*st, line, max_len);
   // Sections are opened here, at their header, so that an empty or repeated one is seen too.
   const auto p = line.find_first_not_of(" \t");
   if (p != std::string::npos && line[p] == '[') {
@@ -86,7 +110,9 @@ int onKey(void* user, const char* section, const char* name, const char* value) 
                              std::to_string(s.find(name)->line) + ")");
     return 0;
   }
-  s.keys.push_back(IniKey{name, value, st->lineno});
+  std::string v = value;
+  if (v == kLongValue && !st->long_values.empty() && st->long_values.back().first == st->lineno) v = st->long_values.back().second;
+  s.keys.push_back(IniKey{name, std::move(v), st->lineno});
   return 1;
 }
 

@@ -1,31 +1,15 @@
+// NmtMaster: the slaves, their boot plans from the dictionary, NMT start and hold, and what their
+// heartbeats say. The boot process itself is in nmt_boot.cpp.
 #include "canopen/nmt_master.hpp"
 
 #include <algorithm>
-#include <cstdio>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 
 #include "canopen/sdo_abort.hpp"
 
 namespace pamc::canopen {
-
-namespace {
-std::string hex32(std::uint32_t v) {
-  char b[16];
-  std::snprintf(b, sizeof b, "0x%08X", v);
-  return b;
-}
-std::string where(std::uint16_t index, std::uint8_t sub) {
-  char b[16];
-  std::snprintf(b, sizeof b, "0x%04X:%02X", index, sub);
-  return b;
-}
-std::uint32_t le32(const std::uint8_t* d, std::size_t len) {
-  std::uint32_t v = 0;
-  for (std::size_t i = 0; i < len && i < 4; ++i) v |= static_cast<std::uint32_t>(d[i]) << (8 * i);
-  return v;
-}
-}  // namespace
 
 const char* slaveEventName(SlaveEvent e) {
   switch (e) {
@@ -34,13 +18,68 @@ const char* slaveEventName(SlaveEvent e) {
     case SlaveEvent::LeftOperational: return "left operational";
     case SlaveEvent::Stopped: return "stopped";
     case SlaveEvent::Configured: return "configured";
+    case SlaveEvent::KeptAlive: return "kept alive";
     case SlaveEvent::BootFailed: return "boot failed";
   }
   return "?";
 }
 
+namespace {
+// The identity entries of the master (0x1F84 + k) and of the slave they are checked against.
+struct IdentityEntry {
+  std::optional<std::uint32_t> SlaveBoot::*field;
+  std::uint16_t index;
+  std::uint8_t sub;
+};
+constexpr IdentityEntry kIdentity[] = {{&SlaveBoot::device_type, 0x1000, 0},
+                                       {&SlaveBoot::vendor_id, 0x1018, 1},
+                                       {&SlaveBoot::product_code, 0x1018, 2},
+                                       {&SlaveBoot::revision, 0x1018, 3},
+                                       {&SlaveBoot::serial, 0x1018, 4}};
+constexpr std::uint16_t kConsumerHeartbeat = 0x1016, kProducerHeartbeat = 0x1017;
+}  // namespace
+
+bool bootFromDictionary(const ObjectDictionary& od, std::uint8_t id, SlaveBoot& out, std::string* why) {
+  out = SlaveBoot{};
+  if (const Entry* a = od.find(kObjAssignment, id)) out.assignment = static_cast<std::uint32_t>(a->asUnsigned());
+  for (std::size_t k = 0; k < std::size(kIdentity); ++k) {
+    const Entry* e = od.find(static_cast<std::uint16_t>(kObjDeviceType + k), id);
+    if (e != nullptr && e->asUnsigned() != 0) out.*kIdentity[k].field = static_cast<std::uint32_t>(e->asUnsigned());
+  }
+  const Entry* dcf = od.find(kObjConciseDcf, id);
+  if (dcf == nullptr || dcf->size() == 0) return true;
+  std::string problem;
+  if (decodeConciseDcf(dcf->data(), dcf->size(), out.writes, &problem)) return true;
+  if (why) *why = entryName(kObjConciseDcf, id) + " is not a concise DCF: " + problem;
+  return false;
+}
+
+void bootToDictionary(ObjectDictionary& od, std::uint8_t id, const SlaveBoot& boot) {
+  od.entry(kObjAssignment, id).set<std::uint32_t>(boot.assignment);
+  for (std::size_t k = 0; k < std::size(kIdentity); ++k)
+    od.entry(static_cast<std::uint16_t>(kObjDeviceType + k), id).set<std::uint32_t>((boot.*kIdentity[k].field).value_or(0));
+  const auto bytes = encodeConciseDcf(boot.writes);
+  Entry& dcf = od.entry(kObjConciseDcf, id);
+  if (!dcf.write(bytes.data(), bytes.size()))
+    throw OdError(entryName(kObjConciseDcf, id) + ": a concise DCF of " + std::to_string(bytes.size()) + " bytes does not fit");
+}
+
+std::string checkMasterEntry(const DcfEntry& e) {
+  if (e.index != kObjConciseDcf || e.sub == 0 || e.data.empty()) return "";
+  ConciseDcf dcf;
+  std::string why;
+  return decodeConciseDcf(e.data.data(), e.data.size(), dcf, &why) ? "" : entryName(e.index, e.sub) + " is not a concise DCF: " + why;
+}
+
 NmtMaster::NmtMaster(Node& node) : node_(node) {
   node_.onHeartbeat([this](std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) { onHeartbeat(id, ev, st, now); });
+  node_.onTimer([this](TimeUs now) { onTimer(now); });
+  // A concise DCF written over SDO must decode: the next boot runs it.
+  if (node_.od().hasObject(kObjConciseDcf))
+    node_.od().addValidator(kObjConciseDcf, [](const Entry& e, const std::uint8_t* d, std::size_t len) {
+      ConciseDcf dcf;
+      return e.subIndex() == 0 || len == 0 || decodeConciseDcf(d, len, dcf, nullptr) ? kSdoOk : kAbortValueRange;
+    });
 }
 
 void NmtMaster::addSlave(std::uint8_t id) {
@@ -49,30 +88,49 @@ void NmtMaster::addSlave(std::uint8_t id) {
   if (find(id) != nullptr) return;
   slaves_.push_back(Slave{});
   slaves_.back().id = id;
+  node_.heartbeatConsumer().watch(id);  // its boot-up is heard also where 0x1016 does not supervise it
 }
 
 void NmtMaster::setBoot(std::uint8_t id, SlaveBoot boot) {
   Slave* s = find(id);
   if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
-  s->ops.clear();
-  const std::pair<std::optional<std::uint32_t>, std::pair<std::uint16_t, std::uint8_t>> identity[] = {
-      {boot.device_type, {0x1000, 0}}, {boot.vendor_id, {0x1018, 1}}, {boot.product_code, {0x1018, 2}},
-      {boot.revision, {0x1018, 3}},    {boot.serial, {0x1018, 4}}};
-  for (const auto& [value, at] : identity)
-    if (value) s->ops.push_back(Op{OpKind::Expect, at.first, at.second, *value, 0});
+  bootToDictionary(node_.od(), id, boot);
+  s->reads = std::move(boot.reads);
+  s->state = Boot::Idle;
+}
+
+void NmtMaster::setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads) {
+  Slave* s = find(id);
+  if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
+  s->reads = std::move(reads);
+}
+
+void NmtMaster::loadPlan(Slave& s) {
+  s.plan_error.clear();
+  if (!bootFromDictionary(node_.od(), s.id, s.boot, &s.plan_error)) s.boot.writes.clear();
+  s.boot.reads = s.reads;
+  const SlaveBoot& boot = s.boot;
+  s.ops.clear();
+  for (const auto& k : kIdentity)
+    if (const auto& value = boot.*k.field) s.ops.push_back(Op{OpKind::Expect, k.index, k.sub, *value, 0});
   for (std::size_t i = 0; i < boot.reads.size(); ++i)
-    s->ops.push_back(Op{OpKind::Read, boot.reads[i].index, boot.reads[i].sub, 0, i});
+    s.ops.push_back(Op{OpKind::Read, boot.reads[i].index, boot.reads[i].sub, 0, i});
+  s.config_op = s.ops.size();
   for (std::size_t i = 0; i < boot.writes.size(); ++i)
-    s->ops.push_back(Op{OpKind::Write, boot.writes[i].index, boot.writes[i].sub, 0, i});
+    s.ops.push_back(Op{OpKind::Write, boot.writes[i].index, boot.writes[i].sub, 0, i});
   // Read back what each entry holds in the end: its last write.
   for (std::size_t i = 0; i < boot.writes.size(); ++i) {
     const auto& w = boot.writes[i];
     const bool later = std::any_of(boot.writes.begin() + static_cast<std::ptrdiff_t>(i) + 1, boot.writes.end(),
                                    [&](const DcfEntry& e) { return e.index == w.index && e.sub == w.sub; });
-    if (!later) s->ops.push_back(Op{OpKind::Verify, w.index, w.sub, 0, i});
+    if (!later) s.ops.push_back(Op{OpKind::Verify, w.index, w.sub, 0, i});
   }
-  s->boot = std::move(boot);
-  s->state = Boot::Idle;
+  // The start grace: its heartbeat period as the configuration sets it, else its consumer time.
+  TimeUs period_us = node_.heartbeatConsumer().timeoutUs(s.id);
+  for (const auto& w : boot.writes)
+    if (w.index == kProducerHeartbeat && w.sub == 0 && w.data.size() == 2)
+      period_us = static_cast<TimeUs>(w.data[0] | (w.data[1] << 8)) * 1000;
+  s.grace_us = std::max<TimeUs>(kStartGraceFloorUs, kStartGracePeriods * period_us);
 }
 
 NmtMaster::Slave* NmtMaster::find(std::uint8_t id) noexcept {
@@ -83,25 +141,21 @@ const NmtMaster::Slave* NmtMaster::find(std::uint8_t id) const noexcept {
   return const_cast<NmtMaster*>(this)->find(id);
 }
 
-namespace {
-bool needsBoot(const SlaveBoot& b, std::size_t ops) { return (b.assignment & kAssignBoot) != 0 && ops > 0; }
-}  // namespace
-
 bool NmtMaster::mandatoryReady() const noexcept {
   return std::all_of(slaves_.begin(), slaves_.end(), [](const Slave& s) {
-    return (s.boot.assignment & kAssignMandatory) == 0 || !needsBoot(s.boot, s.ops.size()) || s.state == Boot::Done;
+    return (s.boot.assignment & kAssignMandatory) == 0 || !bootable(s) || s.state == Boot::Done;
   });
 }
 
-bool NmtMaster::keptAlive(const Slave& s) const noexcept {
-  return (s.boot.assignment & kAssignKeepAlive) != 0 && !node_.heartbeatConsumer().timedOut(s.id) &&
-         node_.heartbeatConsumer().remoteState(s.id) == NmtState::Operational;
+bool NmtMaster::running(const Slave& s) const noexcept {
+  const auto& hb = node_.heartbeatConsumer();
+  return hb.alive(s.id) && hb.remoteState(s.id) == NmtState::Operational;
 }
 
 bool NmtMaster::mayStart(const Slave& s) const noexcept {
   if (!begun_ || (startup_ & kStartupMaster) == 0 || (startup_ & kStartupNoSlaveStart) != 0) return false;
   if (s.hold != 0) return false;
-  if (needsBoot(s.boot, s.ops.size()) && s.state != Boot::Done) return false;
+  if (bootable(s) && s.state != Boot::Done) return false;
   return mandatoryReady();
 }
 
@@ -121,31 +175,39 @@ void NmtMaster::startReady(TimeUs now) noexcept {
     ++counters_.starts;
     return;
   }
+  // One that already runs (kept alive) needs no start.
   for (auto& s : slaves_)
-    if (mayStart(s)) startSlave(s, now);
+    if (mayStart(s) && !running(s)) startSlave(s, now);
 }
 
 void NmtMaster::begin(TimeUs now) {
-  auto& od = node_.od();
-  if (const Entry* e = od.find(0x1F80, 0)) startup_ = e->get<std::uint32_t>();
+  const ObjectDictionary& od = node_.od();
+  if (const Entry* e = od.find(kObjStartup, 0)) startup_ = e->get<std::uint32_t>();
+  const Entry* boot_time = od.find(kObjBootTime, 0);
+  boot_time_ms_ = boot_time != nullptr ? static_cast<std::uint32_t>(boot_time->asUnsigned()) : 0;
   for (auto& s : slaves_)
-    if (const Entry* e = od.find(0x1F81, s.id)) s.boot.assignment = e->get<std::uint32_t>();
+    if (s.state != Boot::Running) loadPlan(s);
   begun_ = true;
+  broadcast_sent_ = false;
   if ((startup_ & kStartupMaster) == 0) return;
-  // Every slave is booted at the master's start (CiA 302-2): whatever another master left in it - but one
-  // kept alive that is running is left as it is.
-  for (auto& s : slaves_) {
-    if (!needsBoot(s.boot, s.ops.size()) || s.state == Boot::Running) continue;
-    if (keptAlive(s)) {
-      s.state = Boot::Done;
-      ++counters_.kept_alive;
-    } else {
-      s.state = Boot::Waiting;
-      s.resume = false;
-    }
-  }
+  boot_deadline_ = boot_time_ms_ != 0 ? now + static_cast<TimeUs>(boot_time_ms_) * 1000 : kNever;
+  // Every boot slave is booted at the master's start (CiA 302-2), whatever another master left in it.
+  for (auto& s : slaves_)
+    if (bootable(s) && s.state != Boot::Running) beginBoot(s, now);
+  arm();
   poll(now);
   startReady(now);
+}
+
+void NmtMaster::end() noexcept {
+  begun_ = false;
+  boot_deadline_ = kNever;
+  for (auto& s : slaves_) {
+    s.deadline = kNever;
+    if (s.state == Boot::Checking || s.state == Boot::Resetting || s.state == Boot::Heartbeat || s.state == Boot::Waiting)
+      s.state = Boot::Idle;
+  }
+  arm();
 }
 
 void NmtMaster::poll(TimeUs) noexcept {
@@ -154,115 +216,9 @@ void NmtMaster::poll(TimeUs) noexcept {
     if (s.state != Boot::Waiting) continue;
     if (node_.sdoClient().busy()) return;
     s.state = Boot::Running;
-    if (!s.resume) {
-      s.next_op = 0;
-      s.retries_left = retriesOf(s.boot.assignment);
-      s.error = BootError{};
-    }
-    s.resume = false;
     runBoot(s);
     return;
   }
-}
-
-void NmtMaster::bootSlave(Slave& s, TimeUs now) noexcept {
-  if (!begun_ || !needsBoot(s.boot, s.ops.size()) || (startup_ & kStartupMaster) == 0) return;
-  s.state = Boot::Waiting;
-  s.resume = false;
-  poll(now);
-}
-
-void NmtMaster::runBoot(Slave& s) noexcept {
-  if (s.next_op >= s.ops.size()) {
-    s.state = Boot::Done;
-    ++counters_.boots;
-    const TimeUs now = node_.now();
-    emit(s.id, SlaveEvent::Configured, now);
-    startReady(now);
-    poll(now);  // the next slave waiting for its boot
-    return;
-  }
-  const Op& op = s.ops[s.next_op];
-  const std::uint8_t id = s.id;
-  auto reply = [this, id](std::uint32_t code, const std::uint8_t* d, std::size_t len) {
-    if (Slave* sl = find(id)) onBootReply(*sl, code, d, len);
-  };
-  auto& sdo = node_.sdoClient();
-  bool sent;
-  if (op.kind == OpKind::Write) {
-    const auto& w = s.boot.writes[op.item];
-    sent = sdo.download(id, op.index, op.sub, w.data.data(), w.data.size(), reply);
-  } else {
-    sent = sdo.upload(id, op.index, op.sub, reply);
-  }
-  if (!sent) {
-    s.state = Boot::Waiting;  // the client is busy: poll() goes on from this operation
-    s.resume = true;
-  }
-}
-
-void NmtMaster::onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept {
-  if (s.state != Boot::Running || s.next_op >= s.ops.size()) return;
-  const Op& op = s.ops[s.next_op];
-  const std::string at = where(op.index, op.sub);
-  if (code == kAbortTimeout && s.retries_left > 0) {
-    // No answer (still booting, a frame lost): the same step again.
-    --s.retries_left;
-    ++counters_.boot_retries;
-    return runBoot(s);
-  }
-  if (code != kSdoOk) {
-    const char* what = op.kind == OpKind::Write ? " write refused: " : " read failed: ";
-    return bootFailed(s, code, at + what + sdoAbortText(code));
-  }
-  switch (op.kind) {
-    case OpKind::Expect: {
-      const std::uint32_t v = le32(data, len);
-      if (v != op.expected) {
-        const char* name = op.index == 0x1000 ? " device type"
-                           : op.sub == 1      ? " vendor-ID"
-                           : op.sub == 2      ? " product code"
-                           : op.sub == 3      ? " revision"
-                                              : " serial number";
-        return bootFailed(s, 0, at + name + " is " + hex32(v) + ", expected " + hex32(op.expected));
-      }
-      break;
-    }
-    case OpKind::Read: {
-      std::string why;
-      const auto& r = s.boot.reads[op.item];
-      if (r.on_value && !r.on_value(data, len, &why)) return bootFailed(s, 0, at + ": " + why);
-      break;
-    }
-    case OpKind::Write: break;
-    case OpKind::Verify: {
-      const auto& w = s.boot.writes[op.item];
-      if (len != w.data.size() || !std::equal(w.data.begin(), w.data.end(), data)) {
-        std::uint64_t got = 0, want = 0;
-        for (std::size_t i = 0; i < len && i < 8; ++i) got |= static_cast<std::uint64_t>(data[i]) << (8 * i);
-        for (std::size_t i = 0; i < w.data.size() && i < 8; ++i) want |= static_cast<std::uint64_t>(w.data[i]) << (8 * i);
-        char b[96];
-        std::snprintf(b, sizeof b, " reads back 0x%llX, written 0x%llX", static_cast<unsigned long long>(got),
-                      static_cast<unsigned long long>(want));
-        return bootFailed(s, 0, at + b);
-      }
-      break;
-    }
-  }
-  ++s.next_op;
-  runBoot(s);
-}
-
-void NmtMaster::bootFailed(Slave& s, std::uint32_t code, std::string text) noexcept {
-  s.state = Boot::Failed;
-  s.error = BootError{code, std::move(text)};
-  ++counters_.boot_failures;
-  // Left stopped: nothing of it moves on the bus until it boots again.
-  node_.sendNmt(NmtCommand::Stop, s.id);
-  s.start_sent = kNever;
-  const TimeUs now = node_.now();
-  emit(s.id, SlaveEvent::BootFailed, now);
-  poll(now);
 }
 
 void NmtMaster::start(std::uint8_t id, TimeUs now) noexcept {
@@ -284,7 +240,7 @@ void NmtMaster::release(std::uint8_t id, std::uint8_t reason, TimeUs now) noexce
   Slave* s = find(id);
   if (s == nullptr || (s->hold & reason) == 0) return;
   s->hold = static_cast<std::uint8_t>(s->hold & ~reason);
-  if (mayStart(*s)) startSlave(*s, now);
+  if (mayStart(*s) && !running(*s)) startSlave(*s, now);
 }
 
 std::uint8_t NmtMaster::holdReasons(std::uint8_t id) const noexcept {
@@ -305,17 +261,22 @@ bool NmtMaster::down(std::uint8_t id, TimeUs now) noexcept {
 
 bool NmtMaster::starting(std::uint8_t id, TimeUs now) const noexcept {
   const Slave* s = find(id);
-  return s != nullptr && s->start_sent != kNever && now - s->start_sent < kStartGraceUs;
+  return s != nullptr && s->start_sent != kNever && now - s->start_sent < s->grace_us;
+}
+
+TimeUs NmtMaster::startGraceUs(std::uint8_t id) const noexcept {
+  const Slave* s = find(id);
+  return s != nullptr ? s->grace_us : kStartGraceFloorUs;
 }
 
 bool NmtMaster::configured(std::uint8_t id) const noexcept {
   const Slave* s = find(id);
-  return s != nullptr && (!needsBoot(s->boot, s->ops.size()) || s->state == Boot::Done);
+  return s != nullptr && (!bootable(*s) || s->state == Boot::Done);
 }
 
 bool NmtMaster::booting(std::uint8_t id) const noexcept {
   const Slave* s = find(id);
-  return s != nullptr && (s->state == Boot::Waiting || s->state == Boot::Running);
+  return s != nullptr && s->state != Boot::Idle && s->state != Boot::Done && s->state != Boot::Failed;
 }
 
 const BootError* NmtMaster::bootError(std::uint8_t id) const noexcept {
@@ -334,16 +295,11 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
       emit(id, SlaveEvent::Lost, now);
       break;
     case HeartbeatEvent::BootUp:
-      // A slave that rebooted lost its state and waits in Pre-operational: boot it and start it again.
+      // A slave that booted lost its state and waits in Pre-operational: boot it and start it again.
       s->lost = false;
       emit(id, SlaveEvent::BootUp, now);
-      if (needsBoot(s->boot, s->ops.size())) {
-        // It lost its configuration; a boot cut short starts over.
-        s->state = Boot::Idle;
-        bootSlave(*s, now);
-      } else if (mayStart(*s)) {
-        startSlave(*s, now);
-      }
+      if (bootable(*s)) onBootEvent(*s, ev, st, now);
+      else if (mayStart(*s)) startSlave(*s, now);
       break;
     case HeartbeatEvent::Started:
       if (s->lost) {
@@ -356,16 +312,28 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
           s->start_sent = kNever;
           ++counters_.kept_alive;
         } else {
-          node_.sendNmt(NmtCommand::ResetCommunication, id);
           ++counters_.reboots;
+          if (bootable(*s)) {
+            reset(*s, now);
+            arm();
+          } else {
+            node_.sendNmt(NmtCommand::ResetCommunication, id);
+          }
         }
-      } else if (st == NmtState::Operational) {
-        s->start_sent = kNever;
-      } else if (st == NmtState::PreOperational && mayStart(*s)) {
-        startSlave(*s, now);
+        break;
       }
+      if (booting(id)) {
+        onBootEvent(*s, ev, st, now);
+        break;
+      }
+      if (st == NmtState::Operational) s->start_sent = kNever;
+      else if (st == NmtState::PreOperational && mayStart(*s)) startSlave(*s, now);
       break;
     case HeartbeatEvent::StateChanged:
+      if (booting(id)) {
+        onBootEvent(*s, ev, st, now);
+        break;
+      }
       if (st == NmtState::Operational) {
         s->start_sent = kNever;
       } else if (st == NmtState::PreOperational && !held) {

@@ -1,24 +1,32 @@
 #pragma once
-// NMT master of a set of slaves (CiA 301 7.2.8, the start-up of CiA 302-2): a slave is checked and
-// configured after its boot-up ("boot slave": its identity 0x1000 / 0x1018 against the expected one, a
-// concise DCF written and read back), then started; one that comes back after a heartbeat loss is
-// re-booted (reset communication), so it boots up and goes through all of it again - unless it is kept
-// alive and reports Operational; one that stays in Pre-operational after a start gets another. A boot
-// step the slave does not answer (SDO timeout) is tried again, up to the slave's retry factor. The application may hold a slave in Pre-operational for
-// reasons of its own (a bit per reason); it is started when the last reason is released.
+// NMT master of a set of slaves (CiA 301 7.2.8, the start-up of CiA 302-2). At the master's start every
+// slave it is to boot (0x1F81 bit 2) goes through the "boot slave" process:
+//   1. NMT reset communication, unless it is kept alive (0x1F81 bit 4) and its heartbeat shows it
+//      Operational - then only its identity is checked and it is left as it is;
+//   2. its boot-up awaited (kBootUpTimeoutUs);
+//   3. identity: 0x1000 and 0x1018:01..04 against 0x1F84-0x1F88 (0: not checked);
+//   4. the application's reads (setReads(): values a driver needs before the slave starts);
+//   5. configuration: the concise DCF 0x1F22 (CiA 302-3) written, then every entry read back;
+//   6. its first heartbeat awaited, if 0x1016 supervises it (within its consumer time);
+//   7. NMT start, once it is not held and every mandatory slave (bit 3) is configured.
+// A step the slave does not answer (SDO timeout, no boot-up, no heartbeat) is tried again up to its
+// retry factor (0x1F81 bits 8-15); a boot that fails names the step, the entry and the SDO abort code
+// (bootError()), and the slave is sent NMT stop. Every mandatory slave must be booted within the boot
+// time 0x1F89 (0: no limit). A slave that boots up again later goes through steps 3-7; one that comes
+// back after a heartbeat loss is reset communication first (unless kept alive and Operational); one that
+// stays in Pre-operational longer than its start grace after a start gets another start. Slaves without
+// bit 2 are only started. The application may hold a slave in Pre-operational for reasons of its own
+// (a bit per reason); it is started when the last reason is released.
 //
-// Settings: 0x1F80 NMT start-up (bit 0 master, bit 1 start the slaves with one broadcast, bit 2 do not
-// enter Operational by itself - read by the application, bit 3 do not start the slaves) and 0x1F81
-// slave assignment as CiA 302-2 defines it (bit 0 slave, bit 2 boot: check and configure, bit 3
-// mandatory: no slave is started before it is configured, bit 4 keep alive: a slave that is Operational
-// with a live heartbeat is neither reset nor configured again - at the master's start and when it comes
-// back after a heartbeat loss, bits 8-15 retry factor: how often an unanswered boot step is tried again),
-// taken from the node's dictionary when it has them (begin()), otherwise from setStartup() / SlaveBoot.
+// Everything comes from the master's own dictionary, read at begin(): 0x1F80 NMT start-up (bit 0
+// master, bit 1 start the slaves with one broadcast, bit 2 do not enter Operational by itself - read by
+// the application, bit 3 do not start the slaves), 0x1F81, 0x1F84-0x1F88, 0x1F22, 0x1F89, 0x1016.
 //
-// The master takes the node's heartbeat hook and passes what the application must react to on as
-// SlaveEvents. All of it runs on the node's thread; the boot uses the node's SDO client between
-// cycles (poll() retries while the client is busy). Nothing is allocated after setBoot() except by
-// the SDO transfers of a boot.
+// The master takes the node's heartbeat hook and its application timer, and passes what the application
+// must react to on as SlaveEvents. All of it runs on the node's thread, none of it in the SYNC callback
+// but poll(), which only lets boot steps that waited for the node's SDO client go on. begin() builds
+// the boot plans from the dictionary; after it nothing is allocated except by the SDO transfers of a
+// boot and the text of a failure.
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -36,9 +44,17 @@ enum class SlaveEvent : std::uint8_t {
   LeftOperational,  // it reported Pre-operational while not held (the master starts it again)
   Stopped,          // it reported Stopped while not held
   Configured,       // the boot finished: identity checked, configuration written and read back
-  BootFailed,       // the boot failed (bootError()); the slave is left in Pre-operational
+  KeptAlive,        // kept alive and Operational at the master's start: identity checked, left as it is
+  BootFailed,       // the boot failed (bootError()); the slave is sent NMT stop
 };
 const char* slaveEventName(SlaveEvent e);
+
+// The master's objects (CiA 302-2, CiA 302-3), entries per node-ID.
+inline constexpr std::uint16_t kObjConciseDcf = 0x1F22;
+inline constexpr std::uint16_t kObjStartup = 0x1F80;
+inline constexpr std::uint16_t kObjAssignment = 0x1F81;
+inline constexpr std::uint16_t kObjDeviceType = 0x1F84;  // 0x1F85 vendor-ID ... 0x1F88 serial number
+inline constexpr std::uint16_t kObjBootTime = 0x1F89;
 
 // 0x1F80 bits.
 inline constexpr std::uint32_t kStartupMaster = 0x01;
@@ -55,10 +71,11 @@ inline constexpr unsigned kAssignRetryShift = 8;  // bits 8-15: retry factor
 constexpr std::uint32_t assignRetries(unsigned n) { return (n & 0xFFu) << kAssignRetryShift; }
 constexpr unsigned retriesOf(std::uint32_t assignment) { return (assignment >> kAssignRetryShift) & 0xFFu; }
 
-// What the master checks, reads and writes at a slave's boot.
+// What the master checks, reads and writes at a slave's boot: the master's entries for the slave
+// (0x1F81, 0x1F84-0x1F88, 0x1F22) and the application's reads.
 struct SlaveBoot {
   std::uint32_t assignment = kAssignSlave;  // 0x1F81 bits
-  // Expected identity: 0x1000, 0x1018:01..04 (unset: not checked).
+  // Expected identity: 0x1000, 0x1018:01..04 (unset or 0: not checked).
   std::optional<std::uint32_t> device_type, vendor_id, product_code, revision, serial;
   // Read before the writes; on_value returns false (with why) to fail the boot.
   struct Read {
@@ -70,25 +87,46 @@ struct SlaveBoot {
   ConciseDcf writes;  // in order; then the last value of every entry is read back and compared
 };
 
+// The slave's boot as the master's dictionary holds it (0x1F81, 0x1F84-0x1F88, 0x1F22; reads stay
+// empty); false with why when 0x1F22:id is not a concise DCF.
+bool bootFromDictionary(const ObjectDictionary& od, std::uint8_t id, SlaveBoot& out, std::string* why);
+// The other way: a plan into the master's entries for the slave. Throws OdError when the dictionary
+// lacks one of the objects or the concise DCF does not fit 0x1F22:id.
+void bootToDictionary(ObjectDictionary& od, std::uint8_t id, const SlaveBoot& boot);
+
+// A value for one of the master's objects, as a DCF or a tool gives it: "" if the master can take it,
+// otherwise the problem (0x1F22: not a concise DCF).
+std::string checkMasterEntry(const DcfEntry& e);
+
+// The steps of a slave's boot, as a failure names them.
+enum class BootStep : std::uint8_t { Reset, Identity, Read, Configuration, ReadBack, Heartbeat, BootTime };
+const char* bootStepName(BootStep s);  // "reset communication", "identity check", ...
+
 struct BootError {
-  std::uint32_t abort_code = 0;  // SDO abort code (0: a mismatch, see text)
-  std::string text;              // "0x1000 device type is 0x00020192, expected 0x00080196", ...
+  BootStep step = BootStep::Identity;
+  std::uint32_t abort_code = 0;  // SDO abort code (0: none - a mismatch or the master's own timeout, see text)
+  std::string text;              // "0x1000:00 device type is 0x00020192, expected 0x00080196", ...
 };
 
 class NmtMaster {
  public:
   using EventHook = std::function<void(std::uint8_t id, SlaveEvent event, TimeUs now)>;
-  // A started slave must report Operational within this time (three heartbeats of 100 ms).
-  static constexpr TimeUs kStartGraceUs = 300'000;
+  // After NMT reset communication the slave's boot-up must come within this (as Lely's master waits).
+  static constexpr TimeUs kBootUpTimeoutUs = 1'000'000;
+  // A started slave must report Operational within its start grace: kStartGracePeriods of its heartbeat
+  // period (the 0x1017 its configuration writes, else its consumer time 0x1016), at least the floor.
+  static constexpr TimeUs kStartGraceFloorUs = 200'000;
+  static constexpr unsigned kStartGracePeriods = 3;
 
   struct Counters {
     std::uint64_t starts = 0;   // NMT start sent to a slave
+    std::uint64_t resets = 0;   // NMT reset communication to begin a slave's boot
     std::uint64_t reboots = 0;  // NMT reset communication to a slave back after a heartbeat loss
     std::uint64_t holds = 0;    // slave sent to Pre-operational by hold()
     std::uint64_t boots = 0;    // boots finished (configured)
     std::uint64_t boot_failures = 0;
-    std::uint64_t boot_retries = 0;  // boot steps tried again after an SDO timeout
-    std::uint64_t kept_alive = 0;    // Operational keep-alive slaves left as they were (no reset, no boot)
+    std::uint64_t boot_retries = 0;  // boot steps tried again: SDO timeout, no boot-up, no first heartbeat
+    std::uint64_t kept_alive = 0;    // Operational keep-alive slaves left as they were (no reset, no configuration)
   };
 
   explicit NmtMaster(Node& node);
@@ -97,18 +135,21 @@ class NmtMaster {
 
   // Supervise this node-ID (its heartbeat must be consumed: 0x1016 of the master's dictionary).
   void addSlave(std::uint8_t id);
-  // What to check and write at its boot (throws for an unknown slave).
+  // What to check and write at its boot, into the master's dictionary (bootToDictionary), its reads
+  // kept (throws for an unknown slave or a dictionary without the master's objects).
   void setBoot(std::uint8_t id, SlaveBoot boot);
+  // The application's reads at the slave's boot, after its identity, before its configuration.
+  void setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads);
   void setStartup(std::uint32_t bits) { startup_ = bits; }
   std::uint32_t startup() const noexcept { return startup_; }
   void onEvent(EventHook hook) { hook_ = std::move(hook); }
 
-  // The master's own start (it entered Operational): 0x1F80/0x1F81 from the dictionary, then every
-  // slave is booted or started.
+  // The master's own start (it entered Operational): 0x1F80 and every slave's boot from the dictionary
+  // (bootFromDictionary), then every slave is booted or started.
   void begin(TimeUs now);
   // The master's own stop (it left Operational or was reset): until the next begin() it boots and
-  // starts nothing; it still reports what it hears.
-  void end() noexcept { begun_ = false; }
+  // starts nothing; it still reports what it hears. Boots under way stop where they are.
+  void end() noexcept;
   bool begun() const noexcept { return begun_; }
   // Boot and start work left waiting for the SDO client; call between cycles (cheap when idle).
   void poll(TimeUs now) noexcept;
@@ -124,8 +165,9 @@ class NmtMaster {
   // The slave cannot run: Stopped, or Pre-operational beyond the grace after a start (then another
   // start is sent).
   bool down(std::uint8_t id, TimeUs now) noexcept;
-  // A start went out less than kStartGraceUs ago and no Operational heartbeat followed yet.
+  // A start went out less than its start grace ago and no Operational heartbeat followed yet.
   bool starting(std::uint8_t id, TimeUs now) const noexcept;
+  TimeUs startGraceUs(std::uint8_t id) const noexcept;
   bool timedOut(std::uint8_t id) const { return node_.heartbeatConsumer().timedOut(id); }
   // Boot state: configured (or nothing to configure), in progress, failed.
   bool configured(std::uint8_t id) const noexcept;
@@ -135,7 +177,17 @@ class NmtMaster {
   const Counters& counters() const noexcept { return counters_; }
 
  private:
-  enum class Boot : std::uint8_t { Idle, Waiting, Running, Done, Failed };
+  // Where a slave's boot stands.
+  enum class Boot : std::uint8_t {
+    Idle,       // nothing under way (not begun, or not a boot slave)
+    Checking,   // kept alive: waiting for a heartbeat to tell whether it runs
+    Resetting,  // NMT reset communication sent: waiting for its boot-up
+    Waiting,    // the next SDO step waits for the node's SDO client
+    Running,    // an SDO step is under way
+    Heartbeat,  // configured: waiting for its first heartbeat
+    Done,
+    Failed
+  };
   enum class OpKind : std::uint8_t { Expect, Read, Write, Verify };
   struct Op {
     OpKind kind;
@@ -148,27 +200,44 @@ class NmtMaster {
     std::uint8_t id = 0;
     bool lost = false;             // heartbeat timed out: re-boot it when it is back
     TimeUs start_sent = kNever;    // NMT start sent, no Operational heartbeat yet
+    TimeUs grace_us = kStartGraceFloorUs;  // for a start to show Operational
     std::uint8_t hold = 0;         // reasons to keep it in Pre-operational
-    SlaveBoot boot;
-    std::vector<Op> ops;           // the boot, flattened
+    SlaveBoot boot;                // from the dictionary at begin(), with reads
+    std::vector<SlaveBoot::Read> reads;  // the application's (setReads)
+    std::vector<Op> ops;           // the boot, flattened: identity, reads, writes, read-backs
+    std::size_t config_op = 0;     // the first write (a kept-alive slave stops before it)
+    std::string plan_error;        // 0x1F22:id did not decode: the boot fails with this
     Boot state = Boot::Idle;
-    std::size_t next_op = 0;
-    unsigned retries_left = 0;     // of this boot
-    bool resume = false;           // Waiting for the SDO client in the middle of a boot: go on at next_op
+    bool kept = false;             // this boot checks the identity of a running kept-alive slave only
+    std::size_t next_op = 0, end_op = 0;
+    unsigned tries_left = 0;       // of the present step
+    TimeUs deadline = kNever;      // Checking, Resetting, Heartbeat
     BootError error;
   };
   Slave* find(std::uint8_t id) noexcept;
   const Slave* find(std::uint8_t id) const noexcept;
+  void loadPlan(Slave& s);  // boot, ops and start grace from the dictionary (allocates)
+  static bool bootable(const Slave& s) noexcept { return (s.boot.assignment & kAssignBoot) != 0; }
   bool mayStart(const Slave& s) const noexcept;
   bool mandatoryReady() const noexcept;
-  // Kept alive (0x1F81 bit 4) and Operational with a live heartbeat: leave it as it is.
-  bool keptAlive(const Slave& s) const noexcept;
+  bool running(const Slave& s) const noexcept;  // its heartbeat shows it Operational, not timed out
   void startSlave(Slave& s, TimeUs now) noexcept;
   void startReady(TimeUs now) noexcept;
-  void bootSlave(Slave& s, TimeUs now) noexcept;  // begins the boot, or starts it when nothing to check
-  void runBoot(Slave& s) noexcept;                // issues the next operation
+
+  // The boot process (nmt_boot.cpp), one step after the other.
+  void beginBoot(Slave& s, TimeUs now) noexcept;   // at the master's start: keep-alive check or reset
+  void reset(Slave& s, TimeUs now) noexcept;       // NMT reset communication, then wait for the boot-up
+  void steps(Slave& s, bool kept) noexcept;        // the SDO steps, after a boot-up (or for a kept slave)
+  void runBoot(Slave& s) noexcept;                 // issues the next SDO step
   void onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept;
-  void bootFailed(Slave& s, std::uint32_t code, std::string text) noexcept;
+  bool checkReply(Slave& s, const Op& op, const std::uint8_t* data, std::size_t len) noexcept;
+  void awaitHeartbeat(Slave& s, TimeUs now) noexcept;
+  void done(Slave& s, TimeUs now) noexcept;
+  void bootFailed(Slave& s, BootStep step, std::uint32_t code, std::string text) noexcept;
+  void onTimer(TimeUs now) noexcept;               // the deadlines of the steps and the boot time
+  void arm() noexcept;
+  void onBootEvent(Slave& s, HeartbeatEvent ev, NmtState st, TimeUs now) noexcept;
+
   void onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) noexcept;
   void emit(std::uint8_t id, SlaveEvent e, TimeUs now) {
     if (hook_) hook_(id, e, now);
@@ -181,6 +250,8 @@ class NmtMaster {
   std::uint32_t startup_ = kStartupMaster;
   bool begun_ = false;
   bool broadcast_sent_ = false;
+  TimeUs boot_deadline_ = kNever;  // 0x1F89 after begin()
+  std::uint32_t boot_time_ms_ = 0;
 };
 
 }  // namespace pamc::canopen

@@ -145,13 +145,17 @@ void Node::advance(TimeUs now) {
   emcy_.advance(now);
   sdo_server_.advance(now);
   sdo_client_.advance(now);
+  if (timer_at_ != kNever && now >= timer_at_) {
+    timer_at_ = kNever;
+    if (timer_cb_) timer_cb_(now);
+  }
 }
 
 TimeUs Node::nextDeadline() const {
   if (ctx_.state == NmtState::Initialising) return kNever;
   TimeUs next = std::min({heartbeat_consumer_.nextDeadline(), heartbeat_producer_.nextDeadline(),
                           sync_.nextDeadline(), emcy_.nextDeadline(), sdo_server_.nextDeadline(),
-                          sdo_client_.nextDeadline()});
+                          sdo_client_.nextDeadline(), timer_at_});
   for (const auto& p : rpdos_) next = std::min(next, p->nextDeadline());
   for (const auto& p : tpdos_) next = std::min(next, p->nextDeadline());
   return next;

@@ -72,6 +72,10 @@ class Node : public BusClient {
   void onCollision(CollisionCallback cb) { collision_cb_ = std::move(cb); }
   // SYNC consumer: no SYNC within 1.5 periods of 0x1006 (see Sync).
   void onSyncTimeout(Sync::TimeoutHook cb) { sync_.setTimeoutHook(std::move(cb)); }
+  // One application timer (an NMT master's boot timeouts): cb runs from advance() once the time set with
+  // setTimer() has come, then the timer is off until set again; kNever turns it off.
+  void onTimer(std::function<void(TimeUs now)> cb) { timer_cb_ = std::move(cb); }
+  void setTimer(TimeUs at) { timer_at_ = at; }
   // True if this node itself transmits on cob_id (what the collision check uses).
   bool transmitsOn(std::uint32_t cob_id) const;
 
@@ -128,6 +132,8 @@ class Node : public BusClient {
   ResetCallback reset_cb_;
   ErrorFrameCallback error_cb_;
   CollisionCallback collision_cb_;
+  std::function<void(TimeUs)> timer_cb_;
+  TimeUs timer_at_ = kNever;
 };
 
 }  // namespace pamc::canopen

@@ -15,6 +15,7 @@
 #include "io/measurement.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/fault_report.hpp"
+#include "nodes/master_dcf.hpp"
 #include "nodes/monitor.hpp"
 #include "rig/fault_rig.hpp"
 #include "rig/virtual_rig.hpp"
@@ -30,6 +31,9 @@ class ControllerCommand final : public Command {
     cmd_->add_option("--iface", iface, "CAN interface (can0, vcan0, ...; default: the rig file's)");
     od_.add(cmd_);
     rig_.add(cmd_);
+    cmd_->add_option("--dcf", dcf_, "master DCF (CiA 306, docs/RIG.md): its values replace the controller EDS's defaults "
+                     "on top of the rig file's - the slaves' boot (0x1F22 concise DCFs, 0x1F81, 0x1F84-0x1F89), 0x1016, "
+                     "the PDOs; its NodeID is the controller's");
     kind_.add(cmd_);
     ctrl_.add(cmd_);
     run_.add(cmd_);
@@ -42,6 +46,7 @@ class ControllerCommand final : public Command {
     const double duration = run_.duration;
     if (!rig_.given()) rig_.path = od_.dir + "/rigs/default.ini";  // pamc's own rig, booted like any other
     auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, consume_sync, &rig_);
+    if (!dcf_.empty()) nodes::applyMasterDcf(dcf_, c);
     c.build_off_cycle = true;  // an SDO commit must not hold up the cycles of this thread
     if (iface.empty()) iface = nodes::readRigFile(rig_.path).interface;
     realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
@@ -88,7 +93,7 @@ class ControllerCommand final : public Command {
   }
 
  private:
-  std::string iface, candump;
+  std::string iface, candump, dcf_;
   bool consume_sync = false;
   OdOption od_;
   RigOption rig_;

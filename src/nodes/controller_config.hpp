@@ -14,8 +14,9 @@
 
 namespace pamc::nodes {
 
-// The slaves as a rig file describes them (nodes/rig_file.hpp); the defaults are pamc's own devices
-// with the layout of od/*.eds, which need no configuration.
+// The slaves as a rig file describes them (nodes/rig_file.hpp): where their process data are and how to
+// scale them; the defaults are pamc's own devices with the layout of od/*.eds. What the controller
+// writes into them at their boot is in its dictionary (ControllerNodeConfig::dictionary).
 struct SlaveLayout {
   pd::Scaling scaling;
   std::uint32_t sensor_cob = 0;    // COB-ID of the sensor's position PDO (0: the controller EDS's 0x1400:01)
@@ -25,10 +26,7 @@ struct SlaveLayout {
   // The valve's error value (CiA 401 0x6444:n for the output 0x6411:n); index 0: none to write.
   std::uint16_t error_value_index = 0x6444;
   std::uint8_t error_value_sub = 1;
-  // Boot of the slaves (NMT master, canopen/nmt_master.hpp): identity check and configuration.
-  std::optional<canopen::SlaveBoot> sensor_boot, valve_boot;
   bool position_step_from_device = false;  // the step is read from the sensor at its boot (0x6005:01, nm)
-  std::uint32_t startup = 0;               // 0x1F80 (0: the EDS's)
 };
 
 struct ControllerNodeConfig {
@@ -50,8 +48,12 @@ struct ControllerNodeConfig {
   int recover_cycles = 500;           // a fault must be gone this long before control resumes
   double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast
   double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
-  double no_position_s = 1.0;         // no position this long after entering Operational: Fault::NoPosition
+  double no_position_s = 1.0;         // no position this long after entering Operational (or after the sensor's boot): Fault::NoPosition
   SlaveLayout layout;
+  // Values of the controller's own dictionary in place of the EDS defaults (a reset restores them):
+  // a rig file compiled (masterValues), a DCF (--dcf). The boot of the slaves follows them: 0x1F22,
+  // 0x1F80, 0x1F81, 0x1F84-0x1F89, 0x1016 (canopen/nmt_master.hpp).
+  canopen::ConciseDcf dictionary;
   // The controller of an SDO commit built on a worker thread instead of in the SDO server (on a rig; in
   // virtual time the inline build keeps runs deterministic). docs/PERFORMANCE.md has what it saves.
   bool build_off_cycle = false;

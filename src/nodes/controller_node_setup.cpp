@@ -3,6 +3,8 @@
 #include "nodes/controller_node.hpp"
 
 #include <cstdio>
+
+#include "canopen/eds_dictionary.hpp"
 #include <stdexcept>
 
 namespace pamc::nodes {
@@ -15,14 +17,16 @@ using canopen::TimeUs;
 ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport,
                                std::function<TimeUs()> clock)
     : clock_(std::move(clock)), log_(cfg.log) {
-  node_ = canopen::Node::fromEds(cfg.eds_path, transport, cfg.node_id);
+  // The dictionary: the EDS with the rig file's or a DCF's values as its defaults (the slaves' boot).
+  const canopen::EdsFile eds = canopen::EdsFile::load(cfg.eds_path);
+  const std::uint8_t id = canopen::resolveNodeId(eds, cfg.eds_path, cfg.node_id);
+  node_ = std::make_unique<canopen::Node>(canopen::dictionaryFromEds(eds, id, cfg.dictionary), id, transport);
   master_ = std::make_unique<canopen::NmtMaster>(*node_);
   const auto& lay = cfg.layout;
   sensor_ = std::make_unique<SensorDriver>(*node_, *master_, cfg.sensor_id, lay.scaling, cfg.no_position_s);
   valve_ = std::make_unique<ValveDriver>(*node_, *master_, cfg.valve_id, lay.scaling, lay.feedback,
                                          lay.error_value_index, lay.error_value_sub);
-  sensor_->setBoot(lay.sensor_boot, lay.position_step_from_device);
-  valve_->setBoot(lay.valve_boot);
+  if (lay.position_step_from_device) sensor_->readStepAtBoot();
   params_ = std::make_unique<ControllerParameters>(*node_, cfg.ctrl, cfg.build_off_cycle);
   overrides_ = std::make_unique<OdOverrides>(cfg);
   overrides_->apply(node_->od(), *params_);
@@ -159,7 +163,14 @@ void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
   const char* role = is_valve ? "valve" : "sensor";
   switch (ev) {
     case SlaveEvent::Configured:
+      if (!is_valve) sensor_->onBooted(node_->now());
       if (log_) log_(std::string(role) + " (node " + std::to_string(id) + "): identity checked, configuration written and read back");
+      break;
+    case SlaveEvent::KeptAlive:
+      if (!is_valve) sensor_->onBooted(node_->now());
+      if (log_)
+        log_(std::string(role) + " (node " + std::to_string(id) +
+             "): kept alive (Operational, heartbeat live): identity checked, not reset or configured again");
       break;
     case SlaveEvent::BootFailed: {
       const auto* e = master_->bootError(id);
@@ -168,7 +179,8 @@ void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
       if (log_ && e) {
         char code[32] = "";
         if (e->abort_code) std::snprintf(code, sizeof code, " (SDO abort 0x%08X)", e->abort_code);
-        log_(std::string(role) + " (node " + std::to_string(id) + ") not started: " + e->text + code);
+        log_(std::string(role) + " (node " + std::to_string(id) + ") not started, " + canopen::bootStepName(e->step) + ": " +
+             e->text + code);
       }
       break;
     }

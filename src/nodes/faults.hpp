@@ -33,7 +33,7 @@ enum class Fault : std::uint8_t {
   // Warning: the slave is left stopped (the loop cannot start with it; a running loop meets ...State).
   SlaveBoot = 18,        // a slave's identity did not match, or it refused or lost its configuration at boot
   // Safety fault: the loop never started.
-  NoPosition = 19,       // no position PDO within ControllerNodeConfig::no_position_s of entering Operational
+  NoPosition = 19,       // no position PDO within ControllerNodeConfig::no_position_s of entering Operational (or of the sensor's boot)
 };
 inline constexpr int kFaultCount = 20;
 

@@ -1,6 +1,7 @@
-// The command line's and the rig file's choices in the controller node's dictionary: written at the
-// node's construction and again after an NMT reset (which restores the EDS defaults), so that SDO reads
-// show what runs. Keeps the node's configuration for it.
+// The command line's choices in the controller node's dictionary (controller, gains, model, trajectory,
+// period, SYNC): written at the node's construction and again after an NMT reset (which restores the
+// dictionary's defaults), so that SDO reads show what runs. Keeps the node's configuration for it. A rig
+// file's and a DCF's values are the dictionary's defaults themselves (ControllerNodeConfig::dictionary).
 #pragma once
 
 #include "canopen/node.hpp"

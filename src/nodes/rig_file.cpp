@@ -30,7 +30,7 @@ std::string objName(std::uint16_t index, std::uint8_t sub) { return hex(index, 4
 
 // Keys each section takes (one table: a typo is an error, not a silently ignored setting).
 const std::set<std::string> kBusKeys = {"interface", "bitrate", "period_us"};
-const std::set<std::string> kControllerKeys = {"node_id", "eds", "startup"};
+const std::set<std::string> kControllerKeys = {"node_id", "eds", "startup", "boot_time_ms"};
 const std::set<std::string> kSlaveCommon = {"node_id",  "eds",    "device_type", "vendor_id",    "product_code",
                                             "revision", "serial", "heartbeat_ms", "master_heartbeat_ms",
                                             "boot",     "mandatory", "keep_alive", "retries"};
@@ -146,6 +146,7 @@ struct SlaveBuild {
   std::string eds;
   ObjectDictionary od;
   canopen::SlaveBoot boot;
+  unsigned heartbeat_ms = 0;
 };
 
 const canopen::Entry& entry(const Reader& r, const SlaveBuild& s, int line, std::uint16_t index, std::uint8_t sub) {
@@ -196,7 +197,7 @@ std::uint32_t defaultPdoCob(const Reader& r, int line, bool transmit, unsigned n
 }
 
 SlaveBuild slaveCommon(const Reader& r, const IniSection& sec, std::uint8_t controller_id) {
-  SlaveBuild s{&sec, 0, {}, ObjectDictionary({}, {}), {}};
+  SlaveBuild s{&sec, 0, {}, ObjectDictionary({}, {}), {}, 0};
   s.id = static_cast<std::uint8_t>(r.unsignedKey(sec, "node_id", 0, 1, 127));
   if (sec.find("node_id") == nullptr) r.fail(sec.line, "[" + sec.name + "] needs node_id");
   s.eds = r.pathKey(sec, "eds");
@@ -220,9 +221,12 @@ SlaveBuild slaveCommon(const Reader& r, const IniSection& sec, std::uint8_t cont
 void slaveTail(const Reader& r, const canopen::IniFile& ini, SlaveBuild& s, std::uint8_t controller_id) {
   const IniSection& sec = *s.sec;
   if (const IniKey* k = sec.find("heartbeat_ms")) {
-    const auto ms = r.unsignedKey(sec, "heartbeat_ms", 0, 1, 0xFFFF);
+    const auto ms = r.unsignedKey(sec, "heartbeat_ms", 0, 0, 0xFFFF);
     entry(r, s, k->line, 0x1017, 0);
     s.boot.writes.push_back(dcfValue(0x1017, 0, ms, 2));
+    s.heartbeat_ms = static_cast<unsigned>(ms);
+  } else if (const canopen::Entry* e = s.od.find(0x1017, 0)) {
+    s.heartbeat_ms = static_cast<unsigned>(e->asUnsigned());  // what it produces by itself
   }
   if (const IniKey* k = sec.find("master_heartbeat_ms")) {
     const auto ms = r.unsignedKey(sec, "master_heartbeat_ms", 0, 1, 0xFFFF);
@@ -289,6 +293,7 @@ RigFile fromIni(const canopen::IniFile& ini) {
   rig.startup = static_cast<std::uint32_t>(r.unsignedKey(ctl, "startup", canopen::kStartupMaster, 0, 0xFFFFFFFFu));
   if ((rig.startup & ~canopen::kStartupSupported) != 0)
     r.fail(ctl.find("startup")->line, "startup " + hex(rig.startup, 8) + ": only bits 0-3 of 0x1F80 are implemented");
+  rig.boot_time_ms = static_cast<unsigned>(r.unsignedKey(ctl, "boot_time_ms", 0, 0, 0xFFFFFFFFu));
 
   // The sensor: its position TPDO.
   const IniSection& ss = r.need("sensor");
@@ -373,9 +378,11 @@ RigFile fromIni(const canopen::IniFile& ini) {
   rig.valve_id = valve.id;
   rig.sensor_eds = sensor.eds;
   rig.valve_eds = valve.eds;
-  rig.layout.sensor_boot = std::move(sensor.boot);
-  rig.layout.valve_boot = std::move(valve.boot);
-  rig.layout.startup = rig.startup;
+  if (rig.layout.position_step_from_device) sensor.boot.assignment |= canopen::kAssignBoot;  // the step is read at boot
+  rig.sensor_boot = std::move(sensor.boot);
+  rig.valve_boot = std::move(valve.boot);
+  rig.sensor_heartbeat_ms = sensor.heartbeat_ms;
+  rig.valve_heartbeat_ms = valve.heartbeat_ms;
   rig.position = RigObject{pidx, psub, pos.dataType()};
   rig.command = RigObject{cidx, csub, cmd.dataType()};
   return rig;
@@ -389,6 +396,40 @@ void applyRig(const RigFile& rig, ControllerNodeConfig& cfg) {
   cfg.sensor_id = rig.sensor_id;
   cfg.valve_id = rig.valve_id;
   cfg.layout = rig.layout;
+  cfg.dictionary = masterValues(rig);
+}
+
+}  // namespace pamc::nodes
+
+namespace pamc::nodes {
+
+canopen::ConciseDcf masterValues(const RigFile& rig) {
+  using canopen::dcfValue;
+  canopen::ConciseDcf v;
+  v.push_back(dcfValue(canopen::kObjStartup, 0, rig.startup, 4));
+  v.push_back(dcfValue(canopen::kObjBootTime, 0, rig.boot_time_ms, 4));
+  const struct {
+    std::uint8_t id;
+    const canopen::SlaveBoot& boot;
+    unsigned heartbeat_ms;
+  } slaves[] = {{rig.sensor_id, rig.sensor_boot, rig.sensor_heartbeat_ms}, {rig.valve_id, rig.valve_boot, rig.valve_heartbeat_ms}};
+  std::uint8_t hb_sub = 1;  // 0x1016:01 the sensor's, :02 the valve's
+  for (const auto& s : slaves) {
+    v.push_back(dcfValue(canopen::kObjAssignment, s.id, s.boot.assignment, 4));
+    const std::optional<std::uint32_t>* identity[] = {&s.boot.device_type, &s.boot.vendor_id, &s.boot.product_code,
+                                                      &s.boot.revision, &s.boot.serial};
+    for (std::uint16_t k = 0; k < 5; ++k)
+      v.push_back(dcfValue(static_cast<std::uint16_t>(canopen::kObjDeviceType + k), s.id, identity[k]->value_or(0), 4));
+    v.push_back(canopen::DcfEntry{canopen::kObjConciseDcf, s.id, canopen::encodeConciseDcf(s.boot.writes)});
+    const std::uint32_t hb = (static_cast<std::uint32_t>(s.id) << 16) | consumerHeartbeatMs(s.heartbeat_ms);
+    v.push_back(dcfValue(0x1016, hb_sub++, hb, 4));
+  }
+  // The controller's own PDOs on the slaves' COB-IDs: RPDO1 the position, RPDO2 the feedback, TPDO1 the command.
+  const auto& lay = rig.layout;
+  v.push_back(dcfValue(0x1400, 1, lay.sensor_cob, 4));
+  v.push_back(dcfValue(0x1401, 1, lay.feedback ? lay.feedback_cob : 0x80000000u, 4));
+  v.push_back(dcfValue(0x1800, 1, lay.valve_cob, 4));
+  return v;
 }
 
 }  // namespace pamc::nodes

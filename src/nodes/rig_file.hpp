@@ -5,6 +5,9 @@
 //
 // The slaves' EDS files are read here (to find the objects, their types and PDOs), so that the
 // configuration the controller writes at boot is complete and checked before anything goes on the bus.
+// masterValues() compiles the file into the controller's own dictionary (CiA 302: 0x1F22, 0x1F80,
+// 0x1F81, 0x1F84-0x1F89, 0x1016, and its PDOs), as Lely's dcfgen compiles its YAML into a master DCF;
+// the controller's boot then follows its dictionary.
 #pragma once
 
 #include <cstdint>
@@ -36,18 +39,36 @@ struct RigFile {
   std::uint8_t controller_id = 1;
   std::string controller_eds;  // resolved path
   std::uint32_t startup = canopen::kStartupMaster;
+  unsigned boot_time_ms = 0;  // 0x1F89 (0: no limit)
   std::uint8_t sensor_id = 2, valve_id = 3;
   std::string sensor_eds, valve_eds;  // resolved paths
-  SlaveLayout layout;                 // COB-IDs, scaling, boot plans
+  SlaveLayout layout;                 // COB-IDs, scaling
   RigObject position, command, feedback;  // in the PDOs on layout's sensor_cob, valve_cob, feedback_cob
+  canopen::SlaveBoot sensor_boot, valve_boot;  // 0x1F81, identity, configuration of each slave
+  // Each slave's heartbeat period once booted: heartbeat_ms, or else its EDS's 0x1017 (0: none).
+  unsigned sensor_heartbeat_ms = 0, valve_heartbeat_ms = 0;
 };
+
+// What the controller consumes of a slave's heartbeat (0x1016): twice its period plus 50 ms - one
+// heartbeat may be late by a whole period and the scheduling of both nodes before the slave counts as
+// lost (100 ms: 250 ms). 0: not supervised.
+constexpr unsigned consumerHeartbeatMs(unsigned producer_ms) {
+  const unsigned ms = producer_ms == 0 ? 0 : 2 * producer_ms + 50;
+  return ms > 0xFFFF ? 0xFFFF : ms;
+}
 
 // Reads and checks a rig file; throws RigError (or EdsError for a bad slave EDS) naming file and line.
 RigFile readRigFile(const std::string& path);
 // The same for text already in memory; path names it in errors and EDS paths are relative to its folder.
 RigFile parseRigFile(const std::string& text, const std::string& path);
 
-// The node settings the rig file makes: node-IDs, EDS, period, layout. The rest of cfg is kept.
+// The rig file compiled into values of the controller's dictionary: 0x1F80 start-up; per slave 0x1F81
+// assignment, 0x1F84-0x1F88 identity (0: not checked), 0x1F22 concise DCF; 0x1F89 boot time; 0x1016
+// consumer heartbeat times (consumerHeartbeatMs); RPDO1 / RPDO2 / TPDO1 on the slaves' COB-IDs.
+canopen::ConciseDcf masterValues(const RigFile& rig);
+
+// The node settings the rig file makes: node-IDs, EDS, period, layout, and masterValues() as the
+// dictionary's values. The rest of cfg is kept.
 void applyRig(const RigFile& rig, ControllerNodeConfig& cfg);
 
 }  // namespace pamc::nodes

@@ -14,24 +14,18 @@ SensorDriver::SensorDriver(canopen::Node& node, canopen::NmtMaster& master, std:
   master_.addSlave(id_);
 }
 
-void SensorDriver::setBoot(const std::optional<canopen::SlaveBoot>& boot, bool step_from_device) {
-  if (!boot && !step_from_device) return;
-  canopen::SlaveBoot b = boot.value_or(canopen::SlaveBoot{});
-  if (step_from_device) {
-    b.assignment |= canopen::kAssignBoot;
-    // CiA 406: 0x6005:01 is the measuring step in nm; the loop sees it before the sensor starts.
-    b.reads.insert(b.reads.begin(), canopen::SlaveBoot::Read{0x6005, 1, [this](const std::uint8_t* d, std::size_t len, std::string* why) {
-      std::uint32_t nm = 0;
-      for (std::size_t i = 0; i < len && i < 4; ++i) nm |= static_cast<std::uint32_t>(d[i]) << (8 * i);
-      if (len != 4 || nm == 0) {
-        *why = "measuring step " + std::to_string(nm) + " nm (" + std::to_string(len) + " bytes) is not a step";
-        return false;
-      }
-      scaling_.position_step_mm = nm * 1e-6;
-      return true;
-    }});
-  }
-  master_.setBoot(id_, std::move(b));
+void SensorDriver::readStepAtBoot() {
+  // CiA 406: 0x6005:01 is the measuring step in nm; the loop sees it before the sensor starts.
+  master_.setReads(id_, {canopen::SlaveBoot::Read{0x6005, 1, [this](const std::uint8_t* d, std::size_t len, std::string* why) {
+    std::uint32_t nm = 0;
+    for (std::size_t i = 0; i < len && i < 4; ++i) nm |= static_cast<std::uint32_t>(d[i]) << (8 * i);
+    if (len != 4 || nm == 0) {
+      *why = "measuring step " + std::to_string(nm) + " nm (" + std::to_string(len) + " bytes) is not a step";
+      return false;
+    }
+    scaling_.position_step_mm = nm * 1e-6;
+    return true;
+  }}});
 }
 
 void SensorDriver::onOperational(TimeUs now) noexcept {
@@ -80,7 +74,8 @@ void SensorDriver::supervise(FaultSupervisor& f, TimeUs now, bool active, bool u
   if (active && !usable) ++samples_missing_;
   if (usable) ++positions_;
   // The loop never started: say so once no_position_s has passed (the reporter names the COB-ID).
-  if (!active && operational_at_ != canopen::kNever && static_cast<double>(now - operational_at_) >= no_position_s_ * 1e6)
+  if (!active && operational_at_ != canopen::kNever && !master_.booting(id_) &&
+      static_cast<double>(now - operational_at_) >= no_position_s_ * 1e6)
     f.raise(Fault::NoPosition, id_);
   if (active && rp.syncsSinceReception() > limit) f.raise(Fault::PositionMissing);
   if (rp.conflictInLastCycle()) {

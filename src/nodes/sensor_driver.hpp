@@ -32,10 +32,16 @@ class SensorDriver {
 
   SensorDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
                double no_position_s);
-  // The master's boot plan for the sensor: the rig's, with the measuring step read from the device.
-  void setBoot(const std::optional<canopen::SlaveBoot>& boot, bool step_from_device);
+  // A boot step of its own: the measuring step read from the device (CiA 406 0x6005:01), after the
+  // identity check and before the configuration the master's dictionary holds.
+  void readStepAtBoot();
   void bind() { position_ = node_.od().ref<std::int32_t>(0x3000, 0); }
   void onOperational(canopen::TimeUs now) noexcept;
+  // Its boot finished: the time for a first position runs from here (a boot may take a while - a
+  // keep-alive check, a slow heartbeat - and is supervised by the master itself).
+  void onBooted(canopen::TimeUs now) noexcept {
+    if (operational_at_ != canopen::kNever) operational_at_ = now;
+  }
   void onLeftOperational() noexcept { operational_at_ = canopen::kNever; }
 
   // The cycle: latch, plausibility (u: the command in effect), supervision.

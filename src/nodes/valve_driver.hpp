@@ -22,9 +22,6 @@ class ValveDriver {
   // error_value_index 0: the valve has no error value to write.
   ValveDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
               bool feedback, std::uint16_t error_value_index, std::uint8_t error_value_sub);
-  void setBoot(const std::optional<canopen::SlaveBoot>& boot) {
-    if (boot) master_.setBoot(id_, *boot);
-  }
   void bind() { cmd_ = node_.od().ref<std::int16_t>(0x3002, 0); }
 
   void command(double u) noexcept { cmd_.set(scaling_.commandCounts(u)); }  // relative volts

@@ -95,7 +95,7 @@ TEST(NmtMaster, ASlaveThatFallsBackToPreOperationalIsStartedAgainAndThenDown) {
   EXPECT_EQ(r.nmt(), Frames{"000#0102"});
   const TimeUs t0 = r.net.bus.now();
   EXPECT_FALSE(r.master.down(2, t0 + 100'000)) << "within the start's grace";
-  EXPECT_TRUE(r.master.down(2, t0 + NmtMaster::kStartGraceUs)) << "did not follow the start";
+  EXPECT_TRUE(r.master.down(2, t0 + r.master.startGraceUs(2))) << "did not follow the start";
   r.net.bus.flush();
   EXPECT_EQ(r.nmt(), Frames{"000#0102"}) << "another start";
   r.net.send("702#04");
@@ -174,13 +174,17 @@ TEST(NmtMasterBoot, AKeptAliveSlaveThatRunsIsNotBootedAgainAtTheMastersStart) {
     ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(b.assignment);
     net.startAll();
     master.begin(net.bus.now());
-    net.bus.advanceTo(100'000);
+    // Kept alive, it is first given a consumer time (250 ms) to show it runs; it is Pre-operational, so it
+    // is reset and booted as any other.
+    net.bus.advanceTo(600'000);
     ASSERT_EQ(sensor.nmtState(), NmtState::Operational);
     ASSERT_EQ(master.counters().boots, 1u);
     const auto sdo = net.recorder.matching("602#").size();
+    const auto resets = net.recorder.matching("000#8202").size();
     master.end();
     master.begin(net.bus.now());
-    net.bus.advanceTo(200'000);
+    net.bus.advanceTo(1'200'000);
+    EXPECT_EQ(net.recorder.matching("000#8202").size() == resets, keep) << "keep=" << keep;
     EXPECT_EQ(master.counters().boots, keep ? 1u : 2u) << "keep=" << keep;
     EXPECT_EQ(net.recorder.matching("602#").size() == sdo, keep) << "keep=" << keep;
     EXPECT_EQ(master.counters().kept_alive, keep ? 1u : 0u);
@@ -232,12 +236,116 @@ TEST(NmtMasterBoot, AMismatchStopsTheSlaveAndNamesIt) {
   master.begin(net.bus.now());
   net.bus.advanceTo(50'000);
   ASSERT_NE(master.bootError(2), nullptr);
+  EXPECT_EQ(master.bootError(2)->step, BootStep::Identity);
   EXPECT_EQ(master.bootError(2)->text, "0x1018:02 product code is 0x00000002, expected 0x00001234");
   EXPECT_EQ(sensor.nmtState(), NmtState::Stopped);
   // Its next boot-up boots it again (and fails again: same device).
   net.send("000#8202");
   net.bus.advanceTo(100'000);
   EXPECT_EQ(master.counters().boot_failures, 2u);
+}
+
+// The boot as CiA 302-2 has it, on the wire: reset communication, the boot-up, identity, configuration
+// and its read-back, the first heartbeat after it, then the start - in that order.
+TEST(NmtMasterBoot, ResetBootUpIdentityConfigurationHeartbeatThenStart) {
+  Network net;
+  Node& ctrl = net.addEds(odPath("controller.eds"));
+  Node& sensor = net.addEds(odPath("sensor.eds"));
+  NmtMaster master(ctrl);
+  master.addSlave(2);
+  SlaveBoot b;
+  b.assignment = kAssignSlave | kAssignBoot | kAssignMandatory;
+  b.device_type = 0x00080196;
+  b.writes = {dcfValue(0x1017, 0, 150, 2)};
+  master.setBoot(2, b);
+  net.startAll();
+  net.recorder.log.clear();
+  master.begin(net.bus.now());
+  net.bus.advanceTo(600'000);
+  ASSERT_EQ(sensor.nmtState(), NmtState::Operational);
+  const auto frames = net.recorder.frames();
+  auto first = [&](const std::string& prefix, std::size_t from = 0) {
+    for (std::size_t i = from; i < frames.size(); ++i)
+      if (frames[i].compare(0, prefix.size(), prefix) == 0) return i;
+    return frames.size();
+  };
+  const auto reset = first("000#8202"), bootup = first("702#00"), identity = first("602#40001000"),
+             write = first("602#2B171000"), readback = first("602#40171000"), heartbeat = first("702#7F", readback),
+             start = first("000#0102");
+  EXPECT_EQ(reset, 0u) << "the master's first frame";
+  EXPECT_LT(reset, bootup);
+  EXPECT_LT(bootup, identity);
+  EXPECT_LT(identity, write);
+  EXPECT_LT(write, readback);
+  EXPECT_LT(readback, heartbeat);
+  EXPECT_LT(heartbeat, start) << "started after its first heartbeat";
+  EXPECT_LT(start, frames.size());
+  EXPECT_EQ(master.counters().resets, 1u);
+  EXPECT_EQ(master.startGraceUs(2), 450'000) << "three heartbeat periods of the 150 ms it was configured with";
+}
+
+// A boot step the slave does not answer is tried again up to its retry factor, then the boot fails
+// naming the step: no boot-up after the reset (an absent node), no first heartbeat after the
+// configuration (a slave that sends none while 0x1016 supervises it).
+TEST(NmtMasterBoot, UnansweredStepsAreTriedAgainThenFailNamingTheStep) {
+  Network net;
+  Node& ctrl = net.addEds(odPath("controller.eds"));
+  net.addEds(odPath("sensor.eds"));
+  NmtMaster master(ctrl);
+  master.addSlave(2);
+  master.addSlave(5);  // nobody there
+  SlaveBoot silent;
+  silent.assignment = kAssignSlave | kAssignBoot | assignRetries(1);
+  silent.writes = {dcfValue(0x1017, 0, 0, 2)};  // no heartbeat, but 0x1016 consumes one (250 ms)
+  master.setBoot(2, silent);
+  SlaveBoot absent;
+  absent.assignment = kAssignSlave | kAssignBoot | assignRetries(2);
+  master.setBoot(5, absent);
+  net.startAll();
+  net.recorder.log.clear();
+  master.begin(net.bus.now());
+  net.bus.advanceTo(1'000'000);
+  ASSERT_NE(master.bootError(2), nullptr);
+  EXPECT_EQ(master.bootError(2)->step, BootStep::Heartbeat);
+  EXPECT_EQ(master.bootError(2)->text, "no heartbeat within 250 ms (its consumer time, 0x1016) of its configuration");
+  EXPECT_EQ(master.bootError(5), nullptr) << "still resetting";
+  net.bus.advanceTo(3'500'000);
+  ASSERT_NE(master.bootError(5), nullptr);
+  EXPECT_EQ(master.bootError(5)->step, BootStep::Reset);
+  EXPECT_EQ(master.bootError(5)->text, "no boot-up within 1000 ms of NMT reset communication");
+  EXPECT_EQ(net.recorder.matching("000#8205").size(), 3u) << "the reset and its two retries";
+  EXPECT_EQ(master.counters().boot_retries, 3u) << "a heartbeat and two resets";
+  EXPECT_EQ(master.counters().boot_failures, 2u);
+  EXPECT_STREQ(bootStepName(BootStep::Heartbeat), "first heartbeat");
+}
+
+// 0x1F89: every mandatory slave booted within the boot time, or its boot fails naming it.
+TEST(NmtMasterBoot, AMandatorySlaveNotBootedWithinTheBootTimeFails) {
+  Network net;
+  Node& ctrl = net.addEds(odPath("controller.eds"));
+  NmtMaster master(ctrl);
+  master.addSlave(5);
+  SlaveBoot absent;
+  absent.assignment = kAssignSlave | kAssignBoot | kAssignMandatory | assignRetries(3);
+  master.setBoot(5, absent);
+  ctrl.od().find(kObjBootTime, 0)->set<std::uint32_t>(500);
+  net.startAll();
+  master.begin(net.bus.now());
+  net.bus.advanceTo(499'000);
+  EXPECT_EQ(master.bootError(5), nullptr);
+  net.bus.advanceTo(501'000);
+  ASSERT_NE(master.bootError(5), nullptr);
+  EXPECT_EQ(master.bootError(5)->step, BootStep::BootTime);
+  EXPECT_EQ(master.bootError(5)->text, "not booted within the boot time 0x1F89 of 500 ms");
+}
+
+TEST(NmtMaster, TheStartGraceFollowsTheHeartbeat) {
+  MasterRig r;
+  EXPECT_EQ(r.master.startGraceUs(2), 750'000) << "no heartbeat configured: three consumer times (250 ms)";
+  r.ctrl.od().find(0x1016, 1)->set<std::uint32_t>(0x00020000u);  // not supervised
+  r.ctrl.heartbeatConsumer().configure();
+  r.master.begin(r.net.bus.now());
+  EXPECT_EQ(r.master.startGraceUs(2), NmtMaster::kStartGraceFloorUs);
 }
 
 TEST(ConciseDcf, RoundTripAndMalformedStrings) {

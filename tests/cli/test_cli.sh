@@ -96,6 +96,12 @@ check "bad candump log leaves no CSV" test ! -e "$work/bad_decoded.csv"
 "$PAMC" controller --iface pamc_no_such_if --od "$SRC/od" --duration 1 > /dev/null 2> "$work/err8.txt"
 check "missing interface exits non-zero" test $? -ne 0
 check "missing interface is named" grep -q "pamc_no_such_if" "$work/err8.txt"
+# A master DCF that is not one: one line naming the file, the line and the problem, before the bus is opened.
+sed 's/^ParameterValue=0x00000190$/ParameterValue=0x190Z/' "$SRC/tests/dcf/moved_pdos.dcf" > "$work/bad.dcf"
+"$PAMC" controller --iface pamc_no_such_if --od "$SRC/od" --dcf "$work/bad.dcf" --duration 1 > /dev/null 2> "$work/err9.txt"
+check "bad DCF exits non-zero" test $? -ne 0
+check "bad DCF error is one line" test "$(wc -l < "$work/err9.txt")" -eq 1
+check "bad DCF error names file, line and problem" grep -q "bad.dcf:[0-9]*: \[1400sub1\] ParameterValue: '0x190Z' is not a valid UNSIGNED32" "$work/err9.txt"
 "$PAMC" rig --od "$SRC/od" --duration 2 --preroll 1 --log "$work/rig.log" --csv "$work/rig.csv" > /dev/null
 check "rig runs on the in-process bus" test -s "$work/rig.csv"
 "$PAMC" decode "$work/rig.log" --od "$SRC/od" --out "$work/rig_dec.csv" > /dev/null

@@ -42,29 +42,41 @@ PL=$!
 timeout 10 "$PAMC" monitor --iface vcan0 --od "$OD" --duration 2 > "$W/monitor.txt" 2>&1
 kill "$PL" 2>/dev/null; wait "$PL" 2>/dev/null
 
-# Rig files (docs/RIG.md): slaves that another master left scrambled - SDO writes with can-utils'
-# cansend, as any tool could make them - and then the controller with a rig file, which must check and
-# configure them before anything runs. Arguments: NAME RIG_FILE "EMULATOR ARGS" FRAME...
+# Slaves that another master started and left scrambled - SDO writes with can-utils' cansend, as any
+# tool could make them - and then the controller, which must check and configure them before anything
+# runs. Each run has its own candump log. Arguments: NAME "CONTROLLER ARGS" "EMULATOR ARGS" FRAME...
 rig_run() {
-  local name=$1 rig=$2 emu_args=$3 f em
+  local name=$1 ctl_args=$2 emu_args=$3 f em cd
   shift 3
+  candump -r 4194304 -L vcan0 > "$W/${name}_bus.log" &
+  cd=$!
   # shellcheck disable=SC2086
   "$PAMC" emulator --iface vcan0 --od "$OD" --period-us "$P" $emu_args > "$W/${name}_emulator.txt" 2>&1 &
   em=$!
   sleep 0.5
   for f in "$@"; do cansend vcan0 "$f"; sleep 0.05; done
-  "$PAMC" controller --rig "$rig" --iface vcan0 --period-us "$P" --controller pi --ki 1.5 \
+  sleep 0.5  # their heartbeats show the state they are in
+  # shellcheck disable=SC2086
+  "$PAMC" controller $ctl_args --period-us "$P" --controller pi --ki 1.5 \
     --trajectory sine:0.5:15:5 --preroll 1 --duration 4 --csv "$W/${name}_controller.csv" \
     > "$W/${name}_controller.txt" 2>&1
   echo $? > "$W/${name}_rc.txt"
   kill "$em" 2>/dev/null; wait "$em" 2>/dev/null
+  sleep 0.3
+  kill "$cd" 2>/dev/null; wait "$cd" 2>/dev/null
 }
-# pamc's own devices, started by another master, the sensor's position PDO made asynchronous on
-# 0x190 and the valve's command PDO mapped to nothing.
-rig_run scrambled "$OD/rigs/default.ini" "" 000#0100 \
+# pamc's own devices, started by another master, the sensor's position PDO moved to 0x190 and made
+# asynchronous, the valve's command PDO disabled; then `pamc controller` with no rig file or DCF (the
+# default rig, od/rigs/default.ini, on its interface vcan0; --od only because this binary is a copy
+# outside the tree, and the options of the run itself).
+rig_run scrambled "--od $OD" "" 000#0100 \
   602#2300180182010080 602#2F001802FE000000 602#2300180190010000 \
-  603#2300140103020080 603#2F00160000000000 603#2300140103020000
-[ -f "$OD/rigs/profile.ini" ] && rig_run profile "$OD/rigs/profile.ini" "--profile-defaults"
+  603#2300140103020080
+[ -f "$OD/rigs/profile.ini" ] && rig_run profile "--rig $OD/rigs/profile.ini --iface vcan0" "--profile-defaults"
+# Keep alive (0x1F81 bit 4): the default rig with keep_alive = yes for both slaves, which another master
+# started: they run with live heartbeats, so the controller must not reset them.
+sed -e "s|^eds = \.\./|eds = $OD/|" -e 's|^mandatory = yes.*|&\nkeep_alive = yes|' "$OD/rigs/default.ini" > "$W/keep_alive.ini"
+rig_run keepalive "--rig $W/keep_alive.ini --iface vcan0" "" 000#0100
 
 # Kernel-level faults (the in-process rig covers the rest, `pamc rig --faults`): a full transmit
 # queue - the interface rate-limited by a tbf qdisc and flooded by higher-priority frames, so writes

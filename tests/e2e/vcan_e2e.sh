@@ -88,20 +88,37 @@ echo "controller log: $n_log frames, replayed by canplayer: $n_rep"
 check "canplayer replays the node's log frame for frame" test "$n_rep" -eq "$n_log"
 check "the live monitor decoded the bus" grep -q "sensor.position_value" "$W/monitor.txt"
 
-# Rig files: each run must have configured both slaves (read back) and tracked the sine from them.
+# Rig files: each run must have booted both slaves (configured and read back, or kept alive) and tracked
+# the sine from them. Arguments: NAME WHAT BOOT-LINE.
 rig_checks() {
-  local name=$1 what=$2 rmse
-  echo "--- controller with a rig file: $what"; cat "$W/${name}_controller.txt" 2>/dev/null
-  check "rig ($what): both slaves configured and read back" \
-    test "$(grep -c 'configuration written and read back' "$W/${name}_controller.txt" 2>/dev/null)" = 2
-  check "rig ($what): the controller exited 0" test "$(cat "$W/${name}_rc.txt" 2>/dev/null)" = 0
+  local name=$1 what=$2 line=$3 rmse
+  echo "--- controller: $what"; cat "$W/${name}_controller.txt" 2>/dev/null
+  check "$what: both slaves $line" test "$(grep -c "$line" "$W/${name}_controller.txt" 2>/dev/null)" = 2
+  check "$what: the controller exited 0" test "$(cat "$W/${name}_rc.txt" 2>/dev/null)" = 0
   rmse=$(awk -F, 'NR > 1 && $1 >= 1 && $8 == 0 { s += ($2 - $3) ^ 2; n++ } END { if (n > 100) printf "%d\n", sqrt(s / n) * 1000; else print 999999 }' \
     "$W/${name}_controller.csv" 2>/dev/null)
-  echo "rig ($what): tracking RMSE ${rmse:-?} um after the first second"
-  check "rig ($what): in control, tracking within 2 mm RMSE" test "${rmse:-999999}" -lt 2000
+  echo "$what: tracking RMSE ${rmse:-?} um after the first second"
+  check "$what: in control, tracking within 2 mm RMSE" test "${rmse:-999999}" -lt 2000
 }
-rig_checks scrambled "pamc's devices scrambled by cansend"
-if [ -f "$SRC/od/rigs/profile.ini" ]; then rig_checks profile "CiA 406/401 devices with their own defaults"; fi
+# NMT frames from the controller to node N (or to all, 00) of command C (81 reset node, 82 reset
+# communication) in a run's candump log, after the controller's boot-up.
+nmt_after_bootup() {
+  awk -v re="^000#($2)($1|00)$" '$3 == "701#00" { up = 1 } up && $3 ~ re { n++ } END { print n + 0 }' "$W/$3_bus.log" 2>/dev/null
+}
+rig_checks scrambled "no options, slaves scrambled by cansend" "configuration written and read back"
+# The scramble reached the slaves (their SDO write confirmations, 60 = download response), and the
+# controller reset them and booted them from its dictionary.
+check "scrambled: the slaves took the cansend writes (4 SDO confirmations before the controller)" \
+  test "$(awk '$3 == "701#00" { exit } $3 ~ /^58[23]#60/ { n++ } END { print n + 0 }' "$W/scrambled_bus.log" 2>/dev/null)" -ge 4
+check "scrambled: NMT reset communication to both slaves" test "$(nmt_after_bootup 02 82 scrambled)" -ge 1 -a "$(nmt_after_bootup 03 82 scrambled)" -ge 1
+check "scrambled: the position on 0x182 again after the boot" \
+  test "$(awk '$3 == "701#00" { up = 1 } up && $3 ~ /^182#/ { n++ } END { print n + 0 }' "$W/scrambled_bus.log" 2>/dev/null)" -gt 100
+if [ -f "$SRC/od/rigs/profile.ini" ]; then
+  rig_checks profile "CiA 406/401 devices with their own defaults" "configuration written and read back"
+fi
+rig_checks keepalive "keep alive, slaves Operational" "kept alive"
+check "keep alive: no NMT reset (0x81/0x82) to the slaves on the bus" \
+  test "$(nmt_after_bootup '0[23]' '8[12]' keepalive)" = 0 -a "$(grep -c ' 701#00$' "$W/keepalive_bus.log" 2>/dev/null)" -ge 1
 
 # Kernel-level faults (inside_vm.sh): ENOBUFS under a flood, error frames bus off / restarted. The
 # timeline there waits for each recovery, so the checks look for each fault and its recovery in

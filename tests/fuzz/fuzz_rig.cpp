@@ -28,6 +28,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     finding("accepted two nodes on one node-ID");
   for (std::uint32_t cob : {rig.layout.sensor_cob, rig.layout.valve_cob, rig.layout.feedback_cob})
     if (cob > 0x7FF) finding("accepted a COB-ID beyond 11 bits");
-  if (!rig.layout.sensor_boot || !rig.layout.valve_boot) finding("accepted a rig without a boot plan");
+  if ((rig.sensor_boot.assignment & pamc::canopen::kAssignSlave) == 0 || (rig.valve_boot.assignment & pamc::canopen::kAssignSlave) == 0)
+    finding("accepted a rig without a boot plan");
+  (void)pamc::nodes::masterValues(rig);
   return 0;
 }

@@ -13,7 +13,10 @@
 #include <vector>
 
 #include "canopen/bus.hpp"
+#include "canopen/candump_log.hpp"
+#include "canopen/dcf.hpp"
 #include "nodes/decoder.hpp"
+#include "nodes/master_dcf.hpp"
 #include "nodes/rig_file.hpp"
 #include "plant/plant.hpp"
 #include "rig/virtual_rig.hpp"
@@ -93,6 +96,37 @@ struct Tool {
     rig.bus().flush();
     return last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
   }
+  // An SDO upload as the frames on the wire have it: expedited, or segmented with the toggle bit.
+  std::vector<std::uint8_t> upload(std::uint8_t node, std::uint16_t idx, std::uint8_t sub, std::uint32_t* abort = nullptr) {
+    const std::uint8_t init[8] = {0x40, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, 0, 0, 0, 0};
+    port.send(canopen::makeFrame(0x600 + node, 8, init));
+    rig.bus().flush();
+    std::vector<std::uint8_t> out;
+    if (abort) *abort = last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
+    if (last.data[0] == 0x80) return out;
+    if (last.data[0] & 0x02) {  // expedited
+      const int n = (last.data[0] & 0x01) ? 4 - ((last.data[0] >> 2) & 3) : 4;
+      return std::vector<std::uint8_t>(last.data + 4, last.data + 4 + n);
+    }
+    for (std::uint8_t toggle = 0;; toggle ^= 0x10) {
+      const std::uint8_t seg[8] = {static_cast<std::uint8_t>(0x60 | toggle), 0, 0, 0, 0, 0, 0, 0};
+      port.send(canopen::makeFrame(0x600 + node, 8, seg));
+      rig.bus().flush();
+      const int n = 7 - ((last.data[0] >> 1) & 7);
+      out.insert(out.end(), last.data + 1, last.data + 1 + n);
+      if (last.data[0] & 0x01) return out;
+    }
+  }
+  std::uint64_t value(std::uint8_t node, std::uint16_t idx, std::uint8_t sub) {
+    const auto b = upload(node, idx, sub);
+    std::uint64_t v = 0;
+    for (std::size_t i = 0; i < b.size() && i < 8; ++i) v |= static_cast<std::uint64_t>(b[i]) << (8 * i);
+    return v;
+  }
+  std::uint32_t read32(std::uint8_t node, std::uint16_t idx, std::uint8_t sub) {
+    const auto b = upload(node, idx, sub);
+    return b.size() == 4 ? canopen::getU32(b.data()) : 0xDEADBEEFu;
+  }
   nodes::VirtualRig& rig;
   canopen::VirtualBus::Port& port;
   Frame last{};
@@ -108,6 +142,24 @@ std::string profileRig() {
     t.replace(t.find(from), from.size(), kOd + eds);
   }
   return t;
+}
+
+// One of od/'s EDS files with some DefaultValues changed ({section, value}): a device whose configuration
+// another master changed and stored (CiA 301 0x1010), so that a reset communication brings back that,
+// not pamc's layout.
+std::string edsWith(const std::string& file, const std::vector<std::pair<std::string, std::string>>& defaults) {
+  std::ifstream in(kOd + file);
+  std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const auto& [section, value] : defaults) {
+    const auto sec = t.find("[" + section + "]\n");
+    const auto key = t.find("DefaultValue=", sec);
+    if (sec == std::string::npos || key == std::string::npos) {
+      ADD_FAILURE() << file << " has no [" << section << "] DefaultValue";
+      continue;
+    }
+    t.replace(key + 13, t.find('\n', key) - key - 13, value);
+  }
+  return writeTemp(file, t);
 }
 
 double trackingRmse(const std::vector<nodes::CycleRecord>& recs, double from_s) {
@@ -128,16 +180,15 @@ TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
   EXPECT_EQ(rig.layout.valve_cob, 0x203u);
   EXPECT_EQ(rig.layout.feedback_cob, 0x183u);
   EXPECT_TRUE(rig.layout.scaling.isDefault());
-  ASSERT_TRUE(rig.layout.sensor_boot && rig.layout.valve_boot);
-  EXPECT_EQ(*rig.layout.sensor_boot->device_type, 0x00080196u);
+  EXPECT_EQ(*rig.sensor_boot.device_type, 0x00080196u);
   EXPECT_EQ(rig.layout.error_value_index, 0x6444);
   // 0x1F81: slave, boot, mandatory, not kept alive, 3 retries.
-  EXPECT_EQ(rig.layout.sensor_boot->assignment, 0x0000030Du);
+  EXPECT_EQ(rig.sensor_boot.assignment, 0x0000030Du);
   const auto kept = nodes::readRigFile(writeTemp("kept.ini", rigText({{"mandatory = yes          ; 0x1F81",
                                                                         "keep_alive = yes\nretries = 5\nmandatory = yes ; 0x1F81"}})));
-  EXPECT_EQ(kept.layout.sensor_boot->assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
+  EXPECT_EQ(kept.sensor_boot.assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
   // The sensor's TPDO1: disabled, synchronous, mapped to 0x6004:00 (32 bits), enabled on 0x182.
-  const auto& w = rig.layout.sensor_boot->writes;
+  const auto& w = rig.sensor_boot.writes;
   auto has = [&](std::uint16_t i, std::uint8_t s, std::uint64_t v, std::size_t n) {
     return std::find(w.begin(), w.end(), canopen::dcfValue(i, s, v, n)) != w.end();
   };
@@ -235,6 +286,7 @@ TEST(RigBoot, SlavesScrambledBeforeTheControllerStartsAreConfigured) {
   {
     nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
     c.layout = nodes::SlaveLayout{};  // the built-in layout: nothing is configured
+    c.dictionary.clear();
     nodes::VirtualRig rig(c, emulator());
     Tool tool(rig);
     scramble(rig, tool);
@@ -264,11 +316,14 @@ TEST(RigBoot, AWrongIdentityIsReportedAndTheSlaveLeftStopped) {
   EXPECT_EQ(fc.slave_boot_failures, 1u);
   EXPECT_NE(std::find(tool.emcy.begin(), tool.emcy.end(), 0x6300), tool.emcy.end()) << "EMCY 0x6300";
   ASSERT_FALSE(log.empty());
-  EXPECT_NE(log.front().find("sensor (node 2) not started: 0x1000:00 device type is 0x00080196, expected 0x00020196"),
+  EXPECT_NE(log.front().find("sensor (node 2) not started, identity check: 0x1000:00 device type is 0x00080196, expected 0x00020196"),
             std::string::npos)
       << log.back();
+  EXPECT_EQ(std::count_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; }), 1)
+      << "one line for the failure";
   EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(2), canopen::NmtState::Stopped);
   EXPECT_FALSE(rig.controller().running()) << "no position: the loop does not start";
+  EXPECT_TRUE(nodes::runFailure(rig.controller())) << "the run fails: pamc controller exits non-zero";
   // The valve is mandatory-gated too: nothing was started while the sensor failed.
   EXPECT_NE(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Operational);
 }
@@ -283,7 +338,7 @@ TEST(RigBoot, ARefusedWriteIsReportedWithItsAbortCode) {
   // The boot report; the loop's own line (no position: the sensor waits for the valve) follows it.
   const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("valve (node 3)") == 0; });
   ASSERT_NE(line, log.end());
-  EXPECT_NE(line->find("valve (node 3) not started: 0x6411:01 write refused"), std::string::npos) << *line;
+  EXPECT_NE(line->find("valve (node 3) not started, configuration: 0x6411:01 write refused"), std::string::npos) << *line;
   EXPECT_NE(line->find("SDO abort 0x06090032"), std::string::npos) << *line;
   EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Stopped);
 }
@@ -345,6 +400,7 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
   {
     nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
     c.layout = nodes::SlaveLayout{};
+    c.dictionary.clear();
     nodes::VirtualRig rig(c, profile);
     Tool tool(rig);
     std::vector<std::pair<canopen::TimeUs, Frame>> frames;
@@ -441,9 +497,9 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
     const auto path = writeTemp("rig.ini", retries == 3 ? rigText()
                                                          : rigText({{"boot = yes               ; configure at boot",
                                                                      "retries = 0\nboot = yes ; configure at boot"}}));
-    int lost = 0;  // the sensor's first answer to the read of its vendor-ID 0x1018:01
+    int lost = 0;  // the sensor's first answer to the read of its product code 0x1018:02
     nodes::VirtualRig rig(controllerFromRig(path, &log), emulator(), 0, [&](Frame& f) {
-      return !(f.id == 0x582 && f.data[1] == 0x18 && f.data[2] == 0x10 && f.data[3] == 1 && lost++ == 0);
+      return !(f.id == 0x582 && f.data[1] == 0x18 && f.data[2] == 0x10 && f.data[3] == 2 && lost++ == 0);
     });
     rig.start();
     rig.runFor(4.0);
@@ -458,7 +514,280 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
       EXPECT_EQ(mc.boot_failures, 1u);
       const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; });
       ASSERT_NE(line, log.end());
-      EXPECT_NE(line->find("sensor (node 2) not started: 0x1018:01 read failed: SDO protocol timed out"), std::string::npos) << *line;
+      EXPECT_NE(line->find("sensor (node 2) not started, identity check: 0x1018:02 read failed: SDO protocol timed out (SDO abort 0x05040000)"), std::string::npos) << *line;
+    }
+  }
+}
+
+// The rig file compiled into the controller's own dictionary, as CiA 302 has it: what an SDO upload of
+// 0x1F22:<node-ID> shows is the concise DCF the controller writes at the slave's boot, and it decodes
+// back to the rig's entries; the expected identity is in 0x1F84-0x1F88, the assignment in 0x1F81, the
+// consumer heartbeat times in 0x1016 (twice the slave's period plus 50 ms).
+TEST(RigMaster, AnSdoUploadOfTheMastersObjectsShowsTheRigsBoot) {
+  const auto path = writeTemp("rig.ini", rigText({{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = 1000 ; 0x1017"}}));
+  const auto rig = nodes::readRigFile(path);
+  nodes::VirtualRig vr(controllerFromRig(path, nullptr), emulator());
+  Tool tool(vr);
+  vr.start();
+  vr.runFor(0.2);
+  for (const auto& [id, boot] : {std::pair<std::uint8_t, const canopen::SlaveBoot*>{2, &rig.sensor_boot}, {3, &rig.valve_boot}}) {
+    const auto bytes = tool.upload(1, 0x1F22, id);
+    ASSERT_GT(bytes.size(), 8u) << "node " << int(id) << ": a segmented upload";
+    canopen::ConciseDcf back;
+    std::string why;
+    ASSERT_TRUE(canopen::decodeConciseDcf(bytes.data(), bytes.size(), back, &why)) << why;
+    EXPECT_EQ(back, boot->writes) << "node " << int(id);
+    EXPECT_EQ(tool.read32(1, 0x1F81, id), boot->assignment);
+  }
+  EXPECT_EQ(tool.read32(1, 0x1F84, 2), 0x00080196u) << "device type";
+  EXPECT_EQ(tool.read32(1, 0x1F85, 2), 0u) << "vendor-ID 0: not checked";
+  EXPECT_EQ(tool.read32(1, 0x1F86, 2), 2u) << "product code";
+  EXPECT_EQ(tool.read32(1, 0x1F84, 3), 0x000C0191u);
+  EXPECT_EQ(tool.read32(1, 0x1F88, 3), 0u) << "serial number not checked";
+  EXPECT_EQ(tool.read32(1, 0x1F89, 0), 0u) << "no boot time";
+  EXPECT_EQ(tool.read32(1, 0x1016, 1), 0x00020000u | 2050u) << "the sensor's 1000 ms heartbeat";
+  EXPECT_EQ(tool.read32(1, 0x1016, 2), 0x00030000u | 250u) << "the valve's 100 ms heartbeat";
+  EXPECT_EQ(tool.read32(1, 0x1F22, 4), 0xDEADBEEFu) << "node 4: nothing to write (empty)";
+  // A concise DCF written over SDO must decode.
+  std::uint32_t code = 0;
+  tool.upload(1, 0x1F22, 2, &code);
+  EXPECT_EQ(code, 0u);
+  EXPECT_EQ(tool.write32(1, 0x1F22, 5, 0x00000002u), 0x06090030u) << "two entries announced, none there";
+}
+
+// The boot follows the dictionary, not the rig file: an expected device type changed over SDO makes the
+// sensor's next boot (the controller's next start) fail on it.
+TEST(RigMaster, TheBootFollowsTheMastersDictionary) {
+  std::vector<std::string> log;
+  const auto path = writeTemp("default.ini", rigText());
+  nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+  Tool tool(vr);
+  vr.start();
+  vr.runFor(2.0);
+  ASSERT_TRUE(vr.controller().running());
+  EXPECT_EQ(tool.write32(1, 0x1F84, 2, 0x00020196u), 0u);
+  const std::uint8_t preop[2] = {0x80, 0x01}, start[2] = {0x01, 0x01};
+  tool.port.send(canopen::makeFrame(0x000, 2, preop));
+  vr.runFor(0.1);
+  tool.port.send(canopen::makeFrame(0x000, 2, start));
+  vr.runFor(2.0);
+  EXPECT_EQ(vr.controller().faultCounters().slave_boot_failures, 1u);
+  const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2) not started") == 0; });
+  ASSERT_NE(line, log.end());
+  EXPECT_NE(line->find("device type is 0x00080196, expected 0x00020196"), std::string::npos) << *line;
+}
+
+// A master DCF written by hand (tests/dcf/moved_pdos.dcf): the sensor's position on 0x190 and the valve's
+// command on 0x210 instead of the rig's 0x182 and 0x203, a 200 ms sensor heartbeat, both slaves kept
+// alive with a retry factor of 2. On top of the shipped rig, the controller boots the slaves as the DCF
+// says and tracks; the same with the sensor's concise DCF in a binary file named by UploadFile.
+TEST(MasterDcf, TheControllerBootsTheSlavesFromAHandWrittenDcf) {
+  const std::string fixture = std::string(PAMC_SOURCE_DIR) + "/tests/dcf/moved_pdos.dcf";
+  std::ifstream in(fixture);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // The second form: 0x1F22:02 from a file (the bytes of the hand-written hex).
+  std::string with_file = text;
+  const auto at = with_file.find("ParameterValue=07000000");
+  ASSERT_NE(at, std::string::npos);
+  const auto eol = with_file.find('\n', at);
+  std::string hex = with_file.substr(at + 15, eol - at - 15), bytes;
+  hex.erase(std::remove(hex.begin(), hex.end(), ' '), hex.end());
+  for (std::size_t i = 0; i + 1 < hex.size(); i += 2) bytes.push_back(static_cast<char>(std::stoi(hex.substr(i, 2), nullptr, 16)));
+  std::ofstream(writeTemp("node2.bin", "")) << bytes;
+  with_file.replace(at, eol - at, "UploadFile=" + ::testing::TempDir() + "MasterDcf.TheControllerBootsTheSlavesFromAHandWrittenDcf.node2.bin");
+  for (const std::string& dcf : {fixture, writeTemp("moved.dcf", with_file)}) {
+    std::vector<std::string> log;
+    auto c = controllerFromRig(writeTemp("default.ini", rigText()), &log);
+    nodes::applyMasterDcf(dcf, c);
+    nodes::VirtualRig vr(c, emulator());
+    Tool tool(vr);
+    int old_cobs = 0, new_cobs = 0;
+    vr.addTap([&](const Frame& f, canopen::TimeUs t) {
+      if (t < 1'000'000) return;
+      old_cobs += f.id == 0x182 || f.id == 0x203;
+      new_cobs += f.id == 0x190 || f.id == 0x210;
+    });
+    vr.start();
+    vr.runFor(4.0);
+    const auto fc = vr.controller().faultCounters();
+    EXPECT_EQ(fc.slave_boots, 2u) << dcf;
+    EXPECT_EQ(fc.slave_boot_failures, 0u);
+    EXPECT_EQ(fc.episodes, 0u);
+    EXPECT_TRUE(vr.controller().running());
+    EXPECT_LT(trackingRmse(vr.records(), 1.0), 1.0);
+    EXPECT_EQ(tool.read32(2, 0x1800, 1), 0x190u) << "the sensor's TPDO1";
+    EXPECT_EQ(tool.read32(3, 0x1400, 1), 0x210u) << "the valve's RPDO1";
+    EXPECT_EQ(tool.upload(2, 0x1017, 0), (std::vector<std::uint8_t>{200, 0})) << "the sensor's heartbeat";
+    EXPECT_EQ(tool.read32(1, 0x1F81, 2), 0x0000021Du) << "kept alive, 2 retries";
+    EXPECT_EQ(tool.read32(1, 0x1016, 1), 0x000201C2u);
+    EXPECT_EQ(old_cobs, 0);
+    EXPECT_GT(new_cobs, 5000) << "position and command every cycle on their new COB-IDs";
+  }
+}
+
+// A DCF that is not one, or gives the controller what it cannot take: one line, "file:line: problem".
+TEST(MasterDcf, AMalformedDcfIsOneLineNamingFileAndLine) {
+  std::ifstream in(std::string(PAMC_SOURCE_DIR) + "/tests/dcf/moved_pdos.dcf");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  struct Case {
+    std::string from, to, expect;
+  };
+  const std::vector<Case> cases = {
+      {"ParameterValue=0x00000190", "ParameterValue=0x190Z", "[1400sub1] ParameterValue: '0x190Z' is not a valid UNSIGNED32"},
+      {"NrOfEntries=2\n2=0x00000002", "NrOfEntries=3\n2=0x00000002", "NrOfEntries is 3 but 2 entries follow"},
+      {"ParameterValue=07000000", "ParameterValue=08000000", "0x1F22:02 is not a concise DCF: entry 8 of 8: header beyond the end"},
+      {"ParameterValue=07000000", "ParameterValue=0700000", "is not a sequence of hex bytes for DOMAIN"},
+      {"2=0x0000021D", "2=0x10000021D", "'0x10000021D' is out of range for UNSIGNED32"},
+      {"[1F86Value]\nNrOfEntries=2\n2=0x00000002", "[1F86Value]\nNrOfEntries=2\n200=0x00000002", "not a sub-index of the object (1..127)"},
+      {"7=0x1F86", "7=0x1F8A", "listed object has no section"},
+      {"ObjectType=0x7\nDataType=0x000F\nAccessType=rw\nParameterValue=07", "ObjectType=0x7\nDataType=0x000A\nAccessType=rw\nParameterValue=07",
+       "0x1F22:02 is OCTET_STRING here but DOMAIN in"},
+      {"[1F22sub2]", "[1F22sub80]", "the device"},
+      {"[1F22sub2]", "[1F22subZZ]", "neither an object"},
+  };
+  for (const auto& c : cases) {
+    std::string bad = text;
+    const auto at = bad.find(c.from);
+    ASSERT_NE(at, std::string::npos) << c.from;
+    bad.replace(at, c.from.size(), c.to);
+    const std::string path = writeTemp("bad.dcf", bad);
+    auto cfg = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
+    try {
+      nodes::applyMasterDcf(path, cfg);
+      ADD_FAILURE() << "accepted: " << c.expect;
+    } catch (const canopen::EdsError& e) {
+      const std::string m = e.what();
+      EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+      EXPECT_EQ(m.rfind(path + ":", 0), 0u) << m;
+      EXPECT_GT(e.line(), 0) << m;
+      EXPECT_NE(m.find(c.expect), std::string::npos) << m;
+    }
+  }
+}
+
+// Slaves another master left otherwise - and stored, so that a reset communication does not undo it (their
+// EDS defaults changed) - started by it before the controller comes: a moved TPDO COB-ID, a changed
+// mapping, an asynchronous transmission type, a disabled RPDO, heartbeat 0 or 1000 ms. Without the rig
+// file's configuration the loop does not run on most of them (an asynchronous position sent on every
+// change and no heartbeat at all go unnoticed); with it the controller resets, checks and
+// configures them (read back), waits for their first heartbeat, starts them, and the loop tracks.
+TEST(RigBoot, SlavesAnotherMasterLeftOtherwiseAreConfiguredBeforeTheStart) {
+  struct Case {
+    const char* what;
+    std::vector<std::pair<std::string, std::string>> sensor, valve;
+    std::uint8_t node;
+    std::uint16_t index;
+    std::uint8_t sub;
+    std::uint64_t left, configured;
+    bool runs_unconfigured;
+  };
+  const std::vector<Case> cases = {
+      {"a moved TPDO COB-ID", {{"1800sub1", "0x190"}}, {}, 2, 0x1800, 1, 0x190, 0x182, false},
+      {"a changed mapping", {{"1A00sub1", "0x65030010"}}, {}, 2, 0x1A00, 1, 0x65030010, 0x60040020, false},
+      // Sent on every change of the position, as often as it is sampled: the loop runs on it unconfigured.
+      {"an asynchronous TPDO", {{"1800sub2", "254"}, {"1800sub5", "10"}}, {}, 2, 0x1800, 2, 254, 1, true},
+      {"a disabled RPDO", {}, {{"1400sub1", "0x80000203"}}, 3, 0x1400, 1, 0x80000203, 0x203, false},
+      {"heartbeat 0", {{"1017", "0"}}, {{"1017", "0"}}, 2, 0x1017, 0, 0, 100, true},
+      {"heartbeat 1000 ms", {{"1017", "1000"}}, {{"1017", "1000"}}, 3, 0x1017, 0, 1000, 100, false},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.what);
+    nodes::EmulatorConfig e = emulator();
+    if (!c.sensor.empty()) e.sensor_eds = edsWith("sensor.eds", c.sensor);
+    if (!c.valve.empty()) e.valve_eds = edsWith("valve.eds", c.valve);
+    for (bool configured : {false, true}) {
+      std::vector<std::string> log;
+      auto cfg = controllerFromRig(writeTemp("default.ini", rigText()), &log);
+      if (!configured) cfg.dictionary.clear(), cfg.layout = nodes::SlaveLayout{};  // pamc's layout assumed
+      nodes::VirtualRig vr(cfg, e);
+      Tool tool(vr);
+      vr.startEmulator();
+      const std::uint8_t all[2] = {0x01, 0x00};  // the other master started them
+      tool.port.send(canopen::makeFrame(0x000, 2, all));
+      vr.bus().flush();
+      ASSERT_EQ(tool.value(c.node, c.index, c.sub), c.left);
+      vr.startController();
+      vr.runFor(5.0);
+      const double rmse = trackingRmse(vr.records(), 2.0);
+      if (!configured) {
+        if (!c.runs_unconfigured) {
+          EXPECT_TRUE(!vr.controller().running() || rmse > 3.0 || vr.controller().faultsRaised() > 0);
+        }
+        continue;
+      }
+      const auto fc = vr.controller().faultCounters();
+      EXPECT_EQ(fc.slave_boots, 2u);
+      EXPECT_EQ(fc.slave_boot_failures, 0u);
+      EXPECT_EQ(fc.episodes, 0u);
+      EXPECT_EQ(vr.controller().master().counters().resets, 2u);
+      EXPECT_TRUE(vr.controller().running());
+      EXPECT_LT(rmse, 1.0);
+      EXPECT_EQ(tool.value(c.node, c.index, c.sub), c.configured) << "read back after the boot";
+    }
+  }
+}
+
+// The rig's own heartbeat of 1000 ms: consumed with 2050 ms (0x1016), a start grace of 3 s - the slaves
+// report Operational only with their next heartbeat, up to a second after the start, which is no fault.
+TEST(RigBoot, SlowHeartbeatsGiveALongerConsumerTimeAndStartGrace) {
+  const auto path = writeTemp("rig.ini", rigText({{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = 1000 ; 0x1017"},
+                                                  {"heartbeat_ms = 100\nmaster", "heartbeat_ms = 1000\nmaster"}}));
+  std::vector<std::string> log;
+  nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+  Tool tool(vr);
+  vr.start();
+  vr.runFor(6.0);
+  EXPECT_EQ(tool.read32(1, 0x1016, 1), 0x00020000u | 2050u);
+  EXPECT_EQ(tool.read32(1, 0x1016, 2), 0x00030000u | 2050u);
+  EXPECT_EQ(vr.controller().master().startGraceUs(2), 3'000'000);
+  const auto fc = vr.controller().faultCounters();
+  EXPECT_EQ(fc.slave_boots, 2u);
+  EXPECT_EQ(fc.episodes, 0u) << "no slave taken for down while its Operational heartbeat is due";
+  EXPECT_EQ(vr.controller().master().counters().starts, 2u) << "one start each";
+  EXPECT_TRUE(vr.controller().running());
+  EXPECT_LT(trackingRmse(vr.records(), 3.0), 1.0);
+}
+
+// 0x1F81 bit 4, keep alive: slaves another master left Operational, their heartbeats live, are neither
+// reset nor configured at the controller's start (their identity is checked) - not one NMT reset on the
+// bus for them - and the loop runs on them; left in Pre-operational they are reset and booted as any other.
+TEST(RigBoot, KeptAliveSlavesThatRunAreNotResetAtTheControllersStart) {
+  const auto path = writeTemp("rig.ini", rigText({{"mandatory = yes          ; 0x1F81", "keep_alive = yes\nmandatory = yes ; 0x1F81"},
+                                                  {"boot = yes\nmandatory = yes\n", "boot = yes\nmandatory = yes\nkeep_alive = yes\n"}}));
+  for (bool operational : {true, false}) {
+    SCOPED_TRACE(operational ? "Operational" : "Pre-operational");
+    std::vector<std::string> log;
+    nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+    Tool tool(vr);
+    std::vector<std::string> nmt;
+    vr.addTap([&](const Frame& f, canopen::TimeUs) {
+      if (f.id == 0x000 && f.len == 2) nmt.push_back(canopen::formatFrame(f));
+    });
+    vr.startEmulator();
+    if (operational) {
+      const std::uint8_t all[2] = {0x01, 0x00};
+      tool.port.send(canopen::makeFrame(0x000, 2, all));
+    }
+    vr.runFor(0.3);  // their heartbeats go on
+    nmt.clear();
+    vr.startController();
+    vr.runFor(4.0);
+    const auto& mc = vr.controller().master().counters();
+    auto resets = [&](const char* id) {
+      return std::count(nmt.begin(), nmt.end(), std::string("000#82") + id) + std::count(nmt.begin(), nmt.end(), std::string("000#81") + id);
+    };
+    EXPECT_TRUE(vr.controller().running());
+    EXPECT_LT(trackingRmse(vr.records(), 1.0), 1.0);
+    if (operational) {
+      EXPECT_EQ(resets("02") + resets("03") + resets("00"), 0) << "no reset on the bus";
+      EXPECT_EQ(mc.kept_alive, 2u);
+      EXPECT_EQ(mc.resets, 0u);
+      EXPECT_EQ(mc.boots, 0u) << "not configured again";
+      EXPECT_EQ(std::count_if(log.begin(), log.end(), [](const std::string& l) { return l.find("kept alive") != std::string::npos; }), 2);
+    } else {
+      EXPECT_EQ(resets("02"), 1);
+      EXPECT_EQ(resets("03"), 1);
+      EXPECT_EQ(mc.boots, 2u);
     }
   }
 }

@@ -1,0 +1,238 @@
+// NmtMaster's "boot slave" process (CiA 302-2; the steps are listed in nmt_master.hpp): reset
+// communication or the keep-alive check, the boot-up, identity, reads, configuration and its read-back,
+// the first heartbeat; retries of unanswered steps, the boot time, one error per failure.
+#include <algorithm>
+#include <cstdio>
+
+#include "canopen/nmt_master.hpp"
+#include "canopen/sdo_abort.hpp"
+
+namespace pamc::canopen {
+
+namespace {
+std::string hex32(std::uint32_t v) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%08X", v);
+  return b;
+}
+std::uint32_t le32(const std::uint8_t* d, std::size_t len) {
+  std::uint32_t v = 0;
+  for (std::size_t i = 0; i < len && i < 4; ++i) v |= static_cast<std::uint32_t>(d[i]) << (8 * i);
+  return v;
+}
+std::uint64_t le64(const std::uint8_t* d, std::size_t len) {
+  std::uint64_t v = 0;
+  for (std::size_t i = 0; i < len && i < 8; ++i) v |= static_cast<std::uint64_t>(d[i]) << (8 * i);
+  return v;
+}
+const char* identityName(std::uint16_t index, std::uint8_t sub) {
+  if (index == 0x1000) return "device type";
+  switch (sub) {
+    case 1: return "vendor-ID";
+    case 2: return "product code";
+    case 3: return "revision";
+    default: return "serial number";
+  }
+}
+}  // namespace
+
+const char* bootStepName(BootStep s) {
+  switch (s) {
+    case BootStep::Reset: return "reset communication";
+    case BootStep::Identity: return "identity check";
+    case BootStep::Read: return "read";
+    case BootStep::Configuration: return "configuration";
+    case BootStep::ReadBack: return "read-back";
+    case BootStep::Heartbeat: return "first heartbeat";
+    case BootStep::BootTime: return "boot time";
+  }
+  return "?";
+}
+
+void NmtMaster::beginBoot(Slave& s, TimeUs now) noexcept {
+  s.error = BootError{};
+  s.tries_left = retriesOf(s.boot.assignment);
+  const auto& hb = node_.heartbeatConsumer();
+  if ((s.boot.assignment & kAssignKeepAlive) == 0) return reset(s, now);
+  // Kept alive: one that runs is left as it is (its identity checked); wait a consumer time for a
+  // heartbeat to tell.
+  if (running(s)) return steps(s, true);
+  if (hb.timeoutUs(s.id) == 0 || hb.timedOut(s.id)) return reset(s, now);
+  s.state = Boot::Checking;
+  s.deadline = now + hb.timeoutUs(s.id);
+}
+
+void NmtMaster::reset(Slave& s, TimeUs now) noexcept {
+  node_.sendNmt(NmtCommand::ResetCommunication, s.id);
+  ++counters_.resets;
+  s.state = Boot::Resetting;
+  s.deadline = now + kBootUpTimeoutUs;
+  s.start_sent = kNever;
+}
+
+void NmtMaster::steps(Slave& s, bool kept) noexcept {
+  s.kept = kept;
+  s.next_op = 0;
+  s.end_op = kept ? s.config_op : s.ops.size();
+  s.tries_left = retriesOf(s.boot.assignment);
+  s.deadline = kNever;
+  // Decided here, not in poll() - which the SYNC callback runs and which must not format a failure.
+  if (!kept && !s.plan_error.empty()) return bootFailed(s, BootStep::Configuration, 0, s.plan_error);
+  if (s.end_op == 0) return awaitHeartbeat(s, node_.now());  // no SDO step
+  s.state = Boot::Waiting;
+  poll(node_.now());
+}
+
+void NmtMaster::runBoot(Slave& s) noexcept {
+  if (s.next_op >= s.end_op) return awaitHeartbeat(s, node_.now());
+  const Op& op = s.ops[s.next_op];
+  const std::uint8_t id = s.id;
+  auto reply = [this, id](std::uint32_t code, const std::uint8_t* d, std::size_t len) {
+    if (Slave* sl = find(id)) onBootReply(*sl, code, d, len);
+  };
+  auto& sdo = node_.sdoClient();
+  bool sent;
+  if (op.kind == OpKind::Write) {
+    const auto& w = s.boot.writes[op.item];
+    sent = sdo.download(id, op.index, op.sub, w.data.data(), w.data.size(), reply);
+  } else {
+    sent = sdo.upload(id, op.index, op.sub, reply);
+  }
+  if (!sent) s.state = Boot::Waiting;  // the client is busy: poll() goes on from this operation
+}
+
+void NmtMaster::onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept {
+  if (s.state != Boot::Running || s.next_op >= s.ops.size()) return;
+  const Op& op = s.ops[s.next_op];
+  const BootStep step = op.kind == OpKind::Expect ? BootStep::Identity
+                        : op.kind == OpKind::Read ? BootStep::Read
+                        : op.kind == OpKind::Write ? BootStep::Configuration
+                                                   : BootStep::ReadBack;
+  if (code == kAbortTimeout && s.tries_left > 0) {
+    // No answer (still booting, a frame lost): the same step again.
+    --s.tries_left;
+    ++counters_.boot_retries;
+    return runBoot(s);
+  }
+  if (code != kSdoOk) {
+    const char* what = op.kind == OpKind::Write ? " write refused: " : " read failed: ";
+    return bootFailed(s, step, code, entryName(op.index, op.sub) + what + sdoAbortText(code));
+  }
+  if (!checkReply(s, op, data, len)) return;
+  ++s.next_op;
+  s.tries_left = retriesOf(s.boot.assignment);
+  runBoot(s);
+}
+
+// The value an identity check, a read or a read-back got; false (the boot failed) if it is not right.
+bool NmtMaster::checkReply(Slave& s, const Op& op, const std::uint8_t* data, std::size_t len) noexcept {
+  const std::string at = entryName(op.index, op.sub);
+  switch (op.kind) {
+    case OpKind::Expect: {
+      const std::uint32_t v = le32(data, len);
+      if (v == op.expected) return true;
+      bootFailed(s, BootStep::Identity, 0,
+                 at + " " + identityName(op.index, op.sub) + " is " + hex32(v) + ", expected " + hex32(op.expected));
+      return false;
+    }
+    case OpKind::Read: {
+      std::string why;
+      const auto& r = s.boot.reads[op.item];
+      if (!r.on_value || r.on_value(data, len, &why)) return true;
+      bootFailed(s, BootStep::Read, 0, at + ": " + why);
+      return false;
+    }
+    case OpKind::Write: return true;
+    case OpKind::Verify: {
+      const auto& w = s.boot.writes[op.item];
+      if (len == w.data.size() && std::equal(w.data.begin(), w.data.end(), data)) return true;
+      char b[96];
+      std::snprintf(b, sizeof b, " reads back 0x%llX, written 0x%llX", static_cast<unsigned long long>(le64(data, len)),
+                    static_cast<unsigned long long>(le64(w.data.data(), w.data.size())));
+      bootFailed(s, BootStep::ReadBack, 0, at + b);
+      return false;
+    }
+  }
+  return true;
+}
+
+// Configured: where 0x1016 supervises the slave, its first heartbeat must come before it is started.
+void NmtMaster::awaitHeartbeat(Slave& s, TimeUs now) noexcept {
+  const auto& hb = node_.heartbeatConsumer();
+  if (hb.timeoutUs(s.id) == 0 || hb.alive(s.id)) return done(s, now);
+  s.state = Boot::Heartbeat;
+  s.tries_left = retriesOf(s.boot.assignment);
+  s.deadline = now + hb.timeoutUs(s.id);
+  arm();
+  poll(now);  // the next slave waiting for the SDO client
+}
+
+void NmtMaster::done(Slave& s, TimeUs now) noexcept {
+  s.state = Boot::Done;
+  s.deadline = kNever;
+  if (s.kept) ++counters_.kept_alive;
+  else ++counters_.boots;
+  emit(s.id, s.kept ? SlaveEvent::KeptAlive : SlaveEvent::Configured, now);
+  startReady(now);
+  poll(now);  // the next slave waiting for its boot
+}
+
+void NmtMaster::bootFailed(Slave& s, BootStep step, std::uint32_t code, std::string text) noexcept {
+  s.state = Boot::Failed;
+  s.deadline = kNever;
+  s.error = BootError{step, code, std::move(text)};
+  ++counters_.boot_failures;
+  // Left stopped: nothing of it moves on the bus until it boots again.
+  node_.sendNmt(NmtCommand::Stop, s.id);
+  s.start_sent = kNever;
+  const TimeUs now = node_.now();
+  emit(s.id, SlaveEvent::BootFailed, now);
+  poll(now);
+}
+
+// What the heartbeat protocol tells a slave's boot: a boot-up starts the SDO steps (after a reset, or a
+// slave that booted by itself); a heartbeat ends the keep-alive check or the wait for the first one.
+void NmtMaster::onBootEvent(Slave& s, HeartbeatEvent ev, NmtState st, TimeUs now) noexcept {
+  if (!begun_ || (startup_ & kStartupMaster) == 0) return;
+  if (ev == HeartbeatEvent::BootUp) {
+    s.error = BootError{};
+    return steps(s, false);
+  }
+  if (s.state == Boot::Checking) return st == NmtState::Operational ? steps(s, true) : reset(s, now);
+  if (s.state == Boot::Heartbeat) done(s, now);
+}
+
+// The steps the slave has not answered in time, and the boot time.
+void NmtMaster::onTimer(TimeUs now) noexcept {
+  for (auto& s : slaves_) {
+    if (s.deadline == kNever || now < s.deadline) continue;
+    s.deadline = kNever;
+    const bool again = s.tries_left > 0;
+    if (again && s.state != Boot::Checking) --s.tries_left, ++counters_.boot_retries;
+    if (s.state == Boot::Checking) {
+      reset(s, now);  // no heartbeat within its consumer time: not running
+    } else if (s.state == Boot::Resetting) {
+      if (again) reset(s, now);
+      else bootFailed(s, BootStep::Reset, 0, "no boot-up within " + std::to_string(kBootUpTimeoutUs / 1000) + " ms of NMT reset communication");
+    } else if (s.state == Boot::Heartbeat) {
+      const TimeUs t = node_.heartbeatConsumer().timeoutUs(s.id);
+      if (again) s.deadline = now + t;
+      else bootFailed(s, BootStep::Heartbeat, 0, "no heartbeat within " + std::to_string(t / 1000) + " ms (its consumer time, 0x1016) of its configuration");
+    }
+  }
+  if (boot_deadline_ != kNever && now >= boot_deadline_) {
+    boot_deadline_ = kNever;
+    for (auto& s : slaves_)
+      if (bootable(s) && (s.boot.assignment & kAssignMandatory) != 0 && s.state != Boot::Done && s.state != Boot::Failed)
+        bootFailed(s, BootStep::BootTime, 0, "not booted within the boot time 0x1F89 of " + std::to_string(boot_time_ms_) + " ms");
+  }
+  arm();
+}
+
+void NmtMaster::arm() noexcept {
+  TimeUs next = boot_deadline_;
+  for (const auto& s : slaves_) next = std::min(next, s.deadline);
+  node_.setTimer(next);
+}
+
+}  // namespace pamc::canopen
