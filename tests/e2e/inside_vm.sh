@@ -53,7 +53,14 @@ rig_run() {
   # shellcheck disable=SC2086
   "$PAMC" emulator --iface vcan0 --od "$OD" --period-us "$P" $emu_args > "$W/${name}_emulator.txt" 2>&1 &
   em=$!
-  sleep 0.5
+  # Nothing goes to the slaves before both have booted (their boot-ups, 7xx#00, in the log; at most 10 s):
+  # under software emulation starting the emulator can take longer than any fixed sleep, and a start
+  # sent before its boot-up is lost (the keep-alive case then found its slaves Pre-operational).
+  local i
+  for ((i = 0; i < 40; i++)); do
+    [ "$(grep -c ' 7[0-7][0-9A-F]#00$' "$W/${name}_bus.log" 2>/dev/null)" -ge 2 ] && break
+    sleep 0.25
+  done
   for f in "$@"; do cansend vcan0 "$f"; sleep 0.05; done
   sleep 0.5  # their heartbeats show the state they are in
   # shellcheck disable=SC2086
