@@ -181,6 +181,12 @@ std::int64_t Entry::asSigned() const {
   return static_cast<std::int64_t>(decodeUnsigned(type_, value_));
 }
 
+bool Entry::highLimit(std::int64_t& out) const {
+  if (!has_high_ || type_ == DataType::Real32 || type_ == DataType::Real64) return false;
+  out = isSigned(type_) ? decodeSigned(type_, high_) : static_cast<std::int64_t>(decodeUnsigned(type_, high_));
+  return true;
+}
+
 double Entry::asDouble() const {
   if (type_ == DataType::Real32 || type_ == DataType::Real64) return decodeReal(type_, value_);
   if (isSigned(type_)) return static_cast<double>(decodeSigned(type_, value_));

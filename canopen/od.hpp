@@ -120,6 +120,8 @@ class Entry {
   std::uint64_t asUnsigned() const;
   std::int64_t asSigned() const;
   double asDouble() const;
+  // The EDS's HighLimit of an integer entry (what a device says its full scale is); false if none.
+  bool highLimit(std::int64_t& out) const;
 
  private:
   friend class ObjectDictionary;

@@ -150,12 +150,23 @@ nodes::EmulatorConfig EmulatorOptions::config(const std::string& od_dir, unsigne
   return e;
 }
 
-void RealtimeOptions::add(CLI::App* a) {
-  a->add_flag("--rt", rt, "real time: mlockall, SCHED_FIFO, CPU affinity (warns when not permitted)");
-  a->add_option("--cpu", cpu, "pin to this CPU with --rt");
-  a->add_option("--priority", priority, "SCHED_FIFO priority with --rt (0: normal scheduling, no mlockall)")
+void RealtimeOptions::add(CLI::App* a, const std::string& what, const std::string& new_path) {
+  a->add_flag("--realtime", rt, what + "; SCHED_FIFO at --priority, mlockall, pinned to --cpu (a warning when not permitted)");
+  addOldFlag(a, "--rt", (new_path.empty() ? commandPath(a) : new_path) + " --realtime", rt);
+  a->add_option("--cpu", cpu, "with --realtime: pin the process to this CPU");
+  a->add_option("--priority", priority, "with --realtime: SCHED_FIFO priority and mlockall (0: normal scheduling, no mlockall)")
       ->capture_default_str()
       ->check(CLI::Range(0, 99));
+}
+
+void InterfaceOption::add(CLI::App* a, bool with_rig) {
+  a->add_option("--iface", name, std::string("CAN interface (can0, vcan0, ...; default: ") +
+                                     (with_rig ? "the rig file's, else " : "") + nodes::kDefaultInterface + ")");
+}
+
+std::string InterfaceOption::resolve(const std::string& rig_file) const {
+  if (!name.empty()) return name;
+  return rig_file.empty() ? std::string(nodes::kDefaultInterface) : nodes::readRigFile(rig_file).interface;
 }
 
 }  // namespace pamc::app

@@ -19,6 +19,7 @@
 #include "nodes/controller_node.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/emulator_node.hpp"
+#include "app/command.hpp"
 
 namespace pamc::app {
 
@@ -158,11 +159,24 @@ struct EmulatorOptions {
   nodes::EmulatorConfig config(const std::string& od_dir, unsigned period_us) const;
 };
 
-// Real-time scheduling of a process on a live bus (controller, emulator).
+// Real-time scheduling, the same options wherever a node runs on the wall clock (controller, emulator,
+// rig run): --realtime (what it does besides the scheduling: `what`), --cpu, --priority.
 struct RealtimeOptions {
   bool rt = false;
   int cpu = -1, priority = 80;
-  void add(CLI::App* a);
+  // new_path: the command the notice of the old --rt names (default: a's own).
+  void add(CLI::App* a, const std::string& what, const std::string& new_path = "");
 };
+
+// --iface: the CAN interface; default: the rig file's (controller, monitor with --rig), else the one a rig
+// file without `interface` means (nodes::kDefaultInterface).
+struct InterfaceOption {
+  std::string name;
+  void add(CLI::App* a, bool with_rig = true);
+  std::string resolve(const std::string& rig_file) const;
+};
+
+// The name the in-process bus of `pamc rig run --realtime` has in its candump log.
+inline constexpr const char* kInProcessBusName = "vcan0";
 
 }  // namespace pamc::app

@@ -17,7 +17,8 @@ class CompareCommand final : public Command {
                                               "RMSE, max error, fit %, error by where it happens, residual tests, figures")) {
     cmd_->add_option("model", cmp_model, "model file (JSON, from `pamc fit` or `pamc diagnose`)")->required();
     cmd_->add_option("data", cmp_data, "measurement CSV with header t,u,y")->required();
-    cmd_->add_option("--report", cmp_report, "folder for CSVs and figures (default: DATA.compare/)");
+    cmd_->add_option("--out-dir", cmp_report, "folder for CSVs and figures (default: DATA.compare/)");
+    addOldSpelling(cmd_, "--report", "--out-dir", cmp_report);
     cmd_->add_option("--json", cmp_json, "write the numbers as JSON to this file");
   }
   int run() override {

@@ -28,7 +28,7 @@ class ControllerCommand final : public Command {
  public:
   explicit ControllerCommand(CLI::App& app)
       : Command(app.add_subcommand("controller", "run the controller node on a SocketCAN interface")) {
-    cmd_->add_option("--iface", iface, "CAN interface (can0, vcan0, ...; default: the rig file's)");
+    iface_.add(cmd_);
     od_.add(cmd_);
     rig_.add(cmd_);
     cmd_->add_option("--dcf", dcf_, "master DCF (CiA 306, docs/RIG.md): its values replace the controller EDS's defaults "
@@ -38,8 +38,8 @@ class ControllerCommand final : public Command {
     ctrl_.add(cmd_);
     run_.add(cmd_);
     cmd_->add_flag("--consume-sync", consume_sync, "another master produces SYNC");
-    cmd_->add_option("--log", candump, "file for every frame as a candump -l log");
-    rt_.add(cmd_);
+    cmd_->add_option("--log", candump, "write every frame to this file as a candump -l log");
+    rt_.add(cmd_, "real time");
   }
   int run() override {
     const std::string& csv = run_.csv;
@@ -48,7 +48,7 @@ class ControllerCommand final : public Command {
     auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, consume_sync, &rig_);
     if (!dcf_.empty()) nodes::applyMasterDcf(dcf_, c);
     c.build_off_cycle = true;  // an SDO commit must not hold up the cycles of this thread
-    if (iface.empty()) iface = nodes::readRigFile(rig_.path).interface;
+    const std::string iface = iface_.resolve(rig_.path);
     realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
     auto canp = openCan(iface);
     auto& can = *canp;
@@ -93,7 +93,8 @@ class ControllerCommand final : public Command {
   }
 
  private:
-  std::string iface, candump, dcf_;
+  std::string candump, dcf_;
+  InterfaceOption iface_;
   bool consume_sync = false;
   OdOption od_;
   RigOption rig_;

@@ -23,7 +23,8 @@ class DiagnoseCommand final : public Command {
         ->capture_default_str()
         ->check(CLI::Range(0.0, 0.99));
     cmd_->add_option("--candidates", dg_cands, "comma list of effects to try, or of effects to leave out as -name (write --candidates=-name,...; default: the whole catalogue)");
-    cmd_->add_option("--report", dg_report, "folder for figures, CSVs and the final model");
+    cmd_->add_option("--out-dir", dg_report, "folder for figures, CSVs and the final model");
+    addOldSpelling(cmd_, "--report", "--out-dir", dg_report);
     cmd_->add_option("--json", dg_json, "write the result as JSON to this file");
     cmd_->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
     cmd_->add_option("--method", dg_method,

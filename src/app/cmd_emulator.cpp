@@ -26,18 +26,19 @@ class EmulatorCommand final : public Command {
  public:
   explicit EmulatorCommand(CLI::App& app)
       : Command(app.add_subcommand("emulator", "play the valve and sensor nodes with the emulator physics on SocketCAN")) {
-    cmd_->add_option("--iface", iface, "CAN interface")->capture_default_str();
+    iface_.add(cmd_, false);
     od_.add(cmd_);
     emu_.add(cmd_);
     cmd_->add_option("--duration", emu_duration, "stop after this many seconds of SYNCs (0: until Ctrl-C)")
         ->capture_default_str()
         ->check(CLI::NonNegativeNumber);
     cmd_->add_option("--period-us", period_us, "SYNC period the physics steps by (default 1000 us)")->check(CLI::Range(100u, 1000000u));
-    cmd_->add_option("--log", candump, "file for every frame as a candump -l log");
-    rt_.add(cmd_);
+    cmd_->add_option("--log", candump, "write every frame to this file as a candump -l log");
+    rt_.add(cmd_, "real time");
   }
   int run() override {
     const nodes::EmulatorConfig ec = emu_.config(od_.dir, period_us);
+    const std::string iface = iface_.resolve("");
     realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
     auto canp = openCan(iface);
     auto& can = *canp;
@@ -71,7 +72,8 @@ class EmulatorCommand final : public Command {
   }
 
  private:
-  std::string iface = "vcan0", candump;
+  std::string candump;
+  InterfaceOption iface_;
   double emu_duration = 0.0;
   unsigned period_us = 0;
   OdOption od_;

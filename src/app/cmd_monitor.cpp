@@ -26,8 +26,9 @@ class MonitorCommand final : public Command {
  public:
   explicit MonitorCommand(CLI::App& app)
       : Command(app.add_subcommand("monitor", "passive live view of a bus decoded through the EDS files")) {
-    cmd_->add_option("--iface", iface, "CAN interface")->capture_default_str();
-    cmd_->add_option("--log", log_in, "replay a candump log instead of listening");
+    iface_.add(cmd_);
+    cmd_->add_option("--replay", log_in, "replay a candump log instead of listening");
+    addOldSpelling(cmd_, "--log", "--replay", log_in);
     od_.add(cmd_);
     dict_.add(cmd_);
     cmd_->add_option("--duration", duration, "stop after this many seconds (0: until Ctrl-C)")
@@ -56,7 +57,7 @@ class MonitorCommand final : public Command {
       std::printf("%s%s", once ? "" : "\033[H\033[2J", mon.render(log.back().unix_time_us * 1e-6 - t0).c_str());
       return 0;
     }
-    auto canp = openCan(iface);  // listen only: the monitor never sends
+    auto canp = openCan(iface_.resolve(dict_.rig));  // listen only: the monitor never sends
     auto& can = *canp;
     installSignals();
     const double t0 = canopen::monotonicNowUs() * 1e-6;
@@ -82,7 +83,8 @@ class MonitorCommand final : public Command {
   }
 
  private:
-  std::string iface = "vcan0", log_in;
+  std::string log_in;
+  InterfaceOption iface_;
   BusDictionaryOptions dict_;
   double duration = 0.0;  // live: until Ctrl-C
   bool once = false;

@@ -11,9 +11,10 @@ namespace {
 class PlantCommand final : public Command {
  public:
   explicit PlantCommand(CLI::App& app) : Command(app.add_subcommand("plant", "show the plant emulator's configuration")) {
-    cmd_->add_option("--config", file_, "plant file to load and show merged with the defaults of its kind "
-                                         "(\"kind\": \"physics\", the default, or \"model\")");
-    cmd_->add_flag("--model-kind", model_kind_, "without --config: the defaults of the model kind");
+    cmd_->add_option("--plant", file_, "plant file to load and show merged with the defaults of its kind "
+                                        "(\"kind\": \"physics\", the default, or \"model\")");
+    addOldSpelling(cmd_, "--config", "--plant", file_);
+    cmd_->add_flag("--model-kind", model_kind_, "without --plant: the defaults of the model kind");
   }
   int run() override {
     const auto c = !file_.empty() ? plant::PlantConfig::fromFile(file_)

@@ -21,70 +21,111 @@
 namespace pamc::app {
 namespace {
 
-// pamc rig: the controller and emulator nodes on the in-process bus (virtual time, or paced with --rt),
-// and the fault tools: --faults, --sdo-guards, --soak.
+// pamc rig run|faults|soak|guards: the controller and emulator nodes on the in-process bus (virtual time,
+// or paced to the wall clock with --realtime), and the fault tools. The old flag forms (`pamc rig
+// --faults`, `--soak H`, `--sdo-guards`, plain `pamc rig`) are hidden options of `rig` itself until 0.3.0.
 class RigCommand final : public Command {
  public:
   explicit RigCommand(CLI::App& app)
-      : Command(app.add_subcommand("rig", "controller and emulator as CANopen nodes on the in-process bus (virtual "
-                                          "time, no CAN hardware): the whole rig through the CANopen layer; also the "
-                                          "fault table (--faults), the SDO guards (--sdo-guards) and the soak (--soak HOURS)")) {
-    od_.add(cmd_);
-    rig_.add(cmd_);
-    kind_.add(cmd_);
-    ctrl_.add(cmd_);
-    run_.add(cmd_);
-    emu_.add(cmd_);
-    cmd_->add_option("--log", candump, "file for every frame as a candump -l log");
-    cmd_->add_flag("--faults", faults,
-                   "run each fault on the bus (seeded) and print the fault table: reaction, cycles to the safe "
-                   "valve value, EMCY, recovery, data lost (with --controller and the gains given)");
-    cmd_->add_option("--only", only, "with --faults or --soak: comma list of faults, e.g. sync-stop,bus-off (an unknown name lists them)");
-    cmd_->add_flag("--sdo-guards", sdo_guards, "write parameters over SDO to the running controller and print "
-                                                "the abort codes and what the loop saw");
-    cmd_->add_option("--soak", soak_hours,
-                     "soak: HOURS of 1 kHz cycles in virtual time (PI + AMC kp 0.1, ki 1.5, kc 0.06 unless --controller, "
-                     "--kp, --ki, --kc are given; a 0.2 Hz sine; the controller consuming "
-                     "the SYNC of a producer node, 1 Mbit/s bus) with faults of the catalogue injected one after the "
-                     "other at random times; prints per report interval the cycles, SYNC gaps, faults, tracking "
-                     "after each fault against the no-fault baseline, heap and RSS, CPU per cycle; exit 1 if memory "
-                     "grew, a cycle was lost outside a fault, tracking did not come back or left its level between faults, or "
-                     "CPU per cycle drifted")
-        ->check(CLI::PositiveNumber);
-    cmd_->add_option("--seed", seed, "with --soak: seed of the fault times, fault choices and sensor noise")->capture_default_str();
-    cmd_->add_option("--report-every", report_every, "with --soak: simulated seconds per report line")
-        ->capture_default_str()
-        ->check(CLI::Range(1.0, 1e6));
-    auto* rt_flag = cmd_->add_flag("--rt,--realtime", realtime,
-                                   "pace the rig to the wall clock (1 ms of bus time per ms) like a live node: --log "
-                                   "and --csv (t,yd,y,u,u_n,u_c,y_hat,fault,latency_us) are streamed by a logger thread "
-                                   "and on disk within a millisecond, the log's times are wall-clock times");
-    cmd_->add_option("--cpu", rt_cpu, "with --rt: pin to this CPU")->needs(rt_flag);
-    cmd_->add_option("--priority", rt_priority, "with --rt: SCHED_FIFO priority and mlockall (0: normal scheduling)")
-        ->capture_default_str()
-        ->check(CLI::Range(0, 99))
-        ->needs(rt_flag);
-    cmd_->add_option("--progress", progress, "with --rt: append 'cycle K t T bus_us B' to this file as each "
-                                              "cycle is computed (a marker for crash tests and watchdogs)")
-        ->needs(rt_flag);
+      : Command(app.add_subcommand("rig", "controller and emulator as CANopen nodes on the in-process bus (no CAN "
+                                          "hardware): a run, the fault table, the soak, the SDO guards")) {
+    cmd_->require_subcommand(0, 1);
+    run_cmd_ = cmd_->add_subcommand("run", "run the controller and the emulator through the CANopen layer, in "
+                                           "virtual time (as fast as it goes) or paced to the wall clock (--realtime)");
+    faults_cmd_ = cmd_->add_subcommand("faults", "run each fault on the bus (seeded) and print the fault table: "
+                                                 "reaction, cycles to the safe valve value, EMCY, recovery, data lost");
+    soak_cmd_ = cmd_->add_subcommand("soak", soakHelp());
+    guards_cmd_ = cmd_->add_subcommand("guards", "write parameters over SDO to the running controller and print "
+                                                 "the abort codes and what the loop saw");
+    addRunOptions(run_cmd_);
+    addFaultToolOptions(faults_cmd_);
+    faults_cmd_->add_option("--only", only, kOnlyHelp);
+    addFaultToolOptions(soak_cmd_);
+    addSoakOptions(soak_cmd_);
+    soak_cmd_->get_option("--hours")->required();
+    addFaultToolOptions(guards_cmd_);
+    addOldForms();
+    cmd_->callback([this] { noticeOfPlainRig(); });
   }
   int run() override {
-    if (soak_hours > 0) return runSoak();
-    if (faults || sdo_guards) return runRigChecks();
+    from_ = selectedApp();
+    if (from_ == soak_cmd_ || (from_ == cmd_ && soak_hours > 0)) return runSoak();
+    if (from_ == faults_cmd_ || from_ == guards_cmd_ || (from_ == cmd_ && (faults || sdo_guards))) return runRigChecks();
     const auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, false, &rig_);
     ec = emu_.config(od_.dir, run_.period_us);
-    if (realtime) return runRigRealtime(c);
+    if (rt_.rt) return runRigRealtime(c);
     return runVirtual(c);
   }
 
  private:
+  static constexpr const char* kOnlyHelp = "comma list of faults, e.g. sync-stop,bus-off (an unknown name lists them)";
+  static std::string soakHelp() {
+    return "HOURS of 1 kHz cycles in virtual time (PI + AMC kp 0.1, ki 1.5, kc 0.06 unless --controller, --kp, --ki, "
+           "--kc are given; a 0.2 Hz sine; the controller consuming the SYNC of a producer node, 1 Mbit/s bus) with "
+           "faults of the catalogue injected one after the other at random times; prints per report interval the "
+           "cycles, SYNC gaps, faults, tracking after each fault against the no-fault baseline, heap and RSS, CPU per "
+           "cycle; exit 1 if memory grew, a cycle was lost outside a fault, tracking did not come back or left its "
+           "level between faults, or CPU per cycle drifted";
+  }
+  void addRunOptions(CLI::App* a) {
+    od_.add(a);
+    rig_.add(a);
+    kind_.add(a);
+    ctrl_.add(a);
+    run_.add(a);
+    emu_.add(a);
+    a->add_option("--log", candump, "write every frame to this file as a candump -l log");
+    rt_.add(a, "pace the rig to the wall clock (1 ms of bus time per ms) like a live node: --log and --csv "
+               "(t,yd,y,u,u_n,u_c,y_hat,fault,latency_us) are streamed by a logger thread and on disk within a "
+               "millisecond, the log's times are wall-clock times",
+            "rig run");
+    a->add_option("--progress", progress, "with --realtime: append 'cycle K t T bus_us B' to this file as each "
+                                          "cycle is computed (a marker for crash tests and watchdogs)");
+  }
+  // The fault tools take the controller and its gains from the command line (their own otherwise).
+  void addFaultToolOptions(CLI::App* a) {
+    od_.add(a);
+    kind_.add(a);
+    ctrl_.addGains(a);
+  }
+  void addSoakOptions(CLI::App* a) {
+    a->add_option("--hours", soak_hours, "hours of cycles in virtual time")->check(CLI::PositiveNumber);
+    a->add_option("--only", only, kOnlyHelp);
+    a->add_option("--seed", seed, "seed of the fault times, fault choices and sensor noise")->capture_default_str();
+    a->add_option("--report-every", report_every, "simulated seconds per report line")
+        ->capture_default_str()
+        ->check(CLI::Range(1.0, 1e6));
+  }
+  // The forms before the subcommands, on `rig` itself: every option of `rig run`, --faults, --sdo-guards,
+  // --soak HOURS and their --only, --seed, --report-every; hidden from --help.
+  void addOldForms() {
+    addRunOptions(cmd_);
+    addOldFlag(cmd_, "--faults", "rig faults", faults);
+    addOldFlag(cmd_, "--sdo-guards", "rig guards", sdo_guards);
+    addOldSpelling(cmd_, "--soak", "soak --hours", soak_hours);
+    cmd_->add_option("--only", only);
+    cmd_->add_option("--seed", seed);
+    cmd_->add_option("--report-every", report_every);
+    for (auto* o : cmd_->get_options())
+      if (o->get_name() != "--help") o->group("");
+  }
+  CLI::App* selectedApp() const {
+    for (auto* a : {run_cmd_, faults_cmd_, soak_cmd_, guards_cmd_})
+      if (a->parsed()) return a;
+    return cmd_;
+  }
+  // Plain `pamc rig [options]`, once parsed (the old flags name themselves when given).
+  void noticeOfPlainRig() const {
+    if (selectedApp() == cmd_ && oldSpellingNotices() == 0) oldSpellingNotice("rig", "rig run");
+  }
+
   // The fault tools with the controller and gains the command line gives (the tools' own otherwise).
   template <class Options>
   void applyController(Options& o) const {
-    if (cmd_->count("--controller")) o.kind = kind_.kind();
-    if (cmd_->count("--kp")) o.kp = ctrl_.cc.kp;
-    if (cmd_->count("--ki")) o.ki = ctrl_.cc.ki;
-    if (cmd_->count("--kc")) o.kc = ctrl_.cc.kc;
+    if (from_->count("--controller")) o.kind = kind_.kind();
+    if (from_->count("--kp")) o.kp = ctrl_.cc.kp;
+    if (from_->count("--ki")) o.ki = ctrl_.cc.ki;
+    if (from_->count("--kc")) o.kc = ctrl_.cc.kc;
   }
   std::vector<nodes::BusFault> faultList() const {
     std::vector<nodes::BusFault> list;
@@ -109,9 +150,9 @@ class RigCommand final : public Command {
     nodes::FaultRigOptions o;
     o.od_dir = od_.dir;
     applyController(o);
-    if (sdo_guards) {
+    if (from_ == guards_cmd_ || sdo_guards) {
       std::printf("%s", nodes::guardTableMarkdown(nodes::runParameterGuards(o)).c_str());
-      if (!faults) return 0;
+      if (from_ == guards_cmd_ || !faults) return 0;
       std::printf("\n");
     }
     const auto list = faultList();
@@ -159,7 +200,7 @@ class RigCommand final : public Command {
 
   int runRigRealtime(const nodes::ControllerNodeConfig& c) {
     auto ring = std::make_unique<nodes::SpscRing<nodes::CycleRecord, 1 << 15>>();
-    auto loggerp = std::make_unique<Logger>(candump, "vcan0", run_.csv, run_.period_us);
+    auto loggerp = std::make_unique<Logger>(candump, kInProcessBusName, run_.csv, run_.period_us);
     auto& logger = *loggerp;
     logger.records = ring.get();
     int progress_fd = -1;
@@ -192,7 +233,7 @@ class RigCommand final : public Command {
       return !g_stop.load();
     };
     installSignals();
-    realtimeSetup(true, rt_cpu, rt_priority);
+    realtimeSetup(true, rt_.cpu, rt_.priority);
     logger.start();
     std::fprintf(stderr, "in-process bus paced in real time: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
                  c.node_id ? c.node_id : 1u, c.sensor_id, c.valve_id, run_.preroll, run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
@@ -207,7 +248,7 @@ class RigCommand final : public Command {
     // each 1 ms wake-up came (the node's work runs right after it).
     const auto& w = r.wake_late_us;
     std::printf("wake-up lateness (%s): median %.1f us, p99 %.1f us, max %.1f us; %llu of %llu wake-ups a period or more late\n",
-                rt_priority > 0 ? ("SCHED_FIFO " + std::to_string(rt_priority) + ", mlockall").c_str() : "normal scheduling",
+                rt_.priority > 0 ? ("SCHED_FIFO " + std::to_string(rt_.priority) + ", mlockall").c_str() : "normal scheduling",
                 w.quantile(0.5), w.quantile(0.99), w.max(), static_cast<unsigned long long>(r.wake_overruns),
                 static_cast<unsigned long long>(w.count()));
     return 0;
@@ -260,10 +301,12 @@ class RigCommand final : public Command {
   ControllerOptions ctrl_;
   NodeRunOptions run_;
   EmulatorOptions emu_;
+  RealtimeOptions rt_;
   nodes::EmulatorConfig ec;
+  CLI::App *run_cmd_ = nullptr, *faults_cmd_ = nullptr, *soak_cmd_ = nullptr, *guards_cmd_ = nullptr;
+  const CLI::App* from_ = nullptr;  // the subcommand parsed (rig itself for the old forms)
   std::string candump, only, progress;
-  bool faults = false, sdo_guards = false, realtime = false;
-  int rt_cpu = -1, rt_priority = 80;
+  bool faults = false, sdo_guards = false;
   double soak_hours = 0, report_every = 3600;
   std::uint64_t seed = 1;
 };

@@ -34,7 +34,8 @@ class RobustnessCommand final : public Command {
                      "window, from the latest of their first reaches; 'own' - each from its own first reach (Table 2)")
         ->capture_default_str()
         ->check(CLI::IsMember({"common", "own"}));
-    cmd_->add_flag("--no-grid", no_grid_, "only the one-axis sweeps");
+    cmd_->add_flag("--no-pairs", no_grid_, "only the one-axis sweeps, no two-axis heat maps");
+    addOldFlag(cmd_, "--no-grid", "robustness --no-pairs", no_grid_);
     cmd_->add_flag("--no-figures", no_figures_, "skip the PNG heat maps");
     ctrl_.add(cmd_);
     cmd_->get_option("--model")->description("the nominal model (JSON) instead of identifying one on u0 of the nominal plant");

@@ -50,6 +50,22 @@ inline const CommandFactory kCommands[] = {
     makeDiagnoseCommand,    makeEmulateCommand,    makePlantCommand,     makeEffectsCommand, makeRigCommand,
     makeControllerCommand,  makeEmulatorCommand,   makeDecodeCommand,    makeMonitorCommand};
 
+// Old spellings of options, kept until version kOldSpellingsUntil (docs/CLI.md): hidden from --help, bound
+// to the same variable as the new spelling, one line on stderr when used.
+inline constexpr const char* kOldSpellingsUntil = "0.3.0";
+void oldSpellingNotice(const std::string& old_usage, const std::string& new_usage);
+int oldSpellingNotices();  // how many were printed
+// "rig run": the subcommand words of cmd.
+std::string commandPath(const CLI::App* cmd);
+template <class T>
+CLI::Option* addOldSpelling(CLI::App* cmd, const std::string& old_name, const std::string& new_name, T& var) {
+  const std::string where = commandPath(cmd) + " ";
+  return cmd->add_option(old_name, var)
+      ->group("")
+      ->each([where, old_name, new_name](const std::string&) { oldSpellingNotice(where + old_name, where + new_name); });
+}
+CLI::Option* addOldFlag(CLI::App* cmd, const std::string& old_name, const std::string& new_usage, bool& var);
+
 // --output-form: the form a model is fitted in (model::OutputForm), the same option wherever a model is fitted.
 CLI::Option* addOutputFormOption(CLI::App* cmd, std::string& form);
 model::OutputForm outputFormOf(const std::string& form);

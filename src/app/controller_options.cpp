@@ -6,11 +6,19 @@
 namespace pamc::app {
 
 void ControllerOptions::add(CLI::App* a) {
+  addGains(a);
+  addStructure(a);
+}
+
+void ControllerOptions::addGains(CLI::App* a) {
   a->add_option("--kp", cc.kp, "PI proportional gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
   a->add_option("--ki", cc.ki, "PI integral gain [V/(mm s)] (the paper prints 0.15; see docs/CALIBRATION.md)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   a->add_option("--kc", cc.kc, "AMC compensation gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
+}
+
+void ControllerOptions::addStructure(CLI::App* a) {
   a->add_option("--amc-form", amc_form,
                 "eq. (17): 'printed' predicts Y_{k+1} from the nominal command itself (the paper); 'increment' adds "
                 "the model's one-step increment to the posterior output")

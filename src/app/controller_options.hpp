@@ -18,6 +18,10 @@ struct ControllerOptions {
   std::string model_file;
   // with_model: --model (the experiments identify their own model unless given one).
   void add(CLI::App* a);
+  // Only the three gains (the fault tools, which set up the rest themselves).
+  void addGains(CLI::App* a);
+  // The rest: the reading of eq. (17), the predictive AMC, the ESO, the delay, the model file.
+  void addStructure(CLI::App* a);
   // The configuration with the model file read (throws with the file's one-line error).
   control::ControllerConfig config() const;
   // The paper's experiments (experiments, robustness): config() without the model, with the reading of ki

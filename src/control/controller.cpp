@@ -179,7 +179,7 @@ class PiCore {
   double integral() const noexcept { return integ_; }
 
  private:
-  double kp_ = 0, ki_ts_ = 0, u_min_ = -5, u_max_ = 5;
+  double kp_ = 0, ki_ts_ = 0, u_min_ = kCommandMin, u_max_ = kCommandMax;
   double integ_ = 0, pending_ = 0, e_ = 0;
 };
 

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "control/actuation.hpp"
 #include "estimation/active_model.hpp"
 #include "model/model.hpp"
 
@@ -33,7 +34,7 @@ Kind kindFromString(const std::string& s);  // "open", "pi", "eso", "amc" (throw
 
 struct ControllerConfig {
   double Ts = 1e-3;
-  double u_min = -5.0, u_max = 5.0;  // valve command range [V]
+  double u_min = kCommandMin, u_max = kCommandMax;  // valve command range [V]
   double kp = 0.1;                   // [V/mm]
   // [V/(mm s)]: fitted to the paper's results (docs/CALIBRATION.md); the printed value is 0.15.
   double ki = 1.3;
@@ -66,10 +67,8 @@ struct ControllerConfig {
   double eso_tau = 0.3;   // [s]
   double eso_wo = 0.5;    // [rad/s]
   // Cycles between issuing a command and the first measurement that reflects it, beyond the one
-  // sample of any sampled loop. 2 on the CANopen bus: the valve applies a synchronous RPDO at the
-  // next SYNC, and the controller latches the position (sent after the SYNC at which it was
-  // sampled) at the SYNC after that.
-  int delay_cycles = 2;
+  // sample of any sampled loop (actuation.hpp).
+  int delay_cycles = kBusDelayCycles;
   // Open loop: false inverts the identified model's static characteristic (the centre line of its
   // loop); true inverts the straight line fitted to that characteristic - a feedforward that knows the
   // muscle's range but neither its curvature nor its hysteresis.

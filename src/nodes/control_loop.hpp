@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <memory>
 
+#include "nodes/process_data.hpp"
 #include "control/controller.hpp"
 #include "control/trajectory.hpp"
 #include "nodes/cycle_stats.hpp"
@@ -75,7 +76,7 @@ class ControlLoop {
   bool run_started_ = false;   // past the pre-roll
   std::uint64_t cycle_ = 0;    // cycles since activation
   std::uint64_t preroll_cycles_ = 0;
-  double last_u_ = -5.0;       // the command in effect [V relative]
+  double last_u_ = pd::kCommandMin;  // the command in effect [V relative]
   // Bumpless return: the setpoint goes from ramp_from_ to the trajectory over ramp_cycles_.
   bool ramp_ = false;
   bool slew_ = false;          // command rate-limited: during the ramp and until the limit no longer binds

@@ -38,7 +38,7 @@ struct ControllerNodeConfig {
   bool gains_from_config = false;     // write ctrl's gains into the OD instead of reading them
   // Cycles from a command to the position that shows it, beyond one sample: 2 with this node's
   // timing (a synchronous valve RPDO, a sensor sending right after the SYNC); other slaves may differ.
-  int delay_cycles = 2;
+  int delay_cycles = control::kBusDelayCycles;
   bool has_trajectory = false;
   control::Trajectory trajectory;
   double preroll_s = 5.0;             // hold the first setpoint this long before the trajectory starts

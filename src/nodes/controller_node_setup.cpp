@@ -71,7 +71,7 @@ void ControllerNode::installStateHook() {
     if (from == NmtState::Initialising && to == NmtState::PreOperational) {
       // Booted (at start or after a reset): a master enters Operational by itself unless 0x1F80 bit 2
       // says to wait for an NMT start - so a reset brings the rig back up without an operator.
-      const auto* startup = node_->od().find(0x1F80, 0);
+      const auto* startup = node_->od().find(canopen::kObjStartup, 0);
       if (startup == nullptr || (startup->get<std::uint32_t>() & canopen::kStartupNoSelfStart) == 0)
         node_->applyNmt(NmtCommand::Start);  // boots and starts the slaves (below)
       return;

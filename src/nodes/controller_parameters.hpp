@@ -18,6 +18,7 @@
 #include <string>
 #include <thread>
 
+#include "nodes/process_data.hpp"
 #include "canopen/node.hpp"
 #include "control/controller.hpp"
 #include "control/trajectory.hpp"
@@ -26,7 +27,7 @@ namespace pamc::nodes {
 
 struct ParameterSet {
   control::ControllerConfig ctrl;
-  double safe_u = -5.0;        // relative volts (-5 = 0 V at the valve)
+  double safe_u = pd::kCommandMin;  // relative volts (0 V at the valve)
   unsigned missing_limit = 3;  // cycles without a position before the fault
   double range_steps = 100000;  // 0x2022:01 measuring range [steps of 0.001 mm]
   double stuck_s = 0.25;        // 0x2022:02
@@ -89,7 +90,7 @@ class ControllerParameters {
   canopen::Ref<std::uint8_t> sets_applied_{nullptr};
   ParameterSet running_, next_;
   control::Kind kind_ = control::Kind::PI;
-  double safe_u_ = -5.0;
+  double safe_u_ = pd::kCommandMin;
   std::unique_ptr<control::Controller> next_ctrl_;
   std::unique_ptr<control::Controller> retired_;
   bool ready_ = false;

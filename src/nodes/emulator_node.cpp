@@ -25,6 +25,7 @@ EmulatorNodes::EmulatorNodes(const EmulatorConfig& cfg, canopen::Transport& tran
   command_ = valve_->od().ref<std::int16_t>(cfg.command_index, cfg.command_sub);
   error_mode_ = valve_->od().ref<std::uint8_t>(0x6443, cfg.command_sub);
   error_value_ = valve_->od().ref<std::int32_t>(0x6444, cfg.command_sub);
+  scalingFromDevices();
   sync_cob_ = sensor_->od().ref<std::uint32_t>(0x1005, 0).get() & 0x7FFu;
   pdo_cob_ = sensor_->od().ref<std::uint32_t>(0x1800, 1).get() & 0x7FFu;
   master_hb_ = valve_->od().find(0x1016, 1);
@@ -52,16 +53,25 @@ void EmulatorConfig::useProfileDevices(const std::string& od_dir) {
   position_index = 0x6004, position_sub = 0;
   command_index = 0x6411, command_sub = 2;    // the valve on output 2
   pressure_index = 0x6401, pressure_sub = 2;  // the pressure sensor on input 2
-  scaling = pd::Scaling{};
-  scaling.position_step_mm = 0.005;  // 0x6005:01 = 5000 nm
-  scaling.command_full_counts = 20000;
-  scaling.pressure_full_counts = 20000;
+  scaling = pd::Scaling{};  // what the devices' dictionaries say replaces it (scalingFromDevices)
 }
 
 EmulatorConfig EmulatorConfig::profileDevices(const std::string& od_dir) {
   EmulatorConfig e;
   e.useProfileDevices(od_dir);
   return e;
+}
+
+// How the devices count, from their own dictionaries: the sensor's measuring step (CiA 406 0x6005:01,
+// nm), the valve's and the pressure input's full scale (the HighLimit of their EDS entries; 16-bit
+// full scale without one).
+void EmulatorNodes::scalingFromDevices() {
+  if (const auto* step = sensor_->od().find(0x6005, 1)) cfg_.scaling.position_step_mm = step->asDouble() * 1e-6;
+  std::int64_t full = 0;
+  if (const auto* c = valve_->od().find(cfg_.command_index, cfg_.command_sub); c && c->highLimit(full) && full > 0)
+    cfg_.scaling.command_full_counts = static_cast<double>(full);
+  if (const auto* p = valve_->od().find(cfg_.pressure_index, cfg_.pressure_sub); p && p->highLimit(full) && full > 0)
+    cfg_.scaling.pressure_full_counts = static_cast<double>(full);
 }
 
 // The master whose heartbeat the valve watches: 0x1016:01, as a master may have written it.

@@ -136,6 +136,7 @@ class EmulatorNodes : public canopen::BusClient {
   std::size_t delayed_head_ = 0, delayed_count_ = 0;
   const canopen::Entry* master_hb_ = nullptr;  // 0x1016:01: whose heartbeat the valve consumes
   std::uint8_t masterId() const;
+  void scalingFromDevices();
   canopen::Ref<std::uint8_t> error_mode_{nullptr};
   canopen::Ref<std::int32_t> error_value_{nullptr};
   bool valve_error_ = false;

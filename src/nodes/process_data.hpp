@@ -7,15 +7,17 @@
 #include <cmath>
 #include <cstdint>
 
+#include "control/actuation.hpp"
+
 namespace pamc::nodes::pd {
 
 inline constexpr double kPositionStep_mm = 0.001;       // 0x6004 position value: counts of 1 um
 inline constexpr double kAnalogFullScaleCounts = 32767;  // 0x6411 / 0x6401: 0..32767 = 0..full scale
-inline constexpr double kValveFullScale_V = 10.0;        // 0x6411:01 setpoint, 0..10 V
-inline constexpr double kValveMid_V = 5.0;               // u = 0 is the valve's mid-range: volts = 5 V + u
+inline constexpr double kValveFullScale_V = control::kValveFullScale_V;  // 0x6411:01 setpoint, 0..10 V
+inline constexpr double kValveMid_V = control::kValveMid_V;  // u = 0 is the valve's mid-range: volts = 5 V + u
 inline constexpr double kPressureFullScale_bar = 10.0;   // 0x6401:01 pressure feedback, 0..10 bar
-inline constexpr double kCommandMin = -kValveMid_V;      // u of 0 V at the valve
-inline constexpr double kCommandMax = kValveFullScale_V - kValveMid_V;
+inline constexpr double kCommandMin = control::kCommandMin;  // u of 0 V at the valve
+inline constexpr double kCommandMax = control::kCommandMax;
 
 constexpr double valveVolts(double u) { return u + kValveMid_V; }
 constexpr double commandFromVolts(double volts) { return volts - kValveMid_V; }

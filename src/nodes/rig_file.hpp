@@ -18,6 +18,9 @@
 
 namespace pamc::nodes {
 
+// The CAN interface of a rig file without `interface`, and of the commands' --iface without a rig file.
+inline constexpr const char* kDefaultInterface = "can0";
+
 // "file:line: problem" (line 0: the file as a whole).
 class RigError : public std::runtime_error {
  public:
@@ -33,7 +36,7 @@ struct RigObject {
 
 struct RigFile {
   std::string path;
-  std::string interface = "can0";
+  std::string interface = kDefaultInterface;
   unsigned bitrate = 1000000;
   unsigned period_us = 1000;
   std::uint8_t controller_id = 1;

@@ -31,7 +31,7 @@ struct ClosedLoopRun {
   double duration_s = 40.0;
   double force_step_time_s = -1.0;  // < 0: no payload step
   double force_N = 0.0;
-  int delay_cycles = 2;
+  int delay_cycles = control::kBusDelayCycles;
   // Before t = 0 the loop holds the first setpoint this long, as one homes a rig before a run;
   // not recorded.
   double preroll_s = 5.0;

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Every subcommand's --help exits 0, and every option it lists is accepted by the parser
+"""Every subcommand's --help (subcommands of subcommands too, e.g. `rig run`) exits 0, and every option it lists is accepted by the parser
 (`pamc --parse-only CMD OPTION VALUE` exits 0), with a value taken from the help text itself: the
 default, the first allowed choice, or the lower end of a range. Prints one line per failure."""
 import re
@@ -17,13 +17,16 @@ commands = re.findall(r"^  ([a-z][a-z-]*)\s{2,}", top.stdout.split("Subcommands:
 if len(commands) < 10:
     print("FAIL: pamc --help lists only", commands)
     sys.exit(1)
+commands = [[c] for c in commands]
 for cmd in commands:
-    h = subprocess.run([pamc, cmd, "--help"], capture_output=True, text=True)
+    h = subprocess.run([pamc] + cmd + ["--help"], capture_output=True, text=True)
     if h.returncode != 0 or "Usage:" not in h.stdout:
-        print(f"FAIL: pamc {cmd} --help exits {h.returncode}")
+        print(f"FAIL: pamc {' '.join(cmd)} --help exits {h.returncode}")
         fails += 1
         continue
     text = h.stdout
+    if "Subcommands:" in text:
+        commands += [cmd + [s] for s in re.findall(r"^  ([a-z][a-z-]*)\s{2,}", text.split("Subcommands:")[1], re.M)]
     # Required positionals get a placeholder (nothing runs).
     positionals = []
     if "Positionals:" in text:
@@ -56,10 +59,10 @@ for cmd in commands:
         needs = re.search(r"Needs: (--[a-z-]+)", rest)
         if needs:
             args.append(needs.group(1))
-        r = subprocess.run([pamc, "--parse-only", cmd] + positionals + args, capture_output=True, text=True)
+        r = subprocess.run([pamc, "--parse-only"] + cmd + positionals + args, capture_output=True, text=True)
         checked += 1
         if r.returncode != 0:
-            print(f"FAIL: pamc {cmd} {' '.join(positionals + args)}: exit {r.returncode}: {r.stderr.strip().splitlines()[0] if r.stderr.strip() else ''}")
+            print(f"FAIL: pamc {' '.join(cmd)} {' '.join(positionals + args)}: exit {r.returncode}: {r.stderr.strip().splitlines()[0] if r.stderr.strip() else ''}")
             fails += 1
 print(f"{len(commands)} subcommands, {checked} options accepted as their help lists them, {fails} failures")
 sys.exit(1 if fails or checked < 50 else 0)

@@ -78,14 +78,14 @@ echo '{"core":{"k":6}}' > "$work/oldplant.json"
 check "a model plant file without its kind exits non-zero" test $? -ne 0
 check "... and is told to say its kind" grep -q '"kind": "model"' "$work/err_plant.txt"
 
-"$PAMC" experiments --only nonsense --out "$work/x" 2> "$work/err5.txt" > /dev/null
+"$PAMC" experiments --only nonsense --out-dir "$work/x" 2> "$work/err5.txt" > /dev/null
 check "unknown experiment exits non-zero" test $? -ne 0
 
 # CANopen side: corrupt EDS, bad candump log, missing interface.
 SRC="$(cd "$(dirname "$0")/../.." && pwd)"
 mkdir -p "$work/od"; cp "$SRC"/od/*.eds "$work/od/"
 sed -i '0,/DataType=0x0007/s//DataType=0xZZ07/' "$work/od/controller.eds"
-"$PAMC" rig --od "$work/od" --duration 1 > /dev/null 2> "$work/err6.txt"
+"$PAMC" rig run --od "$work/od" --duration 1 > /dev/null 2> "$work/err6.txt"
 check "corrupt EDS exits non-zero" test $? -ne 0
 check "corrupt EDS error names file and line" grep -q "controller.eds:[0-9]*: \[1000\] DataType" "$work/err6.txt"
 printf '(1700000000.000001) vcan0 080#\n(1700000000.001000) vcan0 18G#0102\n' > "$work/bad.log"
@@ -102,21 +102,21 @@ sed 's/^ParameterValue=0x00000190$/ParameterValue=0x190Z/' "$SRC/tests/dcf/moved
 check "bad DCF exits non-zero" test $? -ne 0
 check "bad DCF error is one line" test "$(wc -l < "$work/err9.txt")" -eq 1
 check "bad DCF error names file, line and problem" grep -q "bad.dcf:[0-9]*: \[1400sub1\] ParameterValue: '0x190Z' is not a valid UNSIGNED32" "$work/err9.txt"
-"$PAMC" rig --od "$SRC/od" --duration 2 --preroll 1 --log "$work/rig.log" --csv "$work/rig.csv" > /dev/null
+"$PAMC" rig run --od "$SRC/od" --duration 2 --preroll 1 --log "$work/rig.log" --csv "$work/rig.csv" > /dev/null
 check "rig runs on the in-process bus" test -s "$work/rig.csv"
 "$PAMC" decode "$work/rig.log" --od "$SRC/od" --out "$work/rig_dec.csv" > /dev/null
 check "decode of the rig's log" grep -q "^t,u,y,p,t_log" "$work/rig_dec.csv"
-"$PAMC" monitor --log "$work/rig.log" --od "$SRC/od" --once > "$work/mon.txt"
+"$PAMC" monitor --replay "$work/rig.log" --od "$SRC/od" --once > "$work/mon.txt"
 check "monitor shows the nodes operational" test "$(grep -c operational "$work/mon.txt")" -eq 3
 # A run on devices pamc did not make decodes through the rig file (its COB-IDs and scaling); through the
 # EDS files alone it has no position. Without the rig file the loop never starts: exit 1, the COB-ID named.
-"$PAMC" rig --od "$SRC/od" --rig "$SRC/od/rigs/profile.ini" --profile-defaults --duration 1 --preroll 0.5 \
+"$PAMC" rig run --od "$SRC/od" --rig "$SRC/od/rigs/profile.ini" --profile-defaults --duration 1 --preroll 0.5 \
   --log "$work/prof.log" > /dev/null 2>&1
 "$PAMC" decode "$work/prof.log" --rig "$SRC/od/rigs/profile.ini" --out "$work/prof_dec.csv" > /dev/null
 check "decode --rig of a run on the profile devices" grep -q "^t,u,y,p,t_log" "$work/prof_dec.csv"
 "$PAMC" decode "$work/prof.log" --od "$SRC/od" --out "$work/prof_eds.csv" > /dev/null 2>&1
 check "the same log through the EDS files has no cycles" test $? -ne 0
-"$PAMC" rig --od "$SRC/od" --profile-defaults --duration 1 --preroll 0.5 > /dev/null 2> "$work/noprof.txt"
+"$PAMC" rig run --od "$SRC/od" --profile-defaults --duration 1 --preroll 0.5 > /dev/null 2> "$work/noprof.txt"
 check "rig on devices it cannot read exits non-zero" test $? -ne 0
 check "rig on devices it cannot read names the COB-ID it waits on" \
   grep -q "no position within 1 s of Operational: waiting for the sensor's (node 2) PDO on COB-ID 0x182" "$work/noprof.txt"
@@ -130,27 +130,36 @@ grep FAIL "$work/help_options.txt"
 # Live monitor runs until Ctrl-C unless --duration is given (it used to stop after 40 s).
 "$PAMC" monitor --help | grep -qE -- "--duration FLOAT:NONNEGATIVE=0( |$)"
 check "monitor's --duration defaults to 0 (until Ctrl-C)" test $? -eq 0
-# rig --duration 0 runs until stopped (it used to run zero cycles and exit at once).
+# rig run --duration 0 runs until stopped (it used to run zero cycles and exit at once).
 start=$(date +%s%N)
-timeout -s INT 3 "$PAMC" rig --od "$SRC/od" --duration 0 --preroll 0.1 > "$work/forever.txt" 2>&1
+timeout -s INT 3 "$PAMC" rig run --od "$SRC/od" --duration 0 --preroll 0.1 > "$work/forever.txt" 2>&1
 rc=$?
 elapsed_ms=$(( ($(date +%s%N) - start) / 1000000 ))
-check "rig --duration 0 runs until interrupted (rc $rc, ${elapsed_ms} ms)" test "$elapsed_ms" -gt 2500
+check "rig run --duration 0 runs until interrupted (rc $rc, ${elapsed_ms} ms)" test "$elapsed_ms" -gt 2500
 cycles=$(sed -n 's/^cycles \([0-9]*\),.*/\1/p' "$work/forever.txt")
-check "rig --duration 0 ran cycles (${cycles:-none})" test "${cycles:-0}" -gt 5000
-# rig --faults --controller pi runs the fault table with PI (it used to run the AMC).
-"$PAMC" rig --od "$SRC/od" --faults --only sensor-silent-short --controller pi > "$work/faults.md" 2> "$work/faults_err.txt"
-check "rig --faults --controller pi runs PI" grep -q "in-process bus, pi," "$work/faults_err.txt"
-"$PAMC" rig --od "$SRC/od" --faults --only sensor-silent-short > /dev/null 2> "$work/faults_err2.txt"
-check "rig --faults without --controller runs the fault table's AMC" grep -q "in-process bus, amc," "$work/faults_err2.txt"
+check "rig run --duration 0 ran cycles (${cycles:-none})" test "${cycles:-0}" -gt 5000
+# rig faults --controller pi runs the fault table with PI (it used to run the AMC).
+"$PAMC" rig faults --od "$SRC/od" --only sensor-silent-short --controller pi > "$work/faults.md" 2> "$work/faults_err.txt"
+check "rig faults --controller pi runs PI" grep -q "in-process bus, pi," "$work/faults_err.txt"
+"$PAMC" rig faults --od "$SRC/od" --only sensor-silent-short > /dev/null 2> "$work/faults_err2.txt"
+check "rig faults without --controller runs the fault table's AMC" grep -q "in-process bus, amc," "$work/faults_err2.txt"
 
 # A report folder used before keeps no probe table or chart the new diagnosis did not make.
 "$PAMC" emulate --input random:1:-3:3 --duration 6 --out "$work/dg.csv" > /dev/null 2>&1
 mkdir -p "$work/rep" && touch "$work/rep/probes.png" "$work/rep/probes.csv"
-"$PAMC" diagnose "$work/dg.csv" --candidates pressure_lag --max-effects 1 --no-probes --report "$work/rep" > /dev/null 2>&1
-check "diagnose --report writes its files" test -s "$work/rep/diagnosis.json"
-check "diagnose --report leaves no stale probe chart" test ! -e "$work/rep/probes.png"
-check "diagnose --report leaves no stale probe table" test ! -e "$work/rep/probes.csv"
+"$PAMC" diagnose "$work/dg.csv" --candidates pressure_lag --max-effects 1 --no-probes --out-dir "$work/rep" > /dev/null 2>&1
+check "diagnose --out-dir writes its files" test -s "$work/rep/diagnosis.json"
+check "diagnose --out-dir leaves no stale probe chart" test ! -e "$work/rep/probes.png"
+check "diagnose --out-dir leaves no stale probe table" test ! -e "$work/rep/probes.csv"
+
+# The convention (docs/CLI.md) over every command's --help, and the old spellings with their notice.
+python3 "$SRC/tests/cli/cli_convention.py" "$PAMC" > "$work/convention.txt"
+check "the command-line convention holds ($(tail -1 "$work/convention.txt"))" test $? -eq 0
+grep FAIL "$work/convention.txt"
+# One place per fact: no literal of the valve range or the bus delay outside its definition.
+python3 "$SRC/tests/cli/one_place.py" "$SRC" > "$work/one_place.txt"
+check "each fact in one place ($(tail -1 "$work/one_place.txt"))" test $? -eq 0
+grep FAIL "$work/one_place.txt"
 
 echo "$passes passed, $fails failed"
 test $fails -eq 0

@@ -5,11 +5,14 @@
 #                             pamc::canopen_socketcan
 #   lib/libpamc_*.a, lib/cmake/pamc/   the libraries and find_package(pamc) with namespaced targets
 #   lib/systemd/system/pamc-controller@.service   the controller as a real-time service per interface
+#   share/bash-completion/completions/pamc        the bash completion, generated from pamc's option tables
 # and `cpack -G DEB` (in the build folder) makes a Debian package of the same.
 include(CMakePackageConfigHelpers)
 
 install(TARGETS pamc RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/od/ DESTINATION ${CMAKE_INSTALL_DATADIR}/pamc/od)
+install(FILES ${PROJECT_BINARY_DIR}/pamc.bash DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions
+        RENAME pamc)
 
 set(PAMC_LIBRARIES pamc_model pamc_estimation pamc_control pamc_canopen pamc_canopen_socketcan)
 install(TARGETS ${PAMC_LIBRARIES} EXPORT pamcTargets
