@@ -28,7 +28,7 @@ for p in lag120 lag40_delay30 lag40_creep; do
   "$P" emulate --plant "$p.json" --input random:1:-3:3 --duration 60 --out "$p.train.csv" > /dev/null
   "$P" emulate --plant "$p.json" --input random:2:-3:3 --duration 40 --out "$p.val.csv" > /dev/null
   "$P" fit "$p.train.csv" --out "$p.plain.json" --quiet > /dev/null
-  "$P" diagnose "$p.train.csv" --validate "$p.val.csv" --json "$p.diag.json" --report "$p.diag" > /dev/null 2>&1
+  "$P" diagnose "$p.train.csv" --validate "$p.val.csv" --json "$p.diag.json" --out-dir "$p.diag" > /dev/null 2>&1
   effects=$(python3 -c 'import json,sys; print(" + ".join(json.load(open(sys.argv[1]))["ladder"][-1]["effects"]) or "(none)")' "$p.diag.json")
   for x in 0 1; do
     form="paper, eq. (17)/(18)"; H=1

@@ -20,7 +20,7 @@ run() {
   sleep 0.3
   echo "== $label ($secs s at $period us)"
   "$PAMC" controller --iface vcan0 --od "$OD" --period-us "$period" --controller pi --preroll 1 \
-    --duration "$secs" --trajectory sine:0.5:15:5 --rt 2>&1 | grep -E "latency|jitter|cycles|warning"
+    --duration "$secs" --trajectory sine:0.5:15:5 --realtime 2>&1 | grep -E "latency|jitter|cycles|warning"
   [ -n "$bg" ] && kill "$bg" 2>/dev/null
   kill "$em" 2>/dev/null; wait 2>/dev/null
 }

@@ -49,7 +49,7 @@ echo "== pamc diagnose on the training record ($(($(wc -l < "$data/train.csv") -
 best_val=""
 for seed in $seeds; do
   d="diagnose_seed$seed"
-  "$P" diagnose train_from_rest.csv --threads "$threads" --seed "$seed" --no-probes --report "$d" \
+  "$P" diagnose train_from_rest.csv --threads "$threads" --seed "$seed" --no-probes --out-dir "$d" \
     --json "$d.json" > "$d.txt" 2> "$d.log" || { cat "$d.txt" "$d.log" >&2; exit 1; }
   [ -r "$d/model.json" ] || { echo "benchmark_bw: diagnose wrote no model ($W/$d/)" >&2; exit 1; }
   # The last rung of the ladder: its validated RMSE is the last field.
@@ -65,8 +65,8 @@ echo "kept: $best (validated RMSE $best_val mm)"
 sed -n '/^Ladder/,$p' "$best.txt"
 model="$W/$best/model.json"
 
-"$P" compare "$model" train_from_rest.csv --report compare_train > compare_train.txt
-"$P" compare "$model" test_two_periods.csv --report compare_test > compare_test.txt
+"$P" compare "$model" train_from_rest.csv --out-dir compare_train > compare_train.txt
+"$P" compare "$model" test_two_periods.csv --out-dir compare_test > compare_test.txt
 rmse_train=$(awk '/^RMSE/ { sub(",", "", $2); print $2; exit }' compare_train.txt)
 # Steady state: the second period's residuals; from rest: the first period's (the record as it is).
 read -r rmse_test rmse_rest < <(awk -F, -v n="$n_test" 'NR > 1 { i = NR - 1; if (i > n) { s += $5 * $5; k++ } else { r += $5 * $5; m++ } }

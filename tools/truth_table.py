@@ -14,7 +14,7 @@ Generators:
            driven by the oracle record's command (`pamc emulate --input-from`)
 
 Prints a Markdown table; exits 1 if any case fails, 2 on a usage error.
-  tools/truth_table.py [--generator oracle|physics] [--only a,b] [--skip c] [--work DIR] [--pamc BIN] [--oracle BIN]
+  tools/truth_table.py [--generator oracle|physics] [--only a,b] [--skip c] [--out-dir DIR] [--pamc BIN] [--oracle BIN]
 """
 import argparse
 import json
@@ -105,7 +105,7 @@ def main():
     ap.add_argument("--generator", choices=["oracle", "physics"], default="oracle")
     ap.add_argument("--only", default="", help="comma list of case names")
     ap.add_argument("--skip", default="", help="comma list of case names left out (say why where you do)")
-    ap.add_argument("--work", default="", help="folder for the records and reports (default: a temporary one)")
+    ap.add_argument("--out-dir", dest="work", default="", help="folder for the records and reports (default: a temporary one)")
     ap.add_argument("--pamc", default=os.path.join(ROOT, "build", "src", "pamc"))
     ap.add_argument("--oracle", default=os.path.join(ROOT, "build", "tests", "oracle", "pamc_oracle_sim"))
     ap.add_argument("--cases", default=os.path.join(ROOT, "tests", "oracle", "cases.json"))

@@ -13,7 +13,7 @@ line, names which kind):
 
 Prints a Markdown table and the count; exits 0 whatever the count (the count is the result), 2 on a
 usage error.
-  tools/unseen_table.py [--only a,b] [--work DIR] [--pamc BIN] [--oracle BIN]
+  tools/unseen_table.py [--only a,b] [--out-dir DIR] [--pamc BIN] [--oracle BIN]
 """
 import argparse
 import json
@@ -78,7 +78,7 @@ def judge(case, diag):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--only", default="", help="comma list of case names")
-    ap.add_argument("--work", default="", help="folder for the records and reports (default: a temporary one)")
+    ap.add_argument("--out-dir", dest="work", default="", help="folder for the records and reports (default: a temporary one)")
     ap.add_argument("--pamc", default=os.path.join(ROOT, "build", "src", "pamc"))
     ap.add_argument("--oracle", default=os.path.join(ROOT, "build", "tests", "oracle", "pamc_oracle_sim"))
     ap.add_argument("--cases", default=os.path.join(ROOT, "tests", "oracle", "unseen.json"))
@@ -100,7 +100,7 @@ def main():
         for which, out in (("train", tr), ("validate", va)):
             run([args.oracle, "--cases", args.cases, "--case", c["name"], "--record", which, "--out", out])
         js = os.path.join(work, c["name"] + ".json")
-        run([args.pamc, "diagnose", tr, "--validate", va, "--json", js, "--report", os.path.join(work, c["name"] + "_report")])
+        run([args.pamc, "diagnose", tr, "--validate", va, "--json", js, "--out-dir", os.path.join(work, c["name"] + "_report")])
         j = judge(c, json.load(open(js)))
         named += j["named"]
         fell += bool(j["fall"] and j["fall"] >= FALL)

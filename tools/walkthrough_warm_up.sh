@@ -16,9 +16,9 @@ cat > warm.json <<'JSON'
 JSON
 "$P" emulate --plant warm.json --input random:3:-3:3 --duration 90 --out warm.csv
 echo "== 1. diagnose with the catalogue as it was (without warm_up)"
-"$P" diagnose warm.csv --candidates=-warm_up --json before.json --report before 2>/dev/null | sed -n '/^Ladder/,$p'
+"$P" diagnose warm.csv --candidates=-warm_up --json before.json --out-dir before 2>/dev/null | sed -n '/^Ladder/,$p'
 echo "== 2. diagnose with warm_up in the catalogue"
-"$P" diagnose warm.csv --json after.json --report after 2>/dev/null | sed -n '/^Ladder/,$p'
+"$P" diagnose warm.csv --json after.json --out-dir after 2>/dev/null | sed -n '/^Ladder/,$p'
 echo "== 3. pamc fit with the structure diagnose found, on the whole record"
 "$P" fit warm.csv --effects pressure_lag,warm_up --out warm_model.json 2>/dev/null | tail -3
 echo "results in $W"

@@ -85,7 +85,7 @@ rig_run scrambled "--od $OD" "" 000#0100 \
 sed -e "s|^eds = \.\./|eds = $OD/|" -e 's|^mandatory = yes.*|&\nkeep_alive = yes|' "$OD/rigs/default.ini" > "$W/keep_alive.ini"
 rig_run keepalive "--rig $W/keep_alive.ini --iface vcan0" "" 000#0100
 
-# Kernel-level faults (the in-process rig covers the rest, `pamc rig --faults`): a full transmit
+# Kernel-level faults (the in-process rig covers the rest, `pamc rig faults`): a full transmit
 # queue - the interface rate-limited by a tbf qdisc and flooded by higher-priority frames, so writes
 # fail with ENOBUFS - and error frames (bus off, then restarted) as a CAN driver sends them.
 # The timeline follows the controller, not the clock: the VM runs under software emulation, where

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Nothing lost on a crash (docs/RELIABILITY.md, "Nothing lost on a crash"): running pamc processes are
 # killed with SIGKILL in mid-run and what they left on disk is checked. Hardware-free.
-#  1. The rig paced in real time (`pamc rig --realtime`), logging like the nodes on SocketCAN (frames and
+#  1. The rig paced in real time (`pamc rig run --realtime`), logging like the nodes on SocketCAN (frames and
 #     cycle records through the logger thread's rings): after the kill every complete line of the
 #     candump log and of the CSV parses, only the last line may be cut off, `pamc decode` and the CSV
 #     reader (`pamc fit`) accept the files, and the records on disk reach to within a few cycles of what
@@ -29,7 +29,7 @@ sleep_between() { sleep "$(awk -v a="$1" -v b="$2" -v r="$RANDOM" 'BEGIN { print
 max_lost_csv=0; max_lost_log=0; partial_logs=0; partial_csvs=0; losses=""
 for k in $(seq 1 "$KILLS"); do
   d="$W/rig$k"; mkdir -p "$d"
-  "$PAMC" rig --od "$SRC/od" --realtime --duration 60 --preroll 0.5 --controller pi \
+  "$PAMC" rig run --od "$SRC/od" --realtime --duration 60 --preroll 0.5 --controller pi \
     --log "$d/run.log" --csv "$d/run.csv" --progress "$d/progress.txt" > "$d/out.txt" 2> "$d/err.txt" &
   pid=$!
   sleep_between 1.5 3.0
@@ -90,7 +90,7 @@ fit_args=(fit "$d/data.csv" --out "$d/m.json" --threads 1 --population 20 --gene
 start=$(date +%s%N); "$PAMC" "${fit_args[@]}" > /dev/null 2>&1; check "fit runs to the end" test $? -eq 0; end=$(date +%s%N)
 cp "$d/m.json" "$d/complete.json"
 T=$(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.3f", (b - a) / 1e9 }')
-valid_model() { "$PAMC" rig --od "$SRC/od" --model "$1" --controller amc --duration 0.01 --preroll 0.01 > /dev/null 2>&1; }
+valid_model() { "$PAMC" rig run --od "$SRC/od" --model "$1" --controller amc --duration 0.01 --preroll 0.01 > /dev/null 2>&1; }
 absent=0; old=0; new=0
 for k in $(seq 1 $((2 * KILLS))); do
   # Even kills replace an old m.json (dated 2000), odd ones write a new one.
@@ -110,7 +110,7 @@ echo "fit: $((2 * KILLS)) kills in 0.5-1.2 x its run time ($T s): m.json absent 
 
 # ---- 3. pamc experiments ------------------------------------------------------------------------------------
 d="$W/experiments"; mkdir -p "$d"
-"$PAMC" experiments --out "$d/results" --only table1 --no-figures > "$d/out.txt" 2>&1 & pid=$!
+"$PAMC" experiments --out-dir "$d/results" --only table1 --no-figures > "$d/out.txt" 2>&1 & pid=$!
 sleep_between 2 4
 kill -9 "$pid" 2> /dev/null
 wait "$pid" 2> /dev/null
