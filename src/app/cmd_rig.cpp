@@ -13,6 +13,7 @@
 #include "app/controller_options.hpp"
 #include "app/node_options.hpp"
 #include "io/measurement.hpp"
+#include "io/text.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/monitor.hpp"
 #include "rig/fault_rig.hpp"
@@ -87,6 +88,10 @@ class RigCommand final : public Command {
     od_.add(a);
     kind_.add(a);
     ctrl_.addGains(a);
+    const nodes::FaultRigOptions own;
+    a->footer("Without --controller, --kp, --ki, --kc: the tool's own " + std::string(control::toString(own.kind)) +
+              " with kp " + io::fmt("%g", own.kp) + ", ki " + io::fmt("%g", own.ki) + ", kc " + io::fmt("%g", own.kc) +
+              " (each option given replaces its own).");
   }
   void addSoakOptions(CLI::App* a) {
     a->add_option("--hours", soak_hours, "hours of cycles in virtual time")->check(CLI::PositiveNumber);

@@ -120,7 +120,7 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
   }
   io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", toJson(r)["ladder"]}});
   // The best probe, when it explains enough to be a rung, as a ready model: to check in closed loop
-  // (pamc rig --model, pamc experiments --model) whether the structure it points to matters there.
+  // (pamc rig run --model, pamc experiments --model) whether the structure it points to matters there.
   if (r.probe_rung)
     io::writeModelFile(p + "probe_model.json", r.probes.front().model,
                        {{"probe", r.probes.front().label()},

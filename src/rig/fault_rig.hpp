@@ -4,10 +4,10 @@
 // same node-ID, injected error frames). Each run tracks a trajectory, injects the fault after 3 s of
 // the trajectory, clears it, and measures what the controller did: cycles until it detected the
 // fault and until the valve output its safe value, the EMCY codes on the bus, whether and how
-// smoothly control resumed, and what was lost. `pamc rig --faults` prints the table
+// smoothly control resumed, and what was lost. `pamc rig faults` prints the table
 // (docs/RELIABILITY.md); tests/unit/test_faults.cpp checks each row.
 //
-// Also here: the parameter guard of the controller over SDO, write by write (`pamc rig --sdo-guards`).
+// Also here: the parameter guard of the controller over SDO, write by write (`pamc rig guards`).
 #pragma once
 
 #include <cstdint>
@@ -97,7 +97,7 @@ std::string faultTableMarkdown(const std::vector<FaultRun>& runs);
 // other at random times (seeded), checking that nothing degrades over the hours: memory (heap in use,
 // RSS), the cycle (one control cycle per SYNC period outside faults, no record lost, CPU time per
 // cycle), and tracking after every fault (RMSE over one trajectory period after control is back,
-// against the no-fault baseline of the same run). `pamc rig --soak HOURS`.
+// against the no-fault baseline of the same run). `pamc rig soak --hours HOURS`.
 //
 // The rig is set up for every fault at once: the controller consumes the SYNC of a separate producer
 // (so that SYNC faults can be injected), the bus has 1 Mbit/s bit timing with arbitration (for the
