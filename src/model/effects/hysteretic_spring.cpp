@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "model/small_expm.hpp"
 #include "model/effect.hpp"
 
 namespace pamc::model {
@@ -51,37 +52,10 @@ constexpr int kSteps = 13;   // ... and the number of sub-steps
 // exp(M h) of the force balance with a force moving linearly over the step: x = [y, v, F, F'],
 // x' = [v, wn^2 (F - y) - 2 zeta wn v, F', 0]. out: {a11, a12, a21, a22, b0, c0, br, cr}, so that at the
 // step's end y = a11 y + a12 v + b0 F0 + br (F1 - F0) and v = a21 y + a22 v + c0 F0 + cr (F1 - F0).
-// Taylor series with scaling and squaring (exact to rounding).
-using Mat4 = double[4][4];
-void mul4(const Mat4& a, const Mat4& b, double f, Mat4& out) noexcept {
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) {
-      out[i][j] = 0.0;
-      for (int q = 0; q < 4; ++q) out[i][j] += a[i][q] * b[q][j] * f;
-    }
-}
-
 void rampMap(double wn, double zeta, double h, double* out) noexcept {
-  Mat4 M = {{0, 1, 0, 0}, {-wn * wn, -2.0 * zeta * wn, wn * wn, 0}, {0, 0, 0, 1}, {0, 0, 0, 0}};
-  double norm = 0.0;
-  for (auto& r : M)
-    for (double& v : r) norm = std::max(norm, std::fabs(v *= h));
-  int squarings = 0;
-  while (norm > 0.1 && squarings < 60) norm *= 0.5, ++squarings;
-  const double scale = std::ldexp(1.0, -squarings);
-  Mat4 E = {}, T = {}, N = {};
-  for (int i = 0; i < 4; ++i) E[i][i] = T[i][i] = 1.0;
-  for (int k = 1; k <= 14; ++k) {  // T = (M scale)^k / k!
-    mul4(T, M, scale / k, N);
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) E[i][j] += (T[i][j] = N[i][j]);
-  }
-  for (int s = 0; s < squarings; ++s) {
-    mul4(E, E, 1.0, N);
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) E[i][j] = N[i][j];
-  }
-  const double col[8] = {E[0][0], E[0][1], E[1][0], E[1][1], E[0][2], E[1][2], E[0][3] / h, E[1][3] / h};
+  const SmallMat<4> M{0, h, 0, 0, -wn * wn * h, -2.0 * zeta * wn * h, wn * wn * h, 0, 0, 0, 0, h, 0, 0, 0, 0};
+  const SmallMat<4> E = smallExpm<4>(M, 0.1, 14);
+  const double col[8] = {E[0], E[1], E[4], E[5], E[2], E[6], E[3] / h, E[7] / h};
   std::copy(col, col + 8, out);
 }
 

@@ -8,43 +8,19 @@
 #pragma once
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 
-namespace pamc::model {
+#include "model/small_expm.hpp"
 
-namespace detail {
-using Mat3 = std::array<double, 9>;  // row-major
-inline Mat3 mul3(const Mat3& a, const Mat3& b) noexcept {
-  Mat3 c{};
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      for (int k = 0; k < 3; ++k) c[i * 3 + j] += a[i * 3 + k] * b[k * 3 + j];
-  return c;
-}
-}  // namespace detail
+namespace pamc::model {
 
 // Writes A (row-major: a11, a12, a21, a22) and B (b1, b2) as out[0..5].
 inline void secondOrderMap(double fn, double zeta, double Ts, double* out) noexcept {
   const double wn = 2.0 * M_PI * std::max(fn, 1e-6);
   zeta = std::max(zeta, 0.0);
-  detail::Mat3 m{0.0, Ts, 0.0, -wn * wn * Ts, -2.0 * zeta * wn * Ts, wn * wn * Ts, 0.0, 0.0, 0.0};
-  // Scaled until its norm is at most 1/2 (the squarings are clamped: a NaN or an absurd fn stays finite
-  // in count and gives a NaN or a useless map, which the fit rejects).
-  double norm = 0.0;
-  for (double x : m) norm = std::max(norm, std::fabs(x));
-  int squarings = 0;
-  while (norm * 3.0 > 0.5 && squarings < 60) norm *= 0.5, ++squarings;
-  const double scale = std::ldexp(1.0, -squarings);
-  for (double& x : m) x *= scale;
-  // exp by its Taylor series to the 16th power (below 1e-17 relative at norm 1/2).
-  detail::Mat3 e{1, 0, 0, 0, 1, 0, 0, 0, 1}, term = e;
-  for (int k = 1; k <= 16; ++k) {
-    term = detail::mul3(term, m);
-    for (double& x : term) x /= k;
-    for (int i = 0; i < 9; ++i) e[i] += term[i];
-  }
-  for (int i = 0; i < squarings; ++i) e = detail::mul3(e, e);
+  const SmallMat<3> m{0.0, Ts, 0.0, -wn * wn * Ts, -2.0 * zeta * wn * Ts, wn * wn * Ts, 0.0, 0.0, 0.0};
+  // Largest entry at most 1/6 (row norm 1/2): 16 terms are below 1e-17 relative.
+  const SmallMat<3> e = smallExpm<3>(m, 0.5 / 3.0, 16);
   out[0] = e[0];
   out[1] = e[1];
   out[2] = e[3];
