@@ -15,6 +15,14 @@ using io::fmt;
 constexpr int kRicherPopulation = 48;
 constexpr int kRicherGenerations = 100;
 
+namespace {
+bool hasParam(const std::vector<model::ParamSpec>& specs, const std::string& name) {
+  for (const auto& p : specs)
+    if (p.name == name) return true;
+  return false;
+}
+}  // namespace
+
 model::Model withReplacement(const Rung& fin, const std::string& effect, const std::string& by) {
   model::Model m(fin.model.core());
   m.setOutputForm(fin.model.outputForm());
@@ -30,7 +38,7 @@ model::Model withReplacement(const Rung& fin, const std::string& effect, const s
       const double v = fin.model.effectParams(i)[q];
       if (name != effect) {
         m.setEffectParam(name, param, v);
-      } else if (std::any_of(by_specs.begin(), by_specs.end(), [&](const model::ParamSpec& p) { return p.name == param; })) {
+      } else if (hasParam(by_specs, param)) {
         m.setEffectParam(by, param, v);
       }
     }
