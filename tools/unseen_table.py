@@ -10,6 +10,10 @@ line, names which kind):
     spectrum has a line within 5 % of the case's frequency that is not coherent with the input;
   - falls 5x: the validated RMSE with the named structure (the top probe on top of the final model) is
     at least 5x below the final model's (scored on the validation record, not the training one).
+    Beside it, for reading only (not the criterion): the same fall of the error above the validation
+    record's own noise, sqrt(RMSE^2 - noise^2) with the noise the case writes down - the part of the
+    error a model can remove; where a record starts only a few times above its noise, the RMSE cannot
+    fall 5x however right the structure.
 
 Prints a Markdown table and the count; exits 0 whatever the count (the count is the result), 2 on a
 usage error.
@@ -72,7 +76,14 @@ def judge(case, diag):
     label = top + (" for " + probes[0]["replaces"] if probes and "replaces" in probes[0] else "")
     return {"top": label, "named": by_probe or by_spectrum, "by": "probe" if by_probe else ("spectrum" if by_spectrum else "-"),
             "final_val": final_val, "fall": fall, "line": line,
-            "effects": "+".join(final["effects"]) or "-"}
+            "effects": "+".join(final["effects"]) or "-",
+            "fall_above_noise": above_noise(final_val, with_named, case["noise"]) if with_named else None}
+
+
+def above_noise(before, after, noise):
+    """How much the error above the noise falls: sqrt(rmse^2 - noise^2) before over after."""
+    b, a = (max(v * v - noise * noise, 0.0) ** 0.5 for v in (before, after))
+    return b / a if a > 0 else float("inf")
 
 
 def main():
@@ -107,13 +118,15 @@ def main():
         rows.append((c, j, time.time() - t0))
         print("%s: top probe %s, line %s -> %s" % (c["name"], j["top"], j["line"], "named" if j["named"] else "not named"),
               file=sys.stderr)
-    print("| case | kind | effects added | top probe | strongest line | named (by) | validated RMSE final -> with it | falls |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| case | kind | effects added | top probe | strongest line | named (by) | validated RMSE final -> with it | falls | above the noise falls |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for c, j, secs in rows:
         fall = "%.1fx" % j["fall"] if j["fall"] else "-"
+        above = "-" if not j["fall_above_noise"] else (
+            "to the noise" if j["fall_above_noise"] == float("inf") else "%.0fx" % j["fall_above_noise"])
         after = "%.4g -> %.4g" % (j["final_val"], j["final_val"] / j["fall"]) if j["fall"] else "%.4g" % j["final_val"]
-        print("| %s | %s | %s | %s | %s | %s | %s | %s |" % (c["name"], c["kind"], j["effects"], j["top"], j["line"],
-              "yes (%s)" % j["by"] if j["named"] else "no", after, fall))
+        print("| %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (c["name"], c["kind"], j["effects"], j["top"], j["line"],
+              "yes (%s)" % j["by"] if j["named"] else "no", after, fall, above))
     print("\nnamed: %d of %d; the validated error falls %.0fx or more with the named probe: %d of %d" %
           (named, len(rows), FALL, fell, len(rows)))
     return 0
