@@ -39,12 +39,12 @@ class RigCommand final : public Command {
     guards_cmd_ = cmd_->add_subcommand("guards", "write parameters over SDO to the running controller and print "
                                                  "the abort codes and what the loop saw");
     addRunOptions(run_cmd_);
-    addFaultToolOptions(faults_cmd_);
+    addFaultToolOptions(faults_cmd_, nodes::FaultRigOptions{});
     faults_cmd_->add_option("--only", only, kOnlyHelp);
-    addFaultToolOptions(soak_cmd_);
+    addFaultToolOptions(soak_cmd_, nodes::SoakOptions{});
     addSoakOptions(soak_cmd_);
     soak_cmd_->get_option("--hours")->required();
-    addFaultToolOptions(guards_cmd_);
+    addFaultToolOptions(guards_cmd_, nodes::FaultRigOptions{});
     addOldForms();
     cmd_->callback([this] { noticeOfPlainRig(); });
   }
@@ -61,7 +61,7 @@ class RigCommand final : public Command {
  private:
   static constexpr const char* kOnlyHelp = "comma list of faults, e.g. sync-stop,bus-off (an unknown name lists them)";
   static std::string soakHelp() {
-    return "HOURS of 1 kHz cycles in virtual time (PI + AMC kp 0.1, ki 1.5, kc 0.06 unless --controller, --kp, --ki, "
+    return "HOURS of 1 kHz cycles in virtual time (the tool's own controller and gains unless --controller, --kp, --ki, "
            "--kc are given; a 0.2 Hz sine; the controller consuming the SYNC of a producer node, 1 Mbit/s bus) with "
            "faults of the catalogue injected one after the other at random times; prints per report interval the "
            "cycles, SYNC gaps, faults, tracking after each fault against the no-fault baseline, heap and RSS, CPU per "
@@ -84,11 +84,11 @@ class RigCommand final : public Command {
                                           "cycle is computed (a marker for crash tests and watchdogs)");
   }
   // The fault tools take the controller and its gains from the command line (their own otherwise).
-  void addFaultToolOptions(CLI::App* a) {
+  template <class Own>
+  void addFaultToolOptions(CLI::App* a, const Own& own) {
     od_.add(a);
     kind_.add(a);
     ctrl_.addGains(a);
-    const nodes::FaultRigOptions own;
     a->footer("Without --controller, --kp, --ki, --kc: the tool's own " + std::string(control::toString(own.kind)) +
               " with kp " + io::fmt("%g", own.kp) + ", ki " + io::fmt("%g", own.ki) + ", kc " + io::fmt("%g", own.kc) +
               " (each option given replaces its own).");
