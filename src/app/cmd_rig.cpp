@@ -61,7 +61,7 @@ class RigCommand final : public Command {
  private:
   static constexpr const char* kOnlyHelp = "comma list of faults, e.g. sync-stop,bus-off (an unknown name lists them)";
   static std::string soakHelp() {
-    return "HOURS of 1 kHz cycles in virtual time (the tool's own controller and gains unless --controller, --kp, --ki, "
+    return "--hours of 1 kHz cycles in virtual time (the tool's own controller and gains unless --controller, --kp, --ki, "
            "--kc are given; a 0.2 Hz sine; the controller consuming the SYNC of a producer node, 1 Mbit/s bus) with "
            "faults of the catalogue injected one after the other at random times; prints per report interval the "
            "cycles, SYNC gaps, faults, tracking after each fault against the no-fault baseline, heap and RSS, CPU per "
