@@ -171,6 +171,7 @@ void Diagnosis::probeDirections(const Rung& fin) {
   log("directions: probe " + top.probe + " with separate rising and falling parameters: validation " + fmt("%.5g", rv) +
       " (was " + fmt("%.5g", top.rmse_val) + ")");
   if (1.0 - rv / top.rmse_val < s_.min_gain) return;
+  top.symmetric_rmse_val = top.rmse_val;
   top.model = f.model;
   top.rmse_val = rv;
   top.rmse_train = ident::rmseFrom(f.model, train_);
