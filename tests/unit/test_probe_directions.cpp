@@ -84,8 +84,9 @@ std::string table(const diagnose::DiagnoseResult& r) {
 
 }  // namespace
 
-// Orifice flow 3x faster filling than venting: the catalogue's lag stands in for it, the orifice-flow
-// probe names the kind, and its direction-dependent version brings the validated error to the noise.
+// Orifice flow 3x faster filling than venting: the catalogue stands in for it with what it has (creep),
+// the orifice-flow probe names the kind, and its direction-dependent version brings the validated error
+// to the noise.
 TEST(ProbeDirections, OrificeFlowThatFillsFasterThanItVents) {
   const auto train = fillsFasterThanItVents(11, 24.0), val = fillsFasterThanItVents(12, 16.0);
   diagnose::DiagnoseSettings s;
