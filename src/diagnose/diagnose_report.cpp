@@ -53,10 +53,8 @@ nlohmann::json toJson(const DiagnoseResult& r) {
     pj.push_back({{"probe", p.probe}, {"rmse_val", p.rmse_val}, {"rmse_train", p.rmse_train}, {"explains", p.explains},
                   {"regime", p.regime}, {"meaning", p.meaning}, {"params", params}});
     if (!p.replaces.empty()) pj.back()["replaces"] = p.replaces;
-    if (!p.direction.empty()) {
-      pj.back()["direction"] = p.direction;
-      pj.back()["symmetric_rmse_val"] = p.symmetric_rmse_val;
-    }
+    if (!p.direction.empty()) pj.back()["direction"] = p.direction;
+    if (p.symmetric_rmse_val > 0) pj.back()["symmetric_rmse_val"] = p.symmetric_rmse_val;
   }
   j["probes"] = pj;
   j["spectrum"] = toJson(r.spectrum);
