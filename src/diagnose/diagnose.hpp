@@ -68,6 +68,9 @@ struct ProbeResult {
   std::string meaning;   // the kind of physics it points to (model/probes/probes.inc)
   std::string replaces;  // the final model's effect it was fitted in place of (empty: on top of the model)
   std::string direction;  // fitted with separate parameters rising and falling: what differs, in words
+  // Taken by the directions step (Diagnosis::probeDirections): the validated RMSE of the symmetric fit it
+  // replaced; 0 otherwise.
+  double symmetric_rmse_val = 0;
   model::Model model;
   // "dead_zone", or "dead_zone for dead_band" when fitted in place of an effect.
   std::string label() const {

@@ -32,6 +32,15 @@ std::string mostImprovedRegime(const ResidualReport& before, const ResidualRepor
   return best->group + " " + best->label + " (RMSE " + fmt("%.3g", rb) + " -> " + fmt("%.3g", ra) + ")";
 }
 
+// The probe that takes the place of `effect`: in its direction-dependent version when the effect is in
+// its own (diagnose's directions step found that the data want separate rising and falling parameters
+// there) and the probe has one; the probe itself otherwise.
+std::string inThePlaceOf(const model::ProbeEntry& probe, const std::string& effect) {
+  const std::string suffix = model::kDirectionalSuffix;
+  const bool updown = effect.size() > suffix.size() && effect.compare(effect.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return updown && probe.make()->directional() ? probe.name + suffix : probe.name;
+}
+
 }  // namespace
 
 // The final model's residual and validation offset; when the catalogue leaves the validated error above
@@ -68,6 +77,7 @@ void Diagnosis::probes() {
     p.explains = std::max(0.0, 1.0 - (c.rmse_val * c.rmse_val) / std::max(fin.rmse_val * fin.rmse_val, 1e-300));
     p.meaning = model::findProbe(c.effect)->meaning;
     p.model = c.model;
+    if (c.model.hasEffect(c.effect + model::kDirectionalSuffix)) p.direction = directionWords(c.model, c.effect);
     res_.probes.push_back(std::move(p));
   }
   // Where each probe that explains something acts: its residual's breakdown on all the training samples,
@@ -91,7 +101,8 @@ void Diagnosis::probes() {
 // starts spread over the probe's parameters around the final model, whatever the method), the best again
 // in full, and the better fit of it kept: it is fitted on top of whatever basin the catalogue's model ended
 // in, and only a full search can move the core out of it (a curved valve characteristic: the quick search
-// explained 50 % of what was left, the full one 97 %).
+// explained 50 % of what was left, the full one 97 %). In the place of an effect's direction-dependent
+// version the probe goes in its own (inThePlaceOf).
 std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin) const {
   std::vector<model::Model> structures;
   std::vector<std::string> labels, replaces;
@@ -102,7 +113,7 @@ std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin) const {
     replaces.emplace_back();
     for (const auto& e : fin.effects)
       if (p.standsFor(e)) {
-        structures.push_back(withReplacement(fin, e, p.name));
+        structures.push_back(withReplacement(fin, e, inThePlaceOf(p, e)));
         labels.push_back(std::string(p.name) + " for " + e);
         replaces.push_back(e);
       }
@@ -164,13 +175,14 @@ void Diagnosis::fitTheLine(const Rung& fin, std::vector<CandidateResult>& fits) 
 // when it lowers the validated RMSE by min_gain, and what differs is said in words.
 void Diagnosis::probeDirections(const Rung& fin) {
   ProbeResult& top = res_.probes.front();
-  if (!model::makeEffect(top.probe)->directional()) return;
+  if (!top.direction.empty() || !model::makeEffect(top.probe)->directional()) return;
   const Rung with{top.effectsWith(fin.effects), top.rmse_train, top.rmse_val, top.model, {}, {}, {}, false};
   const auto f = refitOn(withDirections(with, top.probe), screen_);
   const double rv = v_.rmse(f.model);
   log("directions: probe " + top.probe + " with separate rising and falling parameters: validation " + fmt("%.5g", rv) +
       " (was " + fmt("%.5g", top.rmse_val) + ")");
   if (1.0 - rv / top.rmse_val < s_.min_gain) return;
+  top.symmetric_rmse_val = top.rmse_val;
   top.model = f.model;
   top.rmse_val = rv;
   top.rmse_train = ident::rmseFrom(f.model, train_);

@@ -54,6 +54,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
                   {"regime", p.regime}, {"meaning", p.meaning}, {"params", params}});
     if (!p.replaces.empty()) pj.back()["replaces"] = p.replaces;
     if (!p.direction.empty()) pj.back()["direction"] = p.direction;
+    if (p.symmetric_rmse_val > 0) pj.back()["symmetric_rmse_val"] = p.symmetric_rmse_val;
   }
   j["probes"] = pj;
   j["spectrum"] = toJson(r.spectrum);

@@ -18,7 +18,8 @@ struct ProbeEntry {
   const char* name;
   EffectFactory make;
   const char* meaning;  // the kind of physics a probe that helps points to, in words
-  // The catalogue effects whose place it may take, comma-separated (probes.inc, second column).
+  // The catalogue effects whose place it may take, comma-separated (probes.inc, second column); their
+  // direction-dependent versions ("<effect>_updown") too.
   const char* stands_for;
   bool standsFor(const std::string& effect) const;
 };
