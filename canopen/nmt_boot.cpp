@@ -68,6 +68,7 @@ void NmtMaster::reset(Slave& s, TimeUs now) noexcept {
   s.state = Boot::Resetting;
   s.deadline = now + kBootUpTimeoutUs;
   s.start_sent = kNever;
+  arm();
 }
 
 void NmtMaster::steps(Slave& s, bool kept) noexcept {

@@ -315,7 +315,6 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
           ++counters_.reboots;
           if (bootable(*s)) {
             reset(*s, now);
-            arm();
           } else {
             node_.sendNmt(NmtCommand::ResetCommunication, id);
           }
