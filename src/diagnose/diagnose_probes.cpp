@@ -36,9 +36,8 @@ std::string mostImprovedRegime(const ResidualReport& before, const ResidualRepor
 // its own (diagnose's directions step found that the data want separate rising and falling parameters
 // there) and the probe has one; the probe itself otherwise.
 std::string inThePlaceOf(const model::ProbeEntry& probe, const std::string& effect) {
-  const std::string suffix = model::kDirectionalSuffix;
-  const bool updown = effect.size() > suffix.size() && effect.compare(effect.size() - suffix.size(), suffix.size(), suffix) == 0;
-  return updown && probe.make()->directional() ? probe.name + suffix : probe.name;
+  const bool updown = !model::directionalBase(effect).empty();
+  return updown && probe.make()->directional() ? probe.name + std::string(model::kDirectionalSuffix) : probe.name;
 }
 
 }  // namespace

@@ -86,6 +86,12 @@ using EffectFactory = std::unique_ptr<Effect> (*)();
 
 // "<name>_updown": the direction-dependent version of a directional() effect (directional.cpp).
 inline constexpr const char* kDirectionalSuffix = "_updown";
+// "pressure_lag" for "pressure_lag_updown"; empty for a name that is no direction-dependent version.
+inline std::string directionalBase(const std::string& name) {
+  const std::string suffix = kDirectionalSuffix;
+  const bool updown = name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return updown ? name.substr(0, name.size() - suffix.size()) : std::string();
+}
 // Throws std::invalid_argument when `inner` has no such version.
 std::unique_ptr<Effect> makeDirectional(std::unique_ptr<Effect> inner);
 

@@ -28,9 +28,7 @@ std::unique_ptr<Effect> makeEffect(const std::string& name) {
   for (const auto& e : catalogue())
     if (name == e.name) return e.make();
   if (const auto* p = findProbe(name)) return p->make();
-  const std::string suffix = kDirectionalSuffix;
-  if (name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0)
-    return makeDirectional(makeEffect(name.substr(0, name.size() - suffix.size())));
+  if (const std::string base = directionalBase(name); !base.empty()) return makeDirectional(makeEffect(base));
   throw std::invalid_argument("unknown effect '" + name + "' (known: " + knownEffectNames() + ")");
 }
 

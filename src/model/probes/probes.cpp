@@ -24,9 +24,8 @@ const ProbeEntry* findProbe(const std::string& name) {
 // An effect's direction-dependent version ("pressure_lag_updown", taken by diagnose's directions step) is
 // the same physics with more freedom: a probe that may take the effect's place may take its version's.
 bool ProbeEntry::standsFor(const std::string& effect) const {
-  const std::string suffix = kDirectionalSuffix;
-  const bool updown = effect.size() > suffix.size() && effect.compare(effect.size() - suffix.size(), suffix.size(), suffix) == 0;
-  const std::string base = updown ? effect.substr(0, effect.size() - suffix.size()) : effect;
+  const std::string updown_base = directionalBase(effect);
+  const std::string base = updown_base.empty() ? effect : updown_base;
   const std::string list = std::string(",") + stands_for + ",";
   return !base.empty() && list.find("," + base + ",") != std::string::npos;
 }
