@@ -32,21 +32,28 @@ struct State {
 };
 constexpr double kFill = 18.0, kVent = 6.0, kEps = 0.01;
 
-State rate(const State& x, double u) {
+// Which coefficient the valve uses: by the sign of u - p (filling or venting: the physics), or by the
+// direction the command last moved in (what the probe's direction-dependent version does).
+enum class Switch { Flow, Command };
+
+// rising: the command's last direction (used with Switch::Command only).
+State rate(const State& x, double u, Switch sw = Switch::Flow, bool rising = true) {
   const double e = u - x.p;
-  const double dp = (e > 0 ? kFill : kVent) * e / std::sqrt(std::fabs(e) + kEps);
+  const bool filling = sw == Switch::Flow ? e > 0 : rising;
+  const double dp = (filling ? kFill : kVent) * e / std::sqrt(std::fabs(e) + kEps);
   return {dp, kAlpha * dp - kBeta * dp * std::fabs(x.h) - kGamma * std::fabs(dp) * x.h};
 }
 
 // Classical RK4 in time over [t, t + dt], the command read from the continuous ramp-hold trajectory.
-State rk4(const State& x, const control::Trajectory& traj, double t, double dt) {
+State rk4(const State& x, const control::Trajectory& traj, double t, double dt, Switch sw, bool rising) {
   auto add = [](const State& a, const State& d, double f) { return State{a.p + f * d.p, a.h + f * d.h}; };
-  const State k1 = rate(x, traj.at(t)), k2 = rate(add(x, k1, dt / 2), traj.at(t + dt / 2));
-  const State k3 = rate(add(x, k2, dt / 2), traj.at(t + dt / 2)), k4 = rate(add(x, k3, dt), traj.at(t + dt));
+  const State k1 = rate(x, traj.at(t), sw, rising), k2 = rate(add(x, k1, dt / 2), traj.at(t + dt / 2), sw, rising);
+  const State k3 = rate(add(x, k2, dt / 2), traj.at(t + dt / 2), sw, rising);
+  const State k4 = rate(add(x, k3, dt), traj.at(t + dt), sw, rising);
   return {x.p + dt / 6 * (k1.p + 2 * k2.p + 2 * k3.p + k4.p), x.h + dt / 6 * (k1.h + 2 * k2.h + 2 * k3.h + k4.h)};
 }
 
-io::Measurement fillsFasterThanItVents(std::uint64_t seed, double seconds) {
+io::Measurement fillsFasterThanItVents(std::uint64_t seed, double seconds, Switch sw = Switch::Flow) {
   const auto traj = control::Trajectory::randomRampHold(seed, -2.5, 2.5);
   io::Measurement d;
   d.source = "orifice flow, 18 filling and 6 venting, seed " + std::to_string(seed);
@@ -55,10 +62,13 @@ io::Measurement fillsFasterThanItVents(std::uint64_t seed, double seconds) {
   std::mt19937_64 rng(seed + 7);
   std::normal_distribution<double> noise(0.0, kNoise);
   State x{traj.at(0.0), 0.0};
+  bool rising = true;
   for (size_t i = 0; i < n; ++i) {
     const double t = static_cast<double>(i) * d.Ts;
+    if (i > 0 && traj.at(t) != traj.at(t - d.Ts)) rising = traj.at(t) > traj.at(t - d.Ts);  // held while it holds
     if (i > 0)
-      for (int k = 0; k < kSubsteps; ++k) x = rk4(x, traj, t - d.Ts + k * d.Ts / kSubsteps, d.Ts / kSubsteps);
+      for (int k = 0; k < kSubsteps; ++k)
+        x = rk4(x, traj, t - d.Ts + k * d.Ts / kSubsteps, d.Ts / kSubsteps, sw, rising);
     d.t.push_back(t);
     d.u.push_back(traj.at(t));
     d.y.push_back(kK * kRho * x.p + kB + kK * (1.0 - kRho) * x.h + noise(rng));
@@ -140,4 +150,34 @@ TEST(ProbeDirections, InThePlaceOfALagRisingAndFallingTheProbeGoesInItsOwnVersio
   EXPECT_NEAR(param(top.model, "valve_flow_updown", "rate_up"), kFill, 0.1 * kFill);
   EXPECT_NEAR(param(top.model, "valve_flow_updown", "rate_down"), kVent, 0.1 * kVent);
   EXPECT_NE(r.verdict.find("(in place of pressure_lag_updown)"), std::string::npos) << r.verdict;
+}
+
+// Why the probe's version fits some records of this valve better than others: the core and the probe's
+// direction-dependent version at the valve's own coefficients (18 rising, 6 falling), no fit, on the six
+// records the tests above and docs/MODELING.md use, made once with the valve switching by the sign of
+// u - p (the physics) and once by the command's last direction (the probe's rule). With the probe's rule
+// every record is near the noise; with the physics' rule the record that turns the command often before
+// the pressure has caught up (seed 32) is far from it.
+TEST(ProbeDirections, TheProbesSwitchIsTheCommandsDirectionNotTheFlows) {
+  model::Model m({kK, kRho, kB, kAlpha, kBeta, kGamma});
+  m.addEffect("valve_flow_updown");
+  m.setEffectParam("valve_flow_updown", "rate_up", kFill);
+  m.setEffectParam("valve_flow_updown", "rate_down", kVent);
+  auto rmse = [&](const io::Measurement& d) {
+    const auto y = m.simulate(d.u, d.Ts);
+    double ss = 0.0;
+    for (size_t k = 0; k < y.size(); ++k) ss += (y[k] - d.y[k]) * (y[k] - d.y[k]);
+    return std::sqrt(ss / static_cast<double>(y.size()));
+  };
+  double flow32 = 0.0;
+  for (const std::uint64_t seed : {11, 12, 21, 22, 31, 32}) {
+    const double seconds = seed % 2 == 1 ? 24.0 : 16.0;
+    const double flow = rmse(fillsFasterThanItVents(seed, seconds, Switch::Flow));
+    const double command = rmse(fillsFasterThanItVents(seed, seconds, Switch::Command));
+    std::printf("seed %llu: the probe at 18 / 6 misses the valve switching by flow by %.4f, by the command's direction by %.4f\n",
+                static_cast<unsigned long long>(seed), flow, command);
+    EXPECT_LT(command, 3 * kNoise) << seed;
+    if (seed == 32) flow32 = flow;
+  }
+  EXPECT_GT(flow32, 3 * kNoise);
 }
