@@ -77,6 +77,11 @@ class Effect {
   // Whether the effect has a direction-dependent version ("<name>_updown": separate parameters for a
   // rising and a falling stage input; directional.cpp). Such an effect implements retune.
   virtual bool directional() const { return false; }
+  // Whether the effect's first state is a level that moves towards its stage input (a lag, a flow through
+  // a valve). Its direction-dependent version then picks the parameter set by the sign of the input minus
+  // that level - filling or venting, the way a valve switches - rather than by the direction the input
+  // last moved in: a command that turns before the pressure has caught up does not turn the flow.
+  virtual bool followsInput() const { return false; }
   // Recomputes what init derived from the parameters (cached filter gains) for new parameters, keeping
   // the dynamic states: the direction-dependent version switches parameter sets mid-run.
   virtual void retune(const double* /*p*/, double* /*s*/, const StepContext& /*c*/) const noexcept {}

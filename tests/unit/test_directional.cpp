@@ -32,6 +32,26 @@ TEST(Directional, EachDirectionRunsWithItsOwnParameters) {
   EXPECT_STREQ(e->alternativeTo(), "pressure_lag");
 }
 
+// A lag's version switches like a valve: on whether the command is above the pressure (filling) or
+// below it (venting), not on the command's own direction - a command that turns down before the
+// pressure has caught up still fills.
+TEST(Directional, ALagSwitchesOnTheFlowNotOnTheCommandsDirection) {
+  const auto e = model::makeEffect("pressure_lag_updown");
+  const double p[4] = {0.01, 1000.0, 0.1, 1000.0};  // tau up 10 ms, down 100 ms; no slew limit
+  std::vector<double> s(static_cast<size_t>(e->numStates()));
+  model::StepContext c;
+  e->init(p, s.data(), 0.0, c);
+  double y = 0;
+  for (int k = 0; k < 5; ++k) y = e->step(p, s.data(), 1.0, c);  // half a tau_up: the pressure near 0.39
+  const double filling = y + (0.8 - y) * (1.0 - std::exp(-c.Ts / 0.01));
+  EXPECT_NEAR(e->step(p, s.data(), 0.8, c), filling, 1e-12);  // the command falls, still above the pressure
+  for (int k = 0; k < 100; ++k) y = e->step(p, s.data(), 0.8, c);
+  const double venting = y + (0.5 - y) * (1.0 - std::exp(-c.Ts / 0.1));
+  EXPECT_NEAR(e->step(p, s.data(), 0.5, c), venting, 1e-12);  // below the pressure: venting
+  EXPECT_TRUE(model::makeEffect("valve_flow")->followsInput());
+  EXPECT_FALSE(model::makeEffect("creep")->followsInput());  // creep: loading and unloading by the input
+}
+
 namespace {
 
 // The core on an input that reaches it through a lag of 20 ms rising and 120 ms falling, written out

@@ -95,11 +95,24 @@ std::string table(const diagnose::DiagnoseResult& r) {
 
 }  // namespace
 
-// Orifice flow 3x faster filling than venting: the catalogue stands in for it with what it has (creep),
-// the orifice-flow probe names the kind, and its direction-dependent version brings the validated error
-// to the noise.
-TEST(ProbeDirections, OrificeFlowThatFillsFasterThanItVents) {
-  const auto train = fillsFasterThanItVents(11, 24.0), val = fillsFasterThanItVents(12, 16.0);
+// Orifice flow 3x faster filling than venting, on three pairs of records (train, validate): the
+// orifice-flow probe is the top probe, goes in its direction-dependent version with the valve's
+// coefficients and brings the validated error to the noise; where the catalogue took the lag rising and
+// falling (pressure_lag_updown), in its place. One row per pair; the pairs were fixed before the lags
+// switched on the flow (Effect::followsInput), when two of the three failed. One still does, for another
+// reason, and its row says so: on seeds 21 and 22 the catalogue ends at force_loop + creep, which no probe
+// overlaps, and the probes on top of them explain nothing - the row fails once that changes, so that
+// docs/MODELING.md is brought up to date with it.
+struct ValvePair {
+  std::uint64_t train, val;
+  const char* replaces;  // the effect the probe is expected in place of ("" on top of the model)
+  bool named;            // false: the known miss above (the top probe explains nothing)
+};
+class OrificeFlow : public ::testing::TestWithParam<ValvePair> {};
+
+TEST_P(OrificeFlow, TheProbeNamesItAndItsRisingFallingVersionReachesTheNoise) {
+  const auto pair = GetParam();
+  const auto train = fillsFasterThanItVents(pair.train, 24.0), val = fillsFasterThanItVents(pair.val, 16.0);
   diagnose::DiagnoseSettings s;
   s.method = ident::FitMethod::MultiStart;
   const auto r = diagnose::diagnose(train, &val, s);
@@ -107,18 +120,31 @@ TEST(ProbeDirections, OrificeFlowThatFillsFasterThanItVents) {
   for (const auto& e : r.ladder.back().effects) fin += " + " + e;
   ASSERT_FALSE(r.probes.empty()) << r.verdict;
   const auto& top = r.probes.front();
-  std::printf("catalogue ends at reference model%s, validated %.4g; top probe %s: symmetric %.4g, rising/falling %.4g "
-              "(noise %.3g); rate %.3g rising, %.3g falling\n",
-              fin.c_str(), r.ladder.back().rmse_val, top.label().c_str(), top.symmetric_rmse_val, top.rmse_val, kNoise,
+  std::printf("seeds %llu/%llu: catalogue ends at reference model%s, validated %.4g; top probe %s: symmetric %.4g, "
+              "train %.4g, validated %.4g (noise %.3g); rate %.3g rising, %.3g falling\n",
+              static_cast<unsigned long long>(pair.train), static_cast<unsigned long long>(pair.val), fin.c_str(),
+              r.ladder.back().rmse_val, top.label().c_str(), top.symmetric_rmse_val, top.rmse_train, top.rmse_val, kNoise,
               param(top.model, "valve_flow_updown", "rate_up"), param(top.model, "valve_flow_updown", "rate_down"));
+  if (!pair.named) {
+    EXPECT_GT(top.rmse_val, 0.9 * r.ladder.back().rmse_val) << table(r);
+    return;
+  }
   EXPECT_EQ(top.probe, "valve_flow") << table(r);
-  ASSERT_FALSE(top.direction.empty()) << table(r);
+  EXPECT_EQ(top.replaces, pair.replaces) << table(r);
+  EXPECT_FALSE(top.direction.empty()) << table(r);
   EXPECT_TRUE(r.probe_rung) << table(r);
-  EXPECT_LE(top.rmse_val, (1.0 - s.min_gain) * top.symmetric_rmse_val) << table(r);
   EXPECT_LT(top.rmse_val, 1.5 * kNoise) << table(r);
-  EXPECT_GT(param(top.model, "valve_flow_updown", "rate_up"), 1.5 * param(top.model, "valve_flow_updown", "rate_down"));
-  EXPECT_NE(r.verdict.find("separate parameters rising and falling, valve_flow with rate"), std::string::npos) << r.verdict;
+  EXPECT_NEAR(param(top.model, "valve_flow_updown", "rate_up"), kFill, 0.1 * kFill) << table(r);
+  EXPECT_NEAR(param(top.model, "valve_flow_updown", "rate_down"), kVent, 0.1 * kVent) << table(r);
+  EXPECT_NE(r.verdict.find("valve_flow with rate"), std::string::npos) << r.verdict;
 }
+
+INSTANTIATE_TEST_SUITE_P(ProbeDirections, OrificeFlow,
+                         ::testing::Values(ValvePair{11, 12, "", true}, ValvePair{21, 22, "", false},
+                                           ValvePair{31, 32, "pressure_lag_updown", true}),
+                         [](const ::testing::TestParamInfo<ValvePair>& i) {
+                           return "seeds" + std::to_string(i.param.train) + "and" + std::to_string(i.param.val);
+                         });
 
 // A probe that may take an effect's place may take its direction-dependent version's too.
 TEST(ProbeDirections, AProbeStandsForItsEffectsDirectionDependentVersion) {
@@ -128,37 +154,12 @@ TEST(ProbeDirections, AProbeStandsForItsEffectsDirectionDependentVersion) {
   EXPECT_FALSE(model::findProbe("valve_flow")->standsFor("_updown"));
 }
 
-// The same valve on another pair of records (seeds 31 and 32): the catalogue takes the lag rising and
-// falling (pressure_lag_updown), and the orifice-flow probe in its place goes in its own direction-dependent
-// version, with the valve's coefficients. Its training error is near the noise, its validated error is not:
-// the record's valve switches with the sign of u - p, the probe with the command's direction, and the
-// validation record turns the command often before the pressure has caught up (the probe at the record's
-// own coefficients: 0.15 there, 0.009 on seed 12).
-TEST(ProbeDirections, InThePlaceOfALagRisingAndFallingTheProbeGoesInItsOwnVersion) {
-  const auto train = fillsFasterThanItVents(31, 24.0), val = fillsFasterThanItVents(32, 16.0);
-  diagnose::DiagnoseSettings s;
-  s.method = ident::FitMethod::MultiStart;
-  const auto r = diagnose::diagnose(train, &val, s);
-  ASSERT_FALSE(r.probes.empty()) << r.verdict;
-  const auto& top = r.probes.front();
-  std::printf("final %s, validated %.4g; top probe %s: train %.4g, validated %.4g; rate %.3g rising, %.3g falling\n",
-              r.ladder.back().effects.back().c_str(), r.ladder.back().rmse_val, top.label().c_str(), top.rmse_train,
-              top.rmse_val, param(top.model, "valve_flow_updown", "rate_up"), param(top.model, "valve_flow_updown", "rate_down"));
-  EXPECT_EQ(top.label(), "valve_flow (rising/falling) for pressure_lag_updown") << table(r);
-  EXPECT_TRUE(r.probe_rung) << table(r);
-  EXPECT_LT(top.rmse_train, 3 * kNoise) << table(r);
-  EXPECT_NEAR(param(top.model, "valve_flow_updown", "rate_up"), kFill, 0.1 * kFill);
-  EXPECT_NEAR(param(top.model, "valve_flow_updown", "rate_down"), kVent, 0.1 * kVent);
-  EXPECT_NE(r.verdict.find("(in place of pressure_lag_updown)"), std::string::npos) << r.verdict;
-}
-
-// Why the probe's version fits some records of this valve better than others: the core and the probe's
-// direction-dependent version at the valve's own coefficients (18 rising, 6 falling), no fit, on the six
-// records the tests above and docs/MODELING.md use, made once with the valve switching by the sign of
-// u - p (the physics) and once by the command's last direction (the probe's rule). With the probe's rule
-// every record is near the noise; with the physics' rule the record that turns the command often before
-// the pressure has caught up (seed 32) is far from it.
-TEST(ProbeDirections, TheProbesSwitchIsTheCommandsDirectionNotTheFlows) {
+// The probe's direction-dependent version switches like the valve, on the sign of u - p: the core and
+// the probe at the valve's own coefficients (18 rising, 6 falling), no fit, on the six records above, made
+// once with the valve switching by the sign of u - p (the physics) and once by the command's last
+// direction. Near the noise on every record of the physics; the record that turns the command often
+// before the pressure has caught up (seed 32) shows how far apart the two rules are.
+TEST(ProbeDirections, TheProbeSwitchesOnTheFlowLikeTheValve) {
   model::Model m({kK, kRho, kB, kAlpha, kBeta, kGamma});
   m.addEffect("valve_flow_updown");
   m.setEffectParam("valve_flow_updown", "rate_up", kFill);
@@ -169,15 +170,15 @@ TEST(ProbeDirections, TheProbesSwitchIsTheCommandsDirectionNotTheFlows) {
     for (size_t k = 0; k < y.size(); ++k) ss += (y[k] - d.y[k]) * (y[k] - d.y[k]);
     return std::sqrt(ss / static_cast<double>(y.size()));
   };
-  double flow32 = 0.0;
+  double command32 = 0.0;
   for (const std::uint64_t seed : {11, 12, 21, 22, 31, 32}) {
     const double seconds = seed % 2 == 1 ? 24.0 : 16.0;
     const double flow = rmse(fillsFasterThanItVents(seed, seconds, Switch::Flow));
     const double command = rmse(fillsFasterThanItVents(seed, seconds, Switch::Command));
     std::printf("seed %llu: the probe at 18 / 6 misses the valve switching by flow by %.4f, by the command's direction by %.4f\n",
                 static_cast<unsigned long long>(seed), flow, command);
-    EXPECT_LT(command, 3 * kNoise) << seed;
-    if (seed == 32) flow32 = flow;
+    EXPECT_LT(flow, 3 * kNoise) << seed;
+    if (seed == 32) command32 = command;
   }
-  EXPECT_GT(flow32, 3 * kNoise);
+  EXPECT_GT(command32, 3 * kNoise);
 }

@@ -1,6 +1,7 @@
 // The direction-dependent version of an effect: "<name>_updown" carries each of the effect's parameters
 // twice, "<param>_up" for a rising stage input and "<param>_down" for a falling one (held while the input
-// holds), over the same states - so a lag can fill faster than it vents. At a change of direction the
+// holds; for an effect whose state follows its input, Effect::followsInput, rising is that input above
+// the state: filling), over the same states - so a lag can fill faster than it vents. At a change of direction the
 // effect's derived values are recomputed for the other set (Effect::retune); its states run on.
 #include <cmath>
 #include <stdexcept>
@@ -40,7 +41,7 @@ class Directional final : public Effect {
     s[last() + 1] = 1.0;
   }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
-    const double d = in - s[last()];
+    const double d = in - (inner_->followsInput() ? s[0] : s[last()]);
     const double dir = d > 0.0 ? 1.0 : d < 0.0 ? -1.0 : s[last() + 1];
     const double* set = dir > 0.0 ? p : p + down_.size();
     if (dir != s[last() + 1]) inner_->retune(set, s, c);

@@ -30,6 +30,7 @@ class PressureLag final : public Effect {
     retune(p, s, c);
   }
   bool directional() const override { return true; }  // a muscle filling and venting through different paths
+  bool followsInput() const override { return true; }  // the pressure: filling while the command is above it
   void retune(const double* p, double* s, const StepContext& c) const noexcept override {
     s[1] = 1.0 - std::exp(-c.Ts / std::max(p[0], 1e-6));
     s[2] = std::max(p[1], 0.0) * c.Ts;

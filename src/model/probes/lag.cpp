@@ -32,6 +32,7 @@ class Lag1 final : public Effect {
     retune(p, s, c);
   }
   bool directional() const override { return true; }
+  bool followsInput() const override { return true; }
   void retune(const double* p, double* s, const StepContext& c) const noexcept override {
     s[1] = 1.0 - std::exp(-c.Ts / std::max(p[0], 1e-6));
   }
@@ -57,6 +58,7 @@ class Placed final : public Effect {
   int numStates() const override { return impl_->numStates(); }
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override { impl_->init(p, s, in0, c); }
   bool directional() const override { return impl_->directional(); }
+  bool followsInput() const override { return impl_->followsInput(); }
   void retune(const double* p, double* s, const StepContext& c) const noexcept override { impl_->retune(p, s, c); }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
     return impl_->step(p, s, in, c);

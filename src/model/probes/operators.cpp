@@ -72,7 +72,8 @@ class ValveFlow final : public Effect {
     return p;
   }
   int numStates() const override { return 1; }
-  bool directional() const override { return true; }  // separate parameters rising and falling
+  bool directional() const override { return true; }  // separate parameters filling and venting
+  bool followsInput() const override { return true; }
   void init(const double*, double* s, double in0, const StepContext&) const noexcept override { s[0] = in0; }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
     constexpr double kLaminar = 0.01;  // below this difference the flow is linear in it
