@@ -232,3 +232,23 @@ TEST(Probes, EveryProbeStaysFiniteOnHugeSteps) {
     for (double y : m.simulate(u, 1e-3)) ASSERT_TRUE(std::isfinite(y)) << e.name;
   }
 }
+
+// The Prandtl-Ishlinskii probe: six plays with radii radius / 6, 2 radius / 6, ..., radius, each weight
+// on its play's lag behind the command (written out here as a play operator of its own).
+TEST(Probes, ThePlayProbeIsASumOfPlaysWithEvenlySpreadRadii) {
+  const auto e = model::makeEffect("play_hysteresis");
+  ASSERT_EQ(e->params().size(), 7u);
+  double p[7] = {3.0, 0, 1.0, 0, 0, 0, 0.5};  // radii 0.5, 1, ..., 3: weight 1 on 1.0, 0.5 on 3.0
+  std::vector<double> s(static_cast<size_t>(e->numStates()));
+  model::StepContext c;
+  c.u_eff = 0.0;
+  e->init(p, s.data(), 0.0, c);
+  double play1 = 0.0, play3 = 0.0;  // the plays of radius 1 and 3, from rest at 0
+  for (const double u : {0.3, 1.0, 2.5, 1.2, 0.2, -1.5, 0.0}) {
+    play1 = std::clamp(play1, u - 1.0, u + 1.0);
+    play3 = std::clamp(play3, u - 3.0, u + 3.0);
+    c.u_eff = u;
+    const double y = e->step(p, s.data(), 10.0, c);
+    EXPECT_NEAR(y, 10.0 + (play1 - u) + 0.5 * (play3 - u), 1e-12) << u;
+  }
+}

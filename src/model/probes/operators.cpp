@@ -1,6 +1,8 @@
-// play_hysteresis: a Prandtl-Ishlinskii operator - a weighted sum of four play operators of the
-// effective command, with radii 0.2, 0.5, 1 and 2 command units - added to the displacement: a second
-// hysteresis, of another shape than the Bouc-Wen core's (piecewise-linear branches, no smooth knee).
+// play_hysteresis: a Prandtl-Ishlinskii operator - a weighted sum of six play operators of the
+// effective command, their radii spread evenly up to a fitted largest one (r/6, 2r/6, ..., r: thresholds
+// spread over the input's range, as Prandtl-Ishlinskii identification spreads them) - added to the
+// displacement: a second hysteresis, of another shape than the Bouc-Wen core's (piecewise-linear
+// branches, no smooth knee).
 // direction_lag: a first-order lag with one time constant rising and another falling (a muscle that
 // fills faster than it vents). valve_flow: orifice flow - the effective command moves towards the
 // command at rate * sqrt(|difference|), never past it. periodic: a sinusoid added to the displacement,
@@ -13,8 +15,7 @@
 namespace pamc::model {
 namespace {
 
-constexpr int kPlays = 4;
-constexpr double kPlayRadius[kPlays] = {0.2, 0.5, 1.0, 2.0};
+constexpr int kPlays = 6;
 
 class PlayHysteresis final : public Effect {
  public:
@@ -23,8 +24,10 @@ class PlayHysteresis final : public Effect {
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 50; }
   const std::vector<ParamSpec>& params() const override {
-    static const std::vector<ParamSpec> p = {{"w1", -5.0, 5.0, 0.0, "-"}, {"w2", -5.0, 5.0, 0.0, "-"},
-                                             {"w3", -5.0, 5.0, 0.0, "-"}, {"w4", -5.0, 5.0, 0.0, "-"}};
+    static const std::vector<ParamSpec> p = {
+        {"radius", 0.1, 5.0, 2.0, "u-unit"},  // the largest play's
+        {"w1", -5.0, 5.0, 0.0, "-"}, {"w2", -5.0, 5.0, 0.0, "-"}, {"w3", -5.0, 5.0, 0.0, "-"},
+        {"w4", -5.0, 5.0, 0.0, "-"}, {"w5", -5.0, 5.0, 0.0, "-"}, {"w6", -5.0, 5.0, 0.0, "-"}};
     return p;
   }
   int numStates() const override { return kPlays; }
@@ -33,10 +36,12 @@ class PlayHysteresis final : public Effect {
     for (int i = 0; i < kPlays; ++i) s[i] = c.u_eff;
   }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
+    const double spacing = std::fabs(p[0]) / kPlays;
     double y = in;
     for (int i = 0; i < kPlays; ++i) {
-      s[i] = std::clamp(s[i], c.u_eff - kPlayRadius[i], c.u_eff + kPlayRadius[i]);
-      y += p[i] * (s[i] - c.u_eff);  // the play's lag behind the command: zero on a monotone sweep's start
+      const double r = spacing * (i + 1);
+      s[i] = std::clamp(s[i], c.u_eff - r, c.u_eff + r);
+      y += p[i + 1] * (s[i] - c.u_eff);  // the play's lag behind the command: zero on a monotone sweep's start
     }
     return y;
   }
