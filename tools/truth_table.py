@@ -6,7 +6,8 @@ is asked which effects are missing, and the answer is judged against the case's 
 
   - the effects found are exactly the expected ones (the order is reported: the right effect first);
   - the validated error is within 1.5x the generator's noise (its configured std with quantisation);
-  - on plain data (no hidden effect): nothing added and no "something systematic is left".
+  - on plain data (no hidden effect): nothing added and no "something systematic is left";
+  - no probe fits better than the catalogue's effects (no probe rung: each case is the catalogue's physics).
 
 Generators:
   oracle   tests/oracle's continuous-time simulator (its own integrator, shares no code with the plants)
@@ -84,7 +85,9 @@ def judge(case, report, seconds):
     ok_first = not expected or first in expected
     ok_noise = ratio <= AT_NOISE
     ok_verdict = bool(expected) or "something systematic is left" not in report["verdict"]
-    ok = ok_effects and ok_first and ok_noise and ok_verdict
+    # Every case is the catalogue's own physics: no probe may fit better than its effect (a probe rung).
+    ok_probe = not any(r.get("probe") for r in ladder)
+    ok = ok_effects and ok_first and ok_noise and ok_verdict and ok_probe
     why = []
     if not ok_effects:
         why.append("effects")
@@ -94,6 +97,8 @@ def judge(case, report, seconds):
         why.append("> %.1fx noise" % AT_NOISE)
     if not ok_verdict:
         why.append("verdict")
+    if not ok_probe:
+        why.append("a probe fits better")
     row = "| %s | %s | %s | %s | %.4g -> %.4g | %.2f | %.0f s | %s |" % (
         case["name"], " + ".join(expected) or "(none)", first, " + ".join(found) or "(none)",
         ladder[0]["rmse_val"], final["rmse_val"], ratio, seconds, "yes" if ok else "**no** (" + ", ".join(why) + ")")

@@ -430,20 +430,28 @@ void Diagnosis::verdict() {
   // A model at the noise on the training record and far from it on the validation record: the records
   // differ in what one record cannot show. Mostly a constant offset there: they start in different states.
   const bool val_off = noise_ > 0 && fin.rmse_train < 2.0 * noise_ && !(fin.rmse_val < kAtNoise * noise_);
-  std::string v = ladderText() + offsetText(val_off);
-  if (!res_.probes.empty()) {
-    const auto& p = res_.probes.front();
-    if (res_.probe_rung)
-      v += " The probe " + p.probe + (p.replaces.empty() ? "" : " (in place of " + p.replaces + ")") + " explains " + fmt("%.0f", 100 * p.explains) + " % of what is left (validated RMSE " +
-           fmt("%.4g", fin.rmse_val) + " -> " + fmt("%.4g", p.rmse_val) + "), most of it at " + p.regime + ": " +
-           p.meaning + (p.direction.empty() ? "" : "; fitted with separate parameters rising and falling, " + p.direction) +
+  res_.verdict = ladderText() + offsetText(val_off) + probeText(val_off) + " The residual: " +
+                 describeSpectrum(res_.spectrum) + ".";
+}
+
+// The best probe in words: what it explains and where; at the noise, the effect it fits better than.
+std::string Diagnosis::probeText(bool val_off) const {
+  if (res_.probes.empty()) return "";
+  const Rung& fin = res_.ladder.back();
+  const auto& p = res_.probes.front();
+  const std::string change = "(validated RMSE " + fmt("%.4g", fin.rmse_val) + " -> " + fmt("%.4g", p.rmse_val) + ")";
+  if (res_.probe_rung && fin.rmse_val < kAtNoise * noise_)
+    return " Though at the noise, the probe " + p.probe + " fits better still in the place of " + p.replaces + " " + change +
+           ": " + p.meaning + ". On these records the two differ by that much; it is a probe, not part of the model.";
+  if (res_.probe_rung)
+    return " The probe " + p.probe + (p.replaces.empty() ? "" : " (in place of " + p.replaces + ")") + " explains " +
+           fmt("%.0f", 100 * p.explains) + " % of what is left " + change + ", most of it at " + p.regime + ": " + p.meaning +
+           (p.direction.empty() ? "" : "; fitted with separate parameters rising and falling, " + p.direction) +
            ". It is a probe, not part of the model.";
-    else if (!val_off)
-      v += " No probe explains what is left either (the best, " + p.label() + ", " + fmt("%.0f", 100 * p.explains) +
+  if (!val_off)
+    return " No probe explains what is left either (the best, " + p.label() + ", " + fmt("%.0f", 100 * p.explains) +
            " %): structure none of the probes has.";
-  }
-  v += " The residual: " + describeSpectrum(res_.spectrum) + ".";
-  res_.verdict = v;
+  return "";
 }
 
 }  // namespace detail

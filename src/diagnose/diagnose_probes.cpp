@@ -59,12 +59,35 @@ void Diagnosis::probes() {
     for (size_t i = v_.from; i < yv.size(); ++i) sum += v_.data->y[i] - yv[i];
     res_.val_offset = yv.size() > v_.from ? sum / static_cast<double>(yv.size() - v_.from) : 0.0;
   }
-  if (!s_.probes || fin.rmse_val < kAtNoise * noise_) return;
-  std::vector<std::string> names;
-  for (const auto& p : model::probes()) names.emplace_back(p.name);
+  if (!s_.probes) return;
+  if (fin.rmse_val < kAtNoise * noise_) return alternativesAtTheNoise(fin);
   log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
-  auto fits = searchProbes(fin);
+  auto fits = searchProbes(fin, Placement::OnTopAndInPlace);
   fitTheLine(fin, fits);
+  recordProbes(fin, fits);
+  preferSimplestProbe();
+  probeDirections(fin);
+  res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
+}
+
+// At the noise an effect of the final model may still stand in for a probe's physics in a simpler form:
+// a play in the linkage taken for a Dahl friction with a short travel ends at 1.2x the noise. Each probe
+// that may stand for an effect of the final model is fitted in its place; those that lower the validated
+// RMSE by min_gain are reported (the verdict says the records tell the two apart only that far). On the
+// catalogue's own physics at the noise none can.
+void Diagnosis::alternativesAtTheNoise(const Rung& fin) {
+  auto fits = searchProbes(fin, Placement::InPlaceOnly);
+  const double limit = (1.0 - s_.min_gain) * fin.rmse_val;
+  fits.erase(std::remove_if(fits.begin(), fits.end(), [limit](const CandidateResult& c) { return !(c.rmse_val <= limit); }),
+             fits.end());
+  if (fits.empty()) return;
+  recordProbes(fin, fits);
+  res_.probe_rung = true;
+}
+
+// The fitted probes as the result's list, best first, each with what it explains and where it acts.
+void Diagnosis::recordProbes(const Rung& fin, const std::vector<CandidateResult>& fits_in) {
+  auto fits = fits_in;
   std::stable_sort(fits.begin(), fits.end(),
                    [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
   for (const auto& c : fits) {
@@ -85,11 +108,6 @@ void Diagnosis::probes() {
     ProbeResult& p = res_.probes[i];
     p.regime = p.explains < kRegimeShare ? "-" : mostImprovedRegime(res_.final_residual, analyze(train_, simulate(p.model, train_)));
   });
-  std::stable_sort(res_.probes.begin(), res_.probes.end(),
-                   [](const ProbeResult& a, const ProbeResult& b) { return a.rmse_val < b.rmse_val; });
-  preferSimplestProbe();
-  probeDirections(fin);
-  res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
 }
 
 // Every probe on top of the final model, and each probe that may stand for an effect of it
@@ -102,14 +120,16 @@ void Diagnosis::probes() {
 // in, and only a full search can move the core out of it (a curved valve characteristic: the quick search
 // explained 50 % of what was left, the full one 97 %). In the place of an effect's direction-dependent
 // version the probe goes in its own (inThePlaceOf).
-std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin) const {
+std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin, Placement where) const {
   std::vector<model::Model> structures;
   std::vector<std::string> labels, replaces;
   for (const auto& p : model::probes()) {
-    structures.push_back(fin.model);
-    structures.back().addEffect(p.name);
-    labels.emplace_back(p.name);
-    replaces.emplace_back();
+    if (where == Placement::OnTopAndInPlace) {
+      structures.push_back(fin.model);
+      structures.back().addEffect(p.name);
+      labels.emplace_back(p.name);
+      replaces.emplace_back();
+    }
     for (const auto& e : fin.effects)
       if (p.standsFor(e)) {
         structures.push_back(withReplacement(fin, e, inThePlaceOf(p, e)));
@@ -117,6 +137,8 @@ std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin) const {
         replaces.push_back(e);
       }
   }
+  if (structures.empty()) return {};
+  if (where == Placement::InPlaceOnly) log("at the noise: does a probe fit better in the place of an effect of " + join(fin.effects) + "?");
   const int round = s_.max_effects + 1;
   const auto method = ident::FitMethod::MultiStart;
   auto fits = fitEach(structures, fin.model, labels, round, res_.final_residual, "probe ", method, Search::Quick, 0);

@@ -92,7 +92,10 @@ class Diagnosis {
   void directions();
   void probes();
   // diagnose_probes.cpp: the probes on top of the final model and in the place of its effects.
-  std::vector<CandidateResult> searchProbes(const Rung& fin) const;
+  enum class Placement { OnTopAndInPlace, InPlaceOnly };
+  std::vector<CandidateResult> searchProbes(const Rung& fin, Placement where) const;
+  void alternativesAtTheNoise(const Rung& fin);
+  void recordProbes(const Rung& fin, const std::vector<CandidateResult>& fits);
   void fitTheLine(const Rung& fin, std::vector<CandidateResult>& fits) const;
   void probeDirections(const Rung& fin);
   void preferSimplestProbe();
@@ -108,6 +111,7 @@ class Diagnosis {
   // verdict(): the ladder in words; the records' disagreement when the model holds on one only.
   std::string ladderText() const;
   std::string offsetText(bool val_off) const;
+  std::string probeText(bool val_off) const;
 
   // diagnose_search.cpp: fits on the screening record, refits on the whole training record.
   ident::FitResult refitOnAll(const model::Model& m) const;

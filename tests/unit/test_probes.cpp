@@ -252,3 +252,46 @@ TEST(Probes, ThePlayProbeIsASumOfPlaysWithEvenlySpreadRadii) {
     EXPECT_NEAR(y, 10.0 + (play1 - u) + 0.5 * (play3 - u), 1e-12) << u;
   }
 }
+
+namespace {
+
+// The core read through 2 mm of backlash in the linkage to the sensor (the reading follows the
+// displacement only once the play is taken up), written out here, sensor noise 0.005 rms.
+io::Measurement throughBacklash(std::uint64_t seed, double seconds) {
+  auto d = make(seed, seconds, same, sameOut);
+  const auto clean = model::Model(kCore).simulate(d.u, d.Ts);
+  constexpr double kHalfPlay = 1.0;
+  double reading = clean.front();
+  for (size_t i = 0; i < clean.size(); ++i) {
+    reading = std::clamp(reading, clean[i] - kHalfPlay, clean[i] + kHalfPlay);
+    d.y[i] += reading - clean[i];  // make's record is the clean output plus its noise
+  }
+  return d;
+}
+
+}  // namespace
+
+// Backlash that the catalogue's Dahl friction takes to near the noise: at the noise, only the probes in
+// the place of the final model's effects are fitted, and the backlash probe in friction_hysteresis's place
+// is reported when it lowers the validated error by min_gain - said as "though at the noise". On these
+// records a play of 0.4 or 1 mm is taken by the friction to 1.02x and 1.08x the noise: nothing is left to
+// tell them apart by min_gain, and no probe is reported; at 2 mm the friction ends at 1.14x.
+TEST(Probes, AtTheNoiseAProbeInTheEffectsPlaceIsStillTried) {
+  const auto train = throughBacklash(11, 24.0), val = throughBacklash(12, 16.0);
+  diagnose::DiagnoseSettings s;
+  s.method = ident::FitMethod::MultiStart;
+  const auto r = diagnose::diagnose(train, &val, s);
+  const auto& fin = r.ladder.back();
+  std::string effects;
+  for (const auto& e : fin.effects) effects += " + " + e;
+  std::printf("catalogue ends at reference model%s, validated %.4g; %s\n", effects.c_str(), fin.rmse_val,
+              r.probes.empty() ? "no probe" : (r.probes.front().label() + " " + std::to_string(r.probes.front().rmse_val)).c_str());
+  ASSERT_LT(fin.rmse_val, 1.5 * 0.005) << r.verdict;  // the catalogue ends at the noise
+  ASSERT_FALSE(r.probes.empty()) << r.verdict;
+  EXPECT_EQ(r.probes.front().label(), "backlash for friction_hysteresis") << table(r);
+  EXPECT_TRUE(r.probe_rung) << table(r);
+  for (const auto& p : r.probes) EXPECT_FALSE(p.replaces.empty()) << p.label();  // none on top at the noise
+  EXPECT_NE(r.verdict.find("Though at the noise, the probe backlash fits better still in the place of friction_hysteresis"),
+            std::string::npos)
+      << r.verdict;
+}
