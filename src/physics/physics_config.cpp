@@ -5,49 +5,16 @@
 #include <stdexcept>
 #include <vector>
 
+#include "io/json_fields.hpp"
 #include "physics/physics_plant.hpp"
 
 namespace pamc::physics {
 
 namespace {
 
+using namespace io::json_fields;
+
 constexpr double kPi = 3.14159265358979323846;
-
-[[noreturn]] void fail(const std::string& where, const std::string& what) {
-  throw std::invalid_argument(where + ": " + what);
-}
-
-double number(const nlohmann::json& j, const std::string& key, const std::string& where) {
-  if (!j.is_number()) fail(where, "'" + key + "' must be a number");
-  const double v = j.get<double>();
-  if (!std::isfinite(v)) fail(where, "'" + key + "' must be finite");
-  return v;
-}
-
-bool flag(const nlohmann::json& j, const std::string& key, const std::string& where) {
-  if (!j.is_boolean()) fail(where, "'" + key + "' must be true or false");
-  return j.get<bool>();
-}
-
-int count(const nlohmann::json& j, const std::string& key, const std::string& where) {
-  if (!j.is_number_integer()) fail(where, "'" + key + "' must be an integer");
-  const auto v = j.get<long long>();
-  if (v < 1 || v > 100000) fail(where, "'" + key + "' must be between 1 and 100000");
-  return static_cast<int>(v);
-}
-
-std::string list(const std::vector<std::string>& keys) {
-  std::string s;
-  for (const auto& k : keys) s += (s.empty() ? "" : ", ") + k;
-  return s;
-}
-
-void onlyKeys(const nlohmann::json& j, const std::vector<std::string>& keys, const std::string& where) {
-  if (!j.is_object()) fail(where, "expected an object");
-  for (auto it = j.begin(); it != j.end(); ++it)
-    if (std::find(keys.begin(), keys.end(), it.key()) == keys.end())
-      fail(where, "unknown key '" + it.key() + "' (known: " + list(keys) + ")");
-}
 
 struct Field {
   const char* key;

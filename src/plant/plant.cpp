@@ -7,6 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "io/json_fields.hpp"
+
 namespace pamc::plant {
 
 namespace {
@@ -28,31 +30,7 @@ const char* const kDefaultJson = R"({
   "seed": 1
 })";
 
-[[noreturn]] void fail(const std::string& where, const std::string& what) {
-  throw std::invalid_argument(where + ": " + what);
-}
-
-double num(const nlohmann::json& j, const std::string& key, const std::string& where) {
-  if (!j.is_number()) fail(where, "'" + key + "' must be a number");
-  const double v = j.get<double>();
-  if (!std::isfinite(v)) fail(where, "'" + key + "' must be finite");
-  return v;
-}
-
-bool flag(const nlohmann::json& j, const std::string& key, const std::string& where) {
-  if (!j.is_boolean()) fail(where, "'" + key + "' must be true or false");
-  return j.get<bool>();
-}
-
-void onlyKeys(const nlohmann::json& j, const std::set<std::string>& keys, const std::string& where) {
-  if (!j.is_object()) fail(where, "expected an object");
-  for (auto it = j.begin(); it != j.end(); ++it)
-    if (!keys.count(it.key())) {
-      std::string known;
-      for (const auto& k : keys) known += (known.empty() ? "" : ", ") + k;
-      fail(where, "unknown key '" + it.key() + "' (known: " + known + ")");
-    }
-}
+using namespace io::json_fields;
 
 void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
   onlyKeys(j, {"kind", "Ts", "core", "output_form", "effects", "stroke", "sensor", "valve", "seed"}, where);
@@ -63,19 +41,19 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
     c.truth.setOutputForm(f);
   }
   if (j.contains("Ts")) {
-    c.Ts = num(j["Ts"], "Ts", where);
+    c.Ts = number(j["Ts"], "Ts", where);
     if (!(c.Ts >= 1e-5 && c.Ts <= 1.0)) fail(where, "'Ts' must be between 1e-5 and 1 s");
   }
   if (j.contains("core")) {
     const auto& k = j["core"];
     onlyKeys(k, {"k", "rho", "b", "alpha", "beta", "gamma"}, where + ": core");
     auto& p = c.truth.core();
-    if (k.contains("k")) p.k = num(k["k"], "k", where);
-    if (k.contains("rho")) p.rho = num(k["rho"], "rho", where);
-    if (k.contains("b")) p.b = num(k["b"], "b", where);
-    if (k.contains("alpha")) p.alpha = num(k["alpha"], "alpha", where);
-    if (k.contains("beta")) p.beta = num(k["beta"], "beta", where);
-    if (k.contains("gamma")) p.gamma = num(k["gamma"], "gamma", where);
+    if (k.contains("k")) p.k = number(k["k"], "k", where);
+    if (k.contains("rho")) p.rho = number(k["rho"], "rho", where);
+    if (k.contains("b")) p.b = number(k["b"], "b", where);
+    if (k.contains("alpha")) p.alpha = number(k["alpha"], "alpha", where);
+    if (k.contains("beta")) p.beta = number(k["beta"], "beta", where);
+    if (k.contains("gamma")) p.gamma = number(k["gamma"], "gamma", where);
   }
   if (j.contains("effects")) {
     const auto& e = j["effects"];
@@ -117,7 +95,7 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
       for (auto p = it.value().begin(); p != it.value().end(); ++p) {
         if (p.key() == "enabled") continue;
         try {
-          m.setEffectParam(it.key(), p.key(), num(p.value(), p.key(), w));
+          m.setEffectParam(it.key(), p.key(), number(p.value(), p.key(), w));
         } catch (const std::invalid_argument& ex) {
           fail(w, ex.what());
         }
@@ -129,25 +107,25 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
     const auto& s = j["stroke"];
     onlyKeys(s, {"enabled", "min_mm", "max_mm"}, where + ": stroke");
     if (s.contains("enabled")) c.stroke_limits = flag(s["enabled"], "enabled", where);
-    if (s.contains("min_mm")) c.stroke_min_mm = num(s["min_mm"], "min_mm", where);
-    if (s.contains("max_mm")) c.stroke_max_mm = num(s["max_mm"], "max_mm", where);
+    if (s.contains("min_mm")) c.stroke_min_mm = number(s["min_mm"], "min_mm", where);
+    if (s.contains("max_mm")) c.stroke_max_mm = number(s["max_mm"], "max_mm", where);
     if (!(c.stroke_min_mm < c.stroke_max_mm)) fail(where, "stroke min_mm must be below max_mm");
   }
   if (j.contains("sensor")) {
     const auto& s = j["sensor"];
     onlyKeys(s, {"noise", "noise_std_mm", "quantization", "quantum_mm"}, where + ": sensor");
     if (s.contains("noise")) c.sensor_noise = flag(s["noise"], "noise", where);
-    if (s.contains("noise_std_mm")) c.noise_std_mm = num(s["noise_std_mm"], "noise_std_mm", where);
+    if (s.contains("noise_std_mm")) c.noise_std_mm = number(s["noise_std_mm"], "noise_std_mm", where);
     if (s.contains("quantization")) c.quantization = flag(s["quantization"], "quantization", where);
-    if (s.contains("quantum_mm")) c.quantum_mm = num(s["quantum_mm"], "quantum_mm", where);
+    if (s.contains("quantum_mm")) c.quantum_mm = number(s["quantum_mm"], "quantum_mm", where);
     if (c.noise_std_mm < 0 || !(c.quantum_mm > 0)) fail(where, "sensor noise must be >= 0 and quantum > 0");
   }
   if (j.contains("valve")) {
     const auto& v = j["valve"];
     onlyKeys(v, {"u_min", "u_max", "pressure_max_bar"}, where + ": valve");
-    if (v.contains("u_min")) c.u_min = num(v["u_min"], "u_min", where);
-    if (v.contains("u_max")) c.u_max = num(v["u_max"], "u_max", where);
-    if (v.contains("pressure_max_bar")) c.pressure_max_bar = num(v["pressure_max_bar"], "pressure_max_bar", where);
+    if (v.contains("u_min")) c.u_min = number(v["u_min"], "u_min", where);
+    if (v.contains("u_max")) c.u_max = number(v["u_max"], "u_max", where);
+    if (v.contains("pressure_max_bar")) c.pressure_max_bar = number(v["pressure_max_bar"], "pressure_max_bar", where);
     if (!(c.u_min < c.u_max)) fail(where, "valve u_min must be below u_max");
   }
   if (j.contains("seed")) {
