@@ -3,12 +3,6 @@
 // configuration file, the allocation-free cycle, and the existing PI gains closing the loop on the rig.
 #include <gtest/gtest.h>
 
-// The replaced operator new/delete below pair malloc with free; GCC's inliner sees the library's
-// operator new next to this file's delete and warns of a mismatch that is not there.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-#endif
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -18,40 +12,12 @@
 #include <string>
 #include <vector>
 
+#include "../common/count_allocations.hpp"
 #include "physics/physics_plant.hpp"
 
 using pamc::physics::Mode;
 using pamc::physics::PhysicsConfig;
 using pamc::physics::PhysicsPlant;
-
-// ---- allocation counting (the cycle must allocate nothing) ----
-#if defined(__SANITIZE_ADDRESS__)
-#define PAMC_COUNT_ALLOCATIONS 0  // AddressSanitizer owns operator new
-#else
-#define PAMC_COUNT_ALLOCATIONS 1
-#endif
-
-namespace {
-std::atomic<long> g_allocs{0};
-thread_local bool g_counting = false;
-}  // namespace
-
-#if PAMC_COUNT_ALLOCATIONS
-void* operator new(std::size_t n) {
-  if (g_counting) ++g_allocs;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) {
-  if (g_counting) ++g_allocs;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-#endif
 
 namespace {
 
@@ -511,11 +477,11 @@ TEST(PhysicsConfigJson, RoundTrip) {
 #if PAMC_COUNT_ALLOCATIONS
 TEST(PhysicsCycle, StepAndMeasureAllocateNothing) {
   // Counted once without the plant first: the counter sees a vector's allocation.
-  g_allocs = 0;
-  g_counting = true;
-  { std::vector<double> v(10); }
-  g_counting = false;
-  ASSERT_EQ(g_allocs.load(), 1);
+  {
+    pamc::test::CountAllocations c;
+    { std::vector<double> v(10); }
+    ASSERT_EQ(c.count(), 1);
+  }
   for (Mode m : {Mode::Rig, Mode::Reference}) {
     PhysicsConfig c = PhysicsConfig::defaults();
     c.mode = m;
@@ -525,14 +491,12 @@ TEST(PhysicsCycle, StepAndMeasureAllocateNothing) {
     PhysicsPlant p(c);
     p.reset(0.0);
     double sink = 0.0;
-    g_allocs = 0;
-    g_counting = true;
+    pamc::test::CountAllocations counter;
     for (int i = 0; i < 10000; ++i) {
       sink += p.step(2.0 * std::sin(i * 3e-3), 10.0);
       sink += p.measure() + p.pressure_bar();
     }
-    g_counting = false;
-    EXPECT_EQ(g_allocs.load(), 0) << (m == Mode::Rig ? "rig" : "reference");
+    EXPECT_EQ(counter.count(), 0) << (m == Mode::Rig ? "rig" : "reference");
     EXPECT_TRUE(std::isfinite(sink));
   }
 }

@@ -2,76 +2,22 @@
 // emulator: the cycle must allocate nothing.
 #include <gtest/gtest.h>
 
-// The replaced operator new/delete below pair malloc with free; GCC's inliner sees the library's
-// operator new next to this file's delete and warns of a mismatch that is not there.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-#endif
-
-#include <atomic>
 #include <cmath>
-#include <cstdlib>
-#include <new>
 
+#include "../common/count_allocations.hpp"
 #include "control/controller.hpp"
 #include "plant/plant.hpp"
 #include "control/trajectory.hpp"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define PAMC_COUNT_ALLOCATIONS 0  // AddressSanitizer owns operator new; counting is for normal builds
-#else
-#define PAMC_COUNT_ALLOCATIONS 1
-#endif
-
-namespace {
-std::atomic<long> g_allocs{0};
-thread_local bool g_counting = false;
-
-struct CountAllocations {
-  CountAllocations() {
-    g_allocs = 0;
-    g_counting = true;
-  }
-  ~CountAllocations() { g_counting = false; }
-  long count() const { return g_allocs.load(); }
-};
-}  // namespace
-
-#if PAMC_COUNT_ALLOCATIONS
-void* operator new(std::size_t n) {
-  if (g_counting) ++g_allocs;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) {
-  if (g_counting) ++g_allocs;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-// Over-aligned types (Eigen's fixed-size matrices with alignas) come through these.
-void* operator new(std::size_t n, std::align_val_t a) {
-  if (g_counting) ++g_allocs;
-  const std::size_t al = static_cast<std::size_t>(a);
-  if (void* p = std::aligned_alloc(al, (n + al - 1) / al * al)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n, std::align_val_t a) { return operator new(n, a); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-#endif
+using pamc::test::CountAllocations;
 
 using namespace pamc;
 
 TEST(Allocation, CounterWorks) {
   if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   CountAllocations c;
-  auto* v = new std::vector<int>(10);
+  static std::vector<int>* volatile v = nullptr;  // so the pair is not elided
+  v = new std::vector<int>(10);
   delete v;
   EXPECT_GE(c.count(), 2);
   struct alignas(64) Wide {
