@@ -138,6 +138,27 @@ TEST(NmtMaster, IgnoresNodesItDoesNotSuperviseAndRefusesBadIds) {
 namespace pamc::canopen::test {
 namespace {
 
+// The controller as the master of the sensor (od/sensor.eds) as node 2, which it boots by `boot`, with
+// the dictionary's 0x1F81 entry for it set from the plan's assignment (the dictionary decides).
+struct BootRig {
+  explicit BootRig(const SlaveBoot& boot)
+      : ctrl(net.addEds(odPath("controller.eds"))), sensor(net.addEds(odPath("sensor.eds"))), master(ctrl) {
+    master.addSlave(2);
+    master.setBoot(2, boot);
+    ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(boot.assignment);
+  }
+  // The nodes up, then the master's start; `from_start`: only the frames from the master's start on are kept.
+  void start(bool from_start = false) {
+    net.startAll();
+    if (from_start) net.recorder.log.clear();
+    master.begin(net.bus.now());
+  }
+  Network net;
+  Node& ctrl;
+  Node& sensor;
+  NmtMaster master;
+};
+
 // CiA 302-2 0x1F81 bit 4, keep alive: back after a heartbeat loss and Operational, the slave keeps its
 // state - no reset; back in Pre-operational it is reset as any other slave.
 TEST(NmtMaster, AKeptAliveSlaveThatIsOperationalIsNotReset) {
@@ -162,18 +183,14 @@ TEST(NmtMaster, AKeptAliveSlaveThatIsOperationalIsNotReset) {
 // At the master's (re)start a boot slave is configured again - unless it is kept alive and running.
 TEST(NmtMasterBoot, AKeptAliveSlaveThatRunsIsNotBootedAgainAtTheMastersStart) {
   for (bool keep : {false, true}) {
-    Network net;
-    Node& ctrl = net.addEds(odPath("controller.eds"));
-    Node& sensor = net.addEds(odPath("sensor.eds"));
-    NmtMaster master(ctrl);
-    master.addSlave(2);
     SlaveBoot b;
     b.assignment = kAssignSlave | kAssignBoot | (keep ? kAssignKeepAlive : 0u);
     b.writes = {dcfValue(0x1017, 0, 50, 2)};
-    master.setBoot(2, b);
-    ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(b.assignment);
-    net.startAll();
-    master.begin(net.bus.now());
+    BootRig r(b);
+    auto& net = r.net;
+    auto& sensor = r.sensor;
+    auto& master = r.master;
+    r.start();
     // Kept alive, it is first given a consumer time (250 ms) to show it runs; it is Pre-operational, so it
     // is reset and booted as any other.
     net.bus.advanceTo(600'000);
@@ -194,22 +211,18 @@ TEST(NmtMasterBoot, AKeptAliveSlaveThatRunsIsNotBootedAgainAtTheMastersStart) {
 
 // The boot of a real slave (od/sensor.eds as node 2): identity, a write, its read-back, the start.
 TEST(NmtMasterBoot, ChecksIdentityConfiguresReadsBackThenStarts) {
-  Network net;
-  Node& ctrl = net.addEds(odPath("controller.eds"));
-  Node& sensor = net.addEds(odPath("sensor.eds"));
-  NmtMaster master(ctrl);
-  master.addSlave(2);
-  master.addSlave(3);  // no boot plan, absent: started blindly, as before
   SlaveBoot b;
   b.assignment = kAssignSlave | kAssignBoot | kAssignMandatory;
   b.device_type = 0x00080196;
   b.writes = {dcfValue(0x1017, 0, 50, 2), dcfValue(0x1800, 2, 1, 1)};
-  master.setBoot(2, b);
-  ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(b.assignment);  // the dictionary's 0x1F81 decides
+  BootRig r(b);
+  auto& net = r.net;
+  auto& sensor = r.sensor;
+  auto& master = r.master;
+  master.addSlave(3);  // no boot plan, absent: started blindly, as before
   std::vector<SlaveEvent> seen;
   master.onEvent([&](std::uint8_t, SlaveEvent e, TimeUs) { seen.push_back(e); });
-  net.startAll();
-  master.begin(net.bus.now());
+  r.start();
   net.bus.advanceTo(50'000);
   EXPECT_TRUE(master.configured(2));
   EXPECT_EQ(sensor.od().ref<std::uint16_t>(0x1017, 0).get(), 50);
@@ -222,18 +235,14 @@ TEST(NmtMasterBoot, ChecksIdentityConfiguresReadsBackThenStarts) {
 }
 
 TEST(NmtMasterBoot, AMismatchStopsTheSlaveAndNamesIt) {
-  Network net;
-  Node& ctrl = net.addEds(odPath("controller.eds"));
-  Node& sensor = net.addEds(odPath("sensor.eds"));
-  NmtMaster master(ctrl);
-  master.addSlave(2);
   SlaveBoot b;
   b.assignment = kAssignSlave | kAssignBoot;
   b.product_code = 0x1234;
-  master.setBoot(2, b);
-  ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(b.assignment);
-  net.startAll();
-  master.begin(net.bus.now());
+  BootRig r(b);
+  auto& net = r.net;
+  auto& sensor = r.sensor;
+  auto& master = r.master;
+  r.start();
   net.bus.advanceTo(50'000);
   ASSERT_NE(master.bootError(2), nullptr);
   EXPECT_EQ(master.bootError(2)->step, BootStep::Identity);
@@ -248,19 +257,15 @@ TEST(NmtMasterBoot, AMismatchStopsTheSlaveAndNamesIt) {
 // The boot as CiA 302-2 has it, on the wire: reset communication, the boot-up, identity, configuration
 // and its read-back, the first heartbeat after it, then the start - in that order.
 TEST(NmtMasterBoot, ResetBootUpIdentityConfigurationHeartbeatThenStart) {
-  Network net;
-  Node& ctrl = net.addEds(odPath("controller.eds"));
-  Node& sensor = net.addEds(odPath("sensor.eds"));
-  NmtMaster master(ctrl);
-  master.addSlave(2);
   SlaveBoot b;
   b.assignment = kAssignSlave | kAssignBoot | kAssignMandatory;
   b.device_type = 0x00080196;
   b.writes = {dcfValue(0x1017, 0, 150, 2)};
-  master.setBoot(2, b);
-  net.startAll();
-  net.recorder.log.clear();
-  master.begin(net.bus.now());
+  BootRig r(b);
+  auto& net = r.net;
+  auto& sensor = r.sensor;
+  auto& master = r.master;
+  r.start(true);
   net.bus.advanceTo(600'000);
   ASSERT_EQ(sensor.nmtState(), NmtState::Operational);
   const auto frames = net.recorder.frames();
