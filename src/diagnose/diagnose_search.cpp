@@ -1,5 +1,7 @@
 // The searches a diagnosis is made of: many structures fitted on the screening record in parallel, the
 // quick-then-full staging, and the refit of a fit taken into the ladder on the whole training record.
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <mutex>
 
@@ -17,6 +19,8 @@ using io::fmt;
 constexpr double kScreenTolerance = 1e-5;
 constexpr int kQuickStarts = 2;
 constexpr int kQuickIterations = 10;
+// Samples of the screening record a structure is simulated on to weigh its fit's cost (fitCosts).
+constexpr size_t kCostSamples = 2000;
 // Two searches of one structure whose validated errors differ by less than this fraction found the
 // same basin.
 constexpr double kAgree = 2e-3;
@@ -52,6 +56,21 @@ void Diagnosis::refitIfBetter(CandidateResult& c) const {
   if (rv <= c.rmse_val) c.model = f.model, c.rmse_train = f.rmse, c.rmse_val = rv;
 }
 
+// What a fit of each structure costs, to order the work by: its parameters (a Jacobian's columns) times
+// the time one simulation of it takes on the screening record's first kCostSamples samples - a friction
+// that solves for its state every sample costs more than its two parameters say.
+std::vector<double> Diagnosis::fitCosts(const std::vector<model::Model>& structures) const {
+  const size_t n = std::min(kCostSamples, screen_.size());
+  const auto* load = screen_.column("load");
+  std::vector<double> y(n), cost(structures.size());
+  for (size_t i = 0; i < structures.size(); ++i) {
+    const auto t = std::chrono::steady_clock::now();
+    structures[i].simulate(screen_.u.data(), load ? load->data() : nullptr, n, screen_.Ts, y.data());
+    cost[i] = (structures[i].numParams() + 1) * seconds(t);
+  }
+  return cost;
+}
+
 // Fits each structure on the screening data with `method`, warm-started from base_model
 // (structures[i] is labelled names[i]); in parallel, one fit per worker.
 std::vector<CandidateResult> Diagnosis::fitEach(const std::vector<model::Model>& structures,
@@ -59,12 +78,11 @@ std::vector<CandidateResult> Diagnosis::fitEach(const std::vector<model::Model>&
                                                 int round, const ResidualReport& rr, const std::string& tag,
                                                 ident::FitMethod method, Search search, int quick_cover) const {
   std::vector<CandidateResult> results(names.size());
-  // The structures with the most parameters (the slowest fits) first, so that the workers finish
-  // together; each result keeps its place and its seed.
+  // The slowest fits first, so that the workers finish together; each result keeps its place and its seed.
+  const auto cost = fitCosts(structures);
   std::vector<size_t> order(names.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(),
-                   [&](size_t a, size_t b) { return structures[a].numParams() > structures[b].numParams(); });
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return cost[a] > cost[b]; });
   std::mutex log_mu;
   const int workers = std::min<int>(threads_, static_cast<int>(names.size()));
   onWorkers(names.size(), threads_, [&](size_t k) {

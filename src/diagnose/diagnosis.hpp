@@ -115,6 +115,7 @@ class Diagnosis {
 
   // diagnose_search.cpp: fits on the screening record, refits on the whole training record.
   ident::FitResult refitOnAll(const model::Model& m) const;
+  std::vector<double> fitCosts(const std::vector<model::Model>& structures) const;
   ident::FitResult refitOn(const model::Model& m, const io::Measurement& data) const;
   void refitIfBetter(CandidateResult& c) const;
   std::vector<CandidateResult> fitEach(const std::vector<model::Model>& structures, const model::Model& base_model,
