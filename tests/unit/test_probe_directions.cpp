@@ -98,15 +98,17 @@ std::string table(const diagnose::DiagnoseResult& r) {
 // Orifice flow 3x faster filling than venting, on three pairs of records (train, validate): the
 // orifice-flow probe is the top probe, goes in its direction-dependent version with the valve's
 // coefficients and brings the validated error to the noise; where the catalogue took the lag rising and
-// falling (pressure_lag_updown), in its place. One row per pair; the pairs were fixed before the lags
-// switched on the flow (Effect::followsInput), when two of the three failed. One still does, for another
-// reason, and its row says so: on seeds 21 and 22 the catalogue ends at force_loop + creep, which no probe
-// overlaps, and the probes on top of them explain nothing - the row fails once that changes, so that
-// docs/MODELING.md is brought up to date with it.
+// falling (pressure_lag_updown), in its place. One row per pair: the first three were fixed before the
+// lags switched on the flow (Effect::followsInput), when two of them failed; the last four were added
+// after it, before anything else was tried on them. Where the catalogue ends at a payload's dynamics
+// (force_loop, mass_spring), which no probe overlaps, the valve is not named: seeds 21/22 (no probe
+// explains anything), 41/42 and 61/62 (direction_lag in its place explains half), 71/72. Those rows say
+// so (`named` false: not valve_flow at the noise) and fail once that changes, so that docs/MODELING.md is
+// brought up to date with it.
 struct ValvePair {
   std::uint64_t train, val;
   const char* replaces;  // the effect the probe is expected in place of ("" on top of the model)
-  bool named;            // false: the known miss above (the top probe explains nothing)
+  bool named;            // false: a known miss above
 };
 class OrificeFlow : public ::testing::TestWithParam<ValvePair> {};
 
@@ -126,7 +128,7 @@ TEST_P(OrificeFlow, TheProbeNamesItAndItsRisingFallingVersionReachesTheNoise) {
               r.ladder.back().rmse_val, top.label().c_str(), top.symmetric_rmse_val, top.rmse_train, top.rmse_val, kNoise,
               param(top.model, "valve_flow_updown", "rate_up"), param(top.model, "valve_flow_updown", "rate_down"));
   if (!pair.named) {
-    EXPECT_GT(top.rmse_val, 0.9 * r.ladder.back().rmse_val) << table(r);
+    EXPECT_FALSE(top.probe == "valve_flow" && top.rmse_val < 1.5 * kNoise) << table(r);
     return;
   }
   EXPECT_EQ(top.probe, "valve_flow") << table(r);
@@ -141,7 +143,9 @@ TEST_P(OrificeFlow, TheProbeNamesItAndItsRisingFallingVersionReachesTheNoise) {
 
 INSTANTIATE_TEST_SUITE_P(ProbeDirections, OrificeFlow,
                          ::testing::Values(ValvePair{11, 12, "", true}, ValvePair{21, 22, "", false},
-                                           ValvePair{31, 32, "pressure_lag_updown", true}),
+                                           ValvePair{31, 32, "pressure_lag_updown", true}, ValvePair{41, 42, "", false},
+                                           ValvePair{51, 52, "pressure_lag_updown", true}, ValvePair{61, 62, "", false},
+                                           ValvePair{71, 72, "", false}),
                          [](const ::testing::TestParamInfo<ValvePair>& i) {
                            return "seeds" + std::to_string(i.param.train) + "and" + std::to_string(i.param.val);
                          });
