@@ -15,7 +15,9 @@ namespace {
 class Directional final : public Effect {
  public:
   explicit Directional(std::unique_ptr<Effect> inner)
-      : inner_(std::move(inner)), name_(std::string(inner_->name()) + kDirectionalSuffix) {
+      : inner_(std::move(inner)),
+        name_(std::string(inner_->name()) + kDirectionalSuffix),
+        level_(inner_->followsInput() ? 0 : inner_->numStates()) {
     for (const auto& p : inner_->params()) {
       ParamSpec up = p, down = p;
       up.name += "_up";
@@ -41,7 +43,7 @@ class Directional final : public Effect {
     s[last() + 1] = 1.0;
   }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
-    const double d = in - (inner_->followsInput() ? s[0] : s[last()]);
+    const double d = in - s[level_];
     const double dir = d > 0.0 ? 1.0 : d < 0.0 ? -1.0 : s[last() + 1];
     const double* set = dir > 0.0 ? p : p + down_.size();
     if (dir != s[last() + 1]) inner_->retune(set, s, c);
@@ -55,6 +57,7 @@ class Directional final : public Effect {
   std::unique_ptr<Effect> inner_;
   std::string name_, explanation_;
   std::vector<ParamSpec> specs_, down_;
+  int level_;  // the state the input is compared with: the effect's own level, or the last input
 };
 
 }  // namespace
