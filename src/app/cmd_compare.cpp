@@ -30,6 +30,7 @@ class CompareCommand final : public Command {
     std::printf("model %s (%s) on %s: %zu samples, Ts = %g s\n", cmp_model.c_str(), m.describe().c_str(),
                 cmp_data.c_str(), d.size(), d.Ts);
     std::printf("%s", diagnose::formatReport(c.report).c_str());
+    std::printf("%s.\n", diagnose::describeRangeShare(c.outside, m.range()).c_str());
     std::printf("The residual in frequency: %s.\n", diagnose::describeSpectrum(c.spectrum).c_str());
     std::string dir = cmp_report.empty() ? cmp_data + ".compare" : cmp_report;
     diagnose::writeCompareReport(c, d, dir, &warnings);

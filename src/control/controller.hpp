@@ -30,6 +30,8 @@ namespace pamc::control {
 
 enum class Kind { OpenLoop = 0, PI = 1, PidEso = 2, PiAmc = 3 };
 const char* toString(Kind k);
+// Whether the kind runs the model (the open loop's inverse, the AMC's estimator and prediction).
+constexpr bool usesModel(Kind k) noexcept { return k == Kind::OpenLoop || k == Kind::PiAmc; }
 Kind kindFromString(const std::string& s);  // "open", "pi", "eso", "amc" (throws)
 
 struct ControllerConfig {

@@ -2,11 +2,45 @@
 
 #include <sys/stat.h>
 
+#include <cstdio>
 #include <stdexcept>
 
 #include "report/figures.hpp"
 
 namespace pamc::diagnose {
+
+RangeShare rangeShare(const model::OperatingRange& r, const io::Measurement& d) {
+  RangeShare s;
+  s.known = r.known;
+  if (!r.known || d.size() == 0) return s;
+  size_t in = 0, out = 0, rate = 0, any = 0;
+  for (size_t i = 0; i < d.size(); ++i) {
+    const bool a = !r.input.contains(d.u[i]);
+    const bool b = !r.output.contains(d.y[i]);
+    const bool c = i > 0 && !r.rate.contains((d.u[i] - d.u[i - 1]) / d.Ts);
+    in += a;
+    out += b;
+    rate += c;
+    any += a || b || c;
+  }
+  const double n = static_cast<double>(d.size());
+  s.input = in / n;
+  s.output = out / n;
+  s.rate = rate / n;
+  s.any = any / n;
+  return s;
+}
+
+std::string describeRangeShare(const RangeShare& s, const model::OperatingRange& r) {
+  if (!s.known) return "the model file records no range it was identified on (an older file): nothing to check against";
+  char b[400];
+  std::snprintf(b, sizeof b,
+                "outside the range the model was identified on: %.1f %% of the samples (input %.1f %% outside [%g, %g], "
+                "output %.1f %% outside [%g, %g], input rate %.1f %% outside [%g, %g]/s)",
+                100 * s.any, 100 * s.input, r.input.lo, r.input.hi, 100 * s.output, r.output.lo, r.output.hi,
+                100 * s.rate, r.rate.lo, r.rate.hi);
+  return b;
+}
 
 Comparison compare(const model::Model& m, const io::Measurement& d) {
   if (m.needsLoad() && !d.has("load"))
@@ -16,11 +50,19 @@ Comparison compare(const model::Model& m, const io::Measurement& d) {
   c.y_model.resize(d.size());
   m.simulate(d.u.data(), load ? load->data() : nullptr, d.size(), d.Ts, c.y_model.data());
   c.report = analyze(d, c.y_model);
+  c.outside = rangeShare(m.range(), d);
   std::vector<double> e(d.size());
   for (size_t i = 0; i < d.size(); ++i) e[i] = d.y[i] - c.y_model[i];
   c.spectrum = residualSpectrum(e, d.u, d.Ts, c.report.noise_floor);
   return c;
 }
+
+namespace {
+nlohmann::json rangeJson(const RangeShare& s) {
+  if (!s.known) return nullptr;
+  return {{"any", s.any}, {"input", s.input}, {"output", s.output}, {"input_rate", s.rate}};
+}
+}  // namespace
 
 nlohmann::json toJson(const Comparison& c) {
   const auto& r = c.report;
@@ -29,7 +71,7 @@ nlohmann::json toJson(const Comparison& c) {
   return {{"samples", r.n},  {"rmse", r.rmse}, {"max_abs", r.max_abs}, {"fit_pct", r.fit_pct},
           {"mean", r.mean},  {"noise_floor", r.noise_floor}, {"breakdown", bins}, {"indicators", r.ind},
           {"acf", r.acf},    {"ccf_du", r.ccf_du}, {"conf", r.conf}, {"lag_step_s", r.lag_step_s},
-          {"spectrum", toJson(c.spectrum)}};
+          {"spectrum", toJson(c.spectrum)}, {"outside_range", rangeJson(c.outside)}};
 }
 
 void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::vector<std::string>* warnings) {

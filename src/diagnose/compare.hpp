@@ -12,8 +12,18 @@
 
 namespace pamc::diagnose {
 
+// The share of a record's samples outside the range the model was identified on (model::OperatingRange).
+struct RangeShare {
+  bool known = false;  // the model records its range
+  double input = 0.0, output = 0.0, rate = 0.0, any = 0.0;  // fractions of the samples
+};
+RangeShare rangeShare(const model::OperatingRange& r, const io::Measurement& d);
+// One line: "outside the range the model was identified on: 12.5 % of the samples (input 3.1 %, ...)".
+std::string describeRangeShare(const RangeShare& s, const model::OperatingRange& r);
+
 struct Comparison {
   std::vector<double> y_model;
+  RangeShare outside;
   ResidualReport report;
   ResidualSpectrum spectrum;  // of the residual, with its coherence with the input
 };

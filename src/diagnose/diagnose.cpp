@@ -96,8 +96,15 @@ DiagnoseResult Diagnosis::run() {
   directions();
   probes();
   verdict();
+  recordRange();
   res_.seconds = seconds(t0_);
   return std::move(res_);
+}
+
+void Diagnosis::recordRange() {
+  const auto r = model::OperatingRange::of(train_.u.data(), train_.y.data(), train_.size(), train_.Ts);
+  for (auto& rung : res_.ladder) rung.model.setRange(r);
+  for (auto& p : res_.probes) p.model.setRange(r);
 }
 
 // The training and validation records, the candidates and the screening record.

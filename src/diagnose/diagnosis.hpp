@@ -100,6 +100,8 @@ class Diagnosis {
   void probeDirections(const Rung& fin);
   void preferSimplestProbe();
   void verdict();
+  // Every model of the result holds where it was learnt: the training record's range.
+  void recordRange();
 
   // candidates(): the effects that can go on top of the current model; one round's search.
   std::vector<std::string> candidatesOnTop(const model::Model& m) const;

@@ -341,6 +341,7 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
   std::vector<double> p;
   searchToModel(r.x, p);
   out.model.setParams(p);
+  out.model.setRange(model::OperatingRange::of(d.u.data(), d.y.data(), d.size(), d.Ts));
   out.mse = r.cost;
   out.rmse = std::sqrt(r.cost);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

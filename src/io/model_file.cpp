@@ -46,8 +46,39 @@ nlohmann::json modelToJson(const model::Model& m) {
     e.push_back({{"name", m.effect(i).name()}, {"params", ps}});
   }
   j["effects"] = e;
+  const auto& r = m.range();
+  if (r.known)
+    j["range"] = {{"input", {r.input.lo, r.input.hi}},
+                  {"output", {r.output.lo, r.output.hi}},
+                  {"input_rate", {r.rate.lo, r.rate.hi}}};
   return j;
 }
+
+namespace {
+
+// "range": {"input": [lo, hi], "output": [lo, hi], "input_rate": [lo, hi]} (all three, lo <= hi).
+model::OperatingRange rangeFromJson(const nlohmann::json& j, const std::string& where) {
+  auto fail = [&](const std::string& what) { throw InputError(where + ": range: " + what); };
+  if (!j.is_object()) fail("must be an object with 'input', 'output' and 'input_rate'");
+  model::OperatingRange r;
+  const std::pair<const char*, model::Interval*> keys[] = {{"input", &r.input}, {"output", &r.output}, {"input_rate", &r.rate}};
+  for (const auto& [key, dst] : keys) {
+    if (!j.contains(key)) fail(std::string("missing '") + key + "'");
+    const auto& v = j[key];
+    if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number())
+      fail(std::string("'") + key + "' must be [low, high]");
+    dst->lo = v[0].get<double>();
+    dst->hi = v[1].get<double>();
+    if (!std::isfinite(dst->lo) || !std::isfinite(dst->hi) || dst->lo > dst->hi)
+      fail(std::string("'") + key + "' must be finite with low <= high");
+  }
+  for (auto it = j.begin(); it != j.end(); ++it)
+    if (it.key() != "input" && it.key() != "output" && it.key() != "input_rate") fail("unknown key '" + printable(it.key()) + "'");
+  r.known = true;
+  return r;
+}
+
+}  // namespace
 
 model::Model modelFromJson(const nlohmann::json& j, const std::string& where) {
   auto fail = [&](const std::string& what) -> void { throw InputError(where + ": " + printable(what)); };
@@ -81,6 +112,8 @@ model::Model modelFromJson(const nlohmann::json& j, const std::string& where) {
       fail("'output_form' must be \"aligned\" or \"printed\"");
   }
   m.setOutputForm(form);
+  // Files from before ranges were recorded have none: the model then holds everywhere it is used.
+  if (j.contains("range")) m.setRange(rangeFromJson(j["range"], where));
   if (j.contains("effects")) {
     if (!j["effects"].is_array()) fail("'effects' must be an array");
     for (const auto& e : j["effects"]) {

@@ -2,6 +2,8 @@
 //   {"format": "pamc-model/1", "core": {"k":..,"rho":..,"b":..,"alpha":..,"beta":..,"gamma":..},
 //    "output_form": "aligned" | "printed" (model::OutputForm; a file without it is read as printed),
 //    "effects": [{"name": "pressure_lag", "params": {"tau": 0.05, "slew": 1000}}, ...],
+//    "range": {"input": [lo, hi], "output": [lo, hi], "input_rate": [lo, hi]} (where it was identified;
+//              model::OperatingRange - absent in older files),
 //    "fit": {...free-form provenance...}}
 #pragma once
 

@@ -15,7 +15,7 @@ bool parseOutputForm(const std::string& name, OutputForm& out) noexcept {
   return true;
 }
 
-Model::Model(const Model& o) : core_(o.core_), form_(o.form_), eff_params_(o.eff_params_) {
+Model::Model(const Model& o) : core_(o.core_), form_(o.form_), range_(o.range_), eff_params_(o.eff_params_) {
   for (const auto& s : o.effects_) {
     effects_.push_back(Slot{makeEffect(s.impl->name()), s.param_offset, s.state_offset});
   }

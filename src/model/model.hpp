@@ -13,6 +13,7 @@
 
 #include "model/bouc_wen.hpp"
 #include "model/effect.hpp"
+#include "model/operating_range.hpp"
 
 namespace pamc::model {
 
@@ -57,6 +58,9 @@ class Model {
   OutputForm outputForm() const noexcept { return form_; }
   void setOutputForm(OutputForm f) noexcept { form_ = f; }
   bool aligned() const noexcept { return form_ == OutputForm::Aligned; }
+  // Where the model was identified (not known for a model built by hand or read from an older file).
+  const OperatingRange& range() const noexcept { return range_; }
+  void setRange(const OperatingRange& r) noexcept { range_ = r; }
 
   int numEffects() const { return static_cast<int>(effects_.size()); }
   const Effect& effect(int i) const { return *effects_[static_cast<size_t>(i)].impl; }
@@ -143,6 +147,7 @@ class Model {
 
   BoucWenParams core_{};
   OutputForm form_ = OutputForm::Aligned;
+  OperatingRange range_{};
   std::vector<Slot> effects_;
   std::vector<double> eff_params_;
   int n_input_ = 0;

@@ -74,6 +74,7 @@ bool ControlLoop::step(const PositionSample& s, Setpoint sp, double safe_u, Cycl
   } else {
     last_u_ = o.u;
   }
+  range_watch_.step(sp.t, last_u_, s.y);
   return true;
 }
 

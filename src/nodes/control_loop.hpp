@@ -13,6 +13,7 @@
 #include "control/controller.hpp"
 #include "control/trajectory.hpp"
 #include "nodes/cycle_stats.hpp"
+#include "nodes/range_watch.hpp"
 
 namespace pamc::nodes {
 
@@ -31,6 +32,10 @@ class ControlLoop {
   void configure(std::unique_ptr<control::Controller> c, control::Kind kind, const control::Trajectory& traj,
                  double Ts, double preroll_s, double safe_u);
   void stop() noexcept;  // the node left Operational
+  // Watch whether the commands and positions stay where the controller's model was identified (an
+  // unknown range, or a controller that runs no model: nothing is watched).
+  void watchRange(const model::OperatingRange& r) noexcept { range_watch_.configure(r, Ts_); }
+  const RangeWatch& rangeWatch() const noexcept { return range_watch_; }
 
   // The cycle, in order: activation on the first usable position, the cycle count, then one of
   // holdSafe / idle / step.
@@ -84,6 +89,7 @@ class ControlLoop {
   std::uint64_t ramp_k0_ = 0, ramp_cycles_ = 1;
   double ramp_mm_per_s_, ramp_slew_v_;
   std::atomic<double> run_time_pub_{0.0};
+  RangeWatch range_watch_;
 };
 
 }  // namespace pamc::nodes

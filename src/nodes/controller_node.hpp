@@ -83,6 +83,7 @@ class ControllerNode {
   double runTime() const noexcept { return loop_->runTime(); }  // trajectory seconds so far; any thread
   std::uint64_t faultsRaised() const noexcept { return faults_->raised(); }
   control::Kind kind() const noexcept { return loop_->kind(); }
+  const RangeWatch& rangeWatch() const noexcept { return loop_->rangeWatch(); }  // any thread
   FaultCounters faultCounters() const noexcept;
   // Causes whose EMCY went out in the present episode (bit per Fault).
   std::uint32_t episodeCauses() const noexcept { return faults_->episode(); }

@@ -127,8 +127,10 @@ void ControllerNode::configureFromOd() {
   auto traj = trajectoryFromOd(od);
   if (overrides_->trajectoryOverridden()) traj = cfg.trajectory;  // shapes the OD cannot hold
   auto fresh_ctrl = control::makeController(kind, p.ctrl);
+  const model::OperatingRange range = control::usesModel(kind) ? p.ctrl.model.range() : model::OperatingRange{};
   params_->adopt(std::move(p), kind);
   loop_->configure(std::move(fresh_ctrl), kind, traj, Ts, cfg.preroll_s, params_->safeCommand());
+  loop_->watchRange(range);
   valve_->zero();
 }
 

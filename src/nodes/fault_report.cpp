@@ -27,6 +27,10 @@ std::string describeFault(const ControllerNode& n, Fault f) {
 }
 
 void FaultReporter::step(const ControllerNode& n) {
+  if (!range_said_ && n.rangeWatch().outside()) {
+    range_said_ = true;
+    if (out_) out_(n.rangeWatch().describe());
+  }
   const Fault f = n.fault();
   if (f == last_) return;
   last_ = f;

@@ -14,7 +14,7 @@ namespace pamc::nodes {
 // One line for the node's present fault (None: the fault cleared), with what to look at.
 std::string describeFault(const ControllerNode& n, Fault f);
 
-// Prints a line whenever the node's fault changes. Reads only what the node publishes for other
+// Prints a line whenever the node's fault changes, and once when the model runs outside its range. Reads only what the node publishes for other
 // threads, so it may run on a thread of its own.
 class FaultReporter {
  public:
@@ -24,6 +24,7 @@ class FaultReporter {
  private:
   std::function<void(const std::string&)> out_;
   Fault last_ = Fault::None;
+  bool range_said_ = false;  // the model's range is said once a run
 };
 
 // Why the run failed, for its end: it never had a position (the commands exit non-zero with it).
