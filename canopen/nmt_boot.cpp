@@ -36,6 +36,19 @@ const char* identityName(std::uint16_t index, std::uint8_t sub) {
 }
 }  // namespace
 
+// The step an operation belongs to, as a failure names it.
+BootStep NmtMaster::stepOf(OpKind k) noexcept {
+  switch (k) {
+    case OpKind::Present:
+    case OpKind::Expect: return BootStep::Identity;
+    case OpKind::Read: return BootStep::Read;
+    case OpKind::KeepRtr:
+    case OpKind::Write: return BootStep::Configuration;
+    case OpKind::Verify: return BootStep::ReadBack;
+  }
+  return BootStep::Configuration;
+}
+
 const char* bootStepName(BootStep s) {
   switch (s) {
     case BootStep::Reset: return "reset communication";
@@ -68,11 +81,13 @@ void NmtMaster::reset(Slave& s, TimeUs now) noexcept {
   s.state = Boot::Resetting;
   s.deadline = now + kBootUpTimeoutUs;
   s.start_sent = kNever;
+  s.start_due = false;
   arm();
 }
 
 void NmtMaster::steps(Slave& s, bool kept) noexcept {
   s.kept = kept;
+  s.start_due = false;
   s.next_op = 0;
   s.end_op = kept ? s.config_op : s.ops.size();
   s.tries_left = retriesOf(s.boot.assignment);
@@ -105,10 +120,7 @@ void NmtMaster::runBoot(Slave& s) noexcept {
 void NmtMaster::onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept {
   if (s.state != Boot::Running || s.next_op >= s.ops.size()) return;
   const Op& op = s.ops[s.next_op];
-  const BootStep step = op.kind == OpKind::Expect ? BootStep::Identity
-                        : op.kind == OpKind::Read ? BootStep::Read
-                        : op.kind == OpKind::Write ? BootStep::Configuration
-                                                   : BootStep::ReadBack;
+  const BootStep step = stepOf(op.kind);
   if (code == kAbortTimeout && s.tries_left > 0) {
     // No answer (still booting, a frame lost): the same step again.
     --s.tries_left;
@@ -129,6 +141,8 @@ void NmtMaster::onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* da
 bool NmtMaster::checkReply(Slave& s, const Op& op, const std::uint8_t* data, std::size_t len) noexcept {
   const std::string at = entryName(op.index, op.sub);
   switch (op.kind) {
+    case OpKind::Present: return true;
+    case OpKind::KeepRtr: keepRtr(s, op, le32(data, len)); return true;
     case OpKind::Expect: {
       const std::uint32_t v = le32(data, len);
       if (v == op.expected) return true;
@@ -157,6 +171,16 @@ bool NmtMaster::checkReply(Slave& s, const Op& op, const std::uint8_t* data, std
   return true;
 }
 
+// The device's bit 30 of a TPDO COB-ID (no RTR) into every write of the entry - the disable, the
+// enable - and so into its read-back; bit 31 stays as the configuration has it.
+void NmtMaster::keepRtr(Slave& s, const Op& op, std::uint32_t device_cob) noexcept {
+  const std::uint8_t bit = static_cast<std::uint8_t>(kPdoNoRtrBit >> 24);
+  for (auto& w : s.boot.writes) {
+    if (w.index != op.index || w.sub != op.sub || w.data.size() != 4) continue;
+    w.data[3] = static_cast<std::uint8_t>((device_cob & kPdoNoRtrBit) != 0 ? w.data[3] | bit : w.data[3] & ~bit);
+  }
+}
+
 // Configured: where 0x1016 supervises the slave, its first heartbeat must come before it is started.
 void NmtMaster::awaitHeartbeat(Slave& s, TimeUs now) noexcept {
   const auto& hb = node_.heartbeatConsumer();
@@ -171,6 +195,7 @@ void NmtMaster::awaitHeartbeat(Slave& s, TimeUs now) noexcept {
 void NmtMaster::done(Slave& s, TimeUs now) noexcept {
   s.state = Boot::Done;
   s.deadline = kNever;
+  s.start_due = true;
   if (s.kept) ++counters_.kept_alive;
   else ++counters_.boots;
   emit(s.id, s.kept ? SlaveEvent::KeptAlive : SlaveEvent::Configured, now);
@@ -186,6 +211,7 @@ void NmtMaster::bootFailed(Slave& s, BootStep step, std::uint32_t code, std::str
   // Left stopped: nothing of it moves on the bus until it boots again.
   node_.sendNmt(NmtCommand::Stop, s.id);
   s.start_sent = kNever;
+  s.start_due = false;
   const TimeUs now = node_.now();
   emit(s.id, SlaveEvent::BootFailed, now);
   poll(now);

@@ -31,7 +31,8 @@ struct IdentityEntry {
   std::uint16_t index;
   std::uint8_t sub;
 };
-constexpr IdentityEntry kIdentity[] = {{&SlaveBoot::device_type, 0x1000, 0},
+constexpr std::uint16_t kDeviceTypeIndex = 0x1000;
+constexpr IdentityEntry kIdentity[] = {{&SlaveBoot::device_type, kDeviceTypeIndex, 0},
                                        {&SlaveBoot::vendor_id, 0x1018, 1},
                                        {&SlaveBoot::product_code, 0x1018, 2},
                                        {&SlaveBoot::revision, 0x1018, 3},
@@ -111,26 +112,42 @@ void NmtMaster::loadPlan(Slave& s) {
   s.boot.reads = s.reads;
   const SlaveBoot& boot = s.boot;
   s.ops.clear();
-  for (const auto& k : kIdentity)
+  // CiA 302-2: the boot's first step reads 0x1000 whether a device type is expected or not - it also
+  // proves the slave is there.
+  for (const auto& k : kIdentity) {
     if (const auto& value = boot.*k.field) s.ops.push_back(Op{OpKind::Expect, k.index, k.sub, *value, 0});
+    else if (k.index == kDeviceTypeIndex) s.ops.push_back(Op{OpKind::Present, k.index, k.sub, 0, 0});
+  }
   for (std::size_t i = 0; i < boot.reads.size(); ++i)
     s.ops.push_back(Op{OpKind::Read, boot.reads[i].index, boot.reads[i].sub, 0, i});
   s.config_op = s.ops.size();
-  for (std::size_t i = 0; i < boot.writes.size(); ++i)
-    s.ops.push_back(Op{OpKind::Write, boot.writes[i].index, boot.writes[i].sub, 0, i});
-  // Read back what each entry holds in the end: its last write.
-  for (std::size_t i = 0; i < boot.writes.size(); ++i) {
-    const auto& w = boot.writes[i];
-    const bool later = std::any_of(boot.writes.begin() + static_cast<std::ptrdiff_t>(i) + 1, boot.writes.end(),
-                                   [&](const DcfEntry& e) { return e.index == w.index && e.sub == w.sub; });
-    if (!later) s.ops.push_back(Op{OpKind::Verify, w.index, w.sub, 0, i});
-  }
+  configOps(s);
   // The start grace: its heartbeat period as the configuration sets it, else its consumer time.
   TimeUs period_us = node_.heartbeatConsumer().timeoutUs(s.id);
   for (const auto& w : boot.writes)
     if (w.index == kProducerHeartbeat && w.sub == 0 && w.data.size() == 2)
       period_us = static_cast<TimeUs>(w.data[0] | (w.data[1] << 8)) * 1000;
   s.grace_us = std::max<TimeUs>(kStartGraceFloorUs, kStartGracePeriods * period_us);
+}
+
+namespace {
+bool sameEntry(const DcfEntry& a, const DcfEntry& b) { return a.index == b.index && a.sub == b.sub; }
+}  // namespace
+
+void NmtMaster::configOps(Slave& s) {
+  const ConciseDcf& w = s.boot.writes;
+  const auto at = [&w](std::size_t i) { return w.begin() + static_cast<std::ptrdiff_t>(i); };
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    // A TPDO COB-ID keeps the device's bit 30 (no RTR): a device without RTR may refuse it cleared.
+    const bool first = std::none_of(w.begin(), at(i), [&](const DcfEntry& e) { return sameEntry(e, w[i]); });
+    if (first && isTpdoCobId(w[i].index, w[i].sub)) s.ops.push_back(Op{OpKind::KeepRtr, w[i].index, w[i].sub, 0, i});
+    s.ops.push_back(Op{OpKind::Write, w[i].index, w[i].sub, 0, i});
+  }
+  // Read back what each entry holds in the end: its last write.
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    const bool later = std::any_of(at(i + 1), w.end(), [&](const DcfEntry& e) { return sameEntry(e, w[i]); });
+    if (!later) s.ops.push_back(Op{OpKind::Verify, w[i].index, w[i].sub, 0, i});
+  }
 }
 
 NmtMaster::Slave* NmtMaster::find(std::uint8_t id) noexcept {
@@ -162,6 +179,7 @@ bool NmtMaster::mayStart(const Slave& s) const noexcept {
 void NmtMaster::startSlave(Slave& s, TimeUs now) noexcept {
   node_.sendNmt(NmtCommand::Start, s.id);
   s.start_sent = now;
+  s.start_due = false;
   ++counters_.starts;
 }
 
@@ -171,13 +189,14 @@ void NmtMaster::startReady(TimeUs now) noexcept {
     if (!std::all_of(slaves_.begin(), slaves_.end(), [this](const Slave& s) { return mayStart(s); })) return;
     node_.sendNmt(NmtCommand::Start, 0);
     broadcast_sent_ = true;
-    for (auto& s : slaves_) s.start_sent = now;
+    for (auto& s : slaves_) s.start_sent = now, s.start_due = false;
     ++counters_.starts;
     return;
   }
-  // One that already runs (kept alive) needs no start.
+  // CiA 302-2 (as Lely's master): every booted slave is started, also one whose heartbeat already says
+  // Operational (kept alive, or left running by another master).
   for (auto& s : slaves_)
-    if (mayStart(s) && !running(s)) startSlave(s, now);
+    if (s.start_due && mayStart(s)) startSlave(s, now);
 }
 
 void NmtMaster::begin(TimeUs now) {
@@ -185,8 +204,10 @@ void NmtMaster::begin(TimeUs now) {
   if (const Entry* e = od.find(kObjStartup, 0)) startup_ = e->get<std::uint32_t>();
   const Entry* boot_time = od.find(kObjBootTime, 0);
   boot_time_ms_ = boot_time != nullptr ? static_cast<std::uint32_t>(boot_time->asUnsigned()) : 0;
-  for (auto& s : slaves_)
+  for (auto& s : slaves_) {
     if (s.state != Boot::Running) loadPlan(s);
+    s.start_due = !bootable(s);  // a boot slave is owed its start when its boot is done
+  }
   begun_ = true;
   broadcast_sent_ = false;
   if ((startup_ & kStartupMaster) == 0) return;
@@ -233,6 +254,7 @@ void NmtMaster::hold(std::uint8_t id, std::uint8_t reason) noexcept {
   if (was) return;
   node_.sendNmt(NmtCommand::EnterPreOperational, id);
   s->start_sent = kNever;
+  s->start_due = true;
   ++counters_.holds;
 }
 
@@ -240,7 +262,7 @@ void NmtMaster::release(std::uint8_t id, std::uint8_t reason, TimeUs now) noexce
   Slave* s = find(id);
   if (s == nullptr || (s->hold & reason) == 0) return;
   s->hold = static_cast<std::uint8_t>(s->hold & ~reason);
-  if (mayStart(*s) && !running(*s)) startSlave(*s, now);
+  if (s->start_due && mayStart(*s)) startSlave(*s, now);
 }
 
 std::uint8_t NmtMaster::holdReasons(std::uint8_t id) const noexcept {
@@ -298,8 +320,12 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
       // A slave that booted lost its state and waits in Pre-operational: boot it and start it again.
       s->lost = false;
       emit(id, SlaveEvent::BootUp, now);
-      if (bootable(*s)) onBootEvent(*s, ev, st, now);
-      else if (mayStart(*s)) startSlave(*s, now);
+      if (bootable(*s)) {
+        onBootEvent(*s, ev, st, now);
+      } else {
+        s->start_due = true;
+        if (mayStart(*s)) startSlave(*s, now);
+      }
       break;
     case HeartbeatEvent::Started:
       if (s->lost) {

@@ -4,11 +4,14 @@
 //   1. NMT reset communication, unless it is kept alive (0x1F81 bit 4) and its heartbeat shows it
 //      Operational - then only its identity is checked and it is left as it is;
 //   2. its boot-up awaited (kBootUpTimeoutUs);
-//   3. identity: 0x1000 and 0x1018:01..04 against 0x1F84-0x1F88 (0: not checked);
+//   3. identity: 0x1000 read always (it also proves the slave is there), then 0x1000 and 0x1018:01..04
+//      against 0x1F84-0x1F88 (0: not checked);
 //   4. the application's reads (setReads(): values a driver needs before the slave starts);
-//   5. configuration: the concise DCF 0x1F22 (CiA 302-3) written, then every entry read back;
+//   5. configuration: the concise DCF 0x1F22 (CiA 302-3) written, then every entry read back; a TPDO
+//      COB-ID (0x1800+n:01) is read before its first write and keeps the device's bit 30 (no RTR);
 //   6. its first heartbeat awaited, if 0x1016 supervises it (within its consumer time);
-//   7. NMT start, once it is not held and every mandatory slave (bit 3) is configured.
+//   7. NMT start - also to a slave that already runs - once it is not held and every mandatory slave
+//      (bit 3) is configured; none with 0x1F80 bit 3, one broadcast for all with bit 1.
 // A step the slave does not answer (SDO timeout, no boot-up, no heartbeat) is tried again up to its
 // retry factor (0x1F81 bits 8-15); a boot that fails names the step, the entry and the SDO abort code
 // (bootError()), and the slave is sent NMT stop. Every mandatory slave must be booted within the boot
@@ -188,18 +191,26 @@ class NmtMaster {
     Done,
     Failed
   };
-  enum class OpKind : std::uint8_t { Expect, Read, Write, Verify };
+  enum class OpKind : std::uint8_t {
+    Present,  // 0x1000 read, any value: the slave is there
+    Expect,   // an identity entry read and compared
+    Read,     // the application's read
+    KeepRtr,  // a TPDO COB-ID read: its bit 30 into the writes of the entry
+    Write,
+    Verify
+  };
   struct Op {
     OpKind kind;
     std::uint16_t index;
     std::uint8_t sub;
     std::uint32_t expected;  // Expect
-    std::size_t item;        // Read: reads[item]; Write / Verify: writes[item]
+    std::size_t item;        // Read: reads[item]; KeepRtr / Write / Verify: writes[item]
   };
   struct Slave {
     std::uint8_t id = 0;
     bool lost = false;             // heartbeat timed out: re-boot it when it is back
     TimeUs start_sent = kNever;    // NMT start sent, no Operational heartbeat yet
+    bool start_due = false;        // booted (or not to be booted), hold released: an NMT start is owed
     TimeUs grace_us = kStartGraceFloorUs;  // for a start to show Operational
     std::uint8_t hold = 0;         // reasons to keep it in Pre-operational
     SlaveBoot boot;                // from the dictionary at begin(), with reads
@@ -217,6 +228,7 @@ class NmtMaster {
   Slave* find(std::uint8_t id) noexcept;
   const Slave* find(std::uint8_t id) const noexcept;
   void loadPlan(Slave& s);  // boot, ops and start grace from the dictionary (allocates)
+  static void configOps(Slave& s);  // the writes, each TPDO COB-ID read first, then the read-backs
   static bool bootable(const Slave& s) noexcept { return (s.boot.assignment & kAssignBoot) != 0; }
   bool mayStart(const Slave& s) const noexcept;
   bool mandatoryReady() const noexcept;
@@ -231,6 +243,8 @@ class NmtMaster {
   void runBoot(Slave& s) noexcept;                 // issues the next SDO step
   void onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept;
   bool checkReply(Slave& s, const Op& op, const std::uint8_t* data, std::size_t len) noexcept;
+  static void keepRtr(Slave& s, const Op& op, std::uint32_t device_cob) noexcept;
+  static BootStep stepOf(OpKind k) noexcept;
   void awaitHeartbeat(Slave& s, TimeUs now) noexcept;
   void done(Slave& s, TimeUs now) noexcept;
   void bootFailed(Slave& s, BootStep step, std::uint32_t code, std::string text) noexcept;

@@ -6,14 +6,6 @@
 
 namespace pamc::canopen {
 
-namespace {
-constexpr std::uint16_t kRpdoCommBase = 0x1400;
-constexpr std::uint16_t kRpdoMapBase = 0x1600;
-constexpr std::uint16_t kTpdoCommBase = 0x1800;
-constexpr std::uint16_t kTpdoMapBase = 0x1A00;
-constexpr unsigned kMaxPdos = 512;
-}  // namespace
-
 Node::Node(ObjectDictionary od, std::uint8_t node_id, Transport& transport, NodeOptions options)
     : od_(std::move(od)),
       ctx_{node_id, od_, dispatcher_, transport, counters_},

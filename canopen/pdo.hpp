@@ -17,6 +17,15 @@ inline constexpr std::uint8_t kPdoSyncAcyclic = 0;             // transmission t
 inline constexpr std::uint8_t kPdoSyncMax = 240;              // types 1..240: every n-th SYNC
 inline constexpr std::uint8_t kPdoEventManufacturer = 254;
 inline constexpr std::uint8_t kPdoEventProfile = 255;
+inline constexpr std::uint16_t kRpdoCommBase = 0x1400;  // + n - 1: RPDO n's communication parameters
+inline constexpr std::uint16_t kRpdoMapBase = 0x1600;
+inline constexpr std::uint16_t kTpdoCommBase = 0x1800;  // + n - 1: TPDO n's communication parameters
+inline constexpr std::uint16_t kTpdoMapBase = 0x1A00;
+inline constexpr unsigned kMaxPdos = 512;
+// The COB-ID entry of a TPDO (0x1800-0x19FF sub-index 1).
+constexpr bool isTpdoCobId(std::uint16_t index, std::uint8_t sub) {
+  return sub == 1 && index >= kTpdoCommBase && index < kTpdoCommBase + kMaxPdos;
+}
 
 // A PDO's parameters as the dictionary stores them, read but not judged: the node's own PDOs (PdoMap,
 // Rpdo, Tpdo) and tools reading other nodes' EDS files (the candump decoder) parse them here alike.

@@ -1,3 +1,6 @@
+#include <fstream>
+#include <iterator>
+
 #include "canopen/ini.hpp"
 #include "canopen/nmt_master.hpp"
 
@@ -141,8 +144,8 @@ namespace {
 // The controller as the master of the sensor (od/sensor.eds) as node 2, which it boots by `boot`, with
 // the dictionary's 0x1F81 entry for it set from the plan's assignment (the dictionary decides).
 struct BootRig {
-  explicit BootRig(const SlaveBoot& boot)
-      : ctrl(net.addEds(odPath("controller.eds"))), sensor(net.addEds(odPath("sensor.eds"))), master(ctrl) {
+  explicit BootRig(const SlaveBoot& boot, const std::string& sensor_eds = odPath("sensor.eds"))
+      : ctrl(net.addEds(odPath("controller.eds"))), sensor(net.addEds(sensor_eds)), master(ctrl) {
     master.addSlave(2);
     master.setBoot(2, boot);
     ctrl.od().find(0x1F81, 2)->set<std::uint32_t>(boot.assignment);
@@ -180,7 +183,8 @@ TEST(NmtMaster, AKeptAliveSlaveThatIsOperationalIsNotReset) {
   EXPECT_EQ(r.master.counters().reboots, 1u);
 }
 
-// At the master's (re)start a boot slave is configured again - unless it is kept alive and running.
+// At the master's (re)start a boot slave is configured again - unless it is kept alive and running (then
+// its identity is read - 0x1000 at least - but nothing is written to it).
 TEST(NmtMasterBoot, AKeptAliveSlaveThatRunsIsNotBootedAgainAtTheMastersStart) {
   for (bool keep : {false, true}) {
     SlaveBoot b;
@@ -196,14 +200,14 @@ TEST(NmtMasterBoot, AKeptAliveSlaveThatRunsIsNotBootedAgainAtTheMastersStart) {
     net.bus.advanceTo(600'000);
     ASSERT_EQ(sensor.nmtState(), NmtState::Operational);
     ASSERT_EQ(master.counters().boots, 1u);
-    const auto sdo = net.recorder.matching("602#").size();
+    const auto writes = net.recorder.matching("602#2").size();  // SDO downloads
     const auto resets = net.recorder.matching("000#8202").size();
     master.end();
     master.begin(net.bus.now());
     net.bus.advanceTo(1'200'000);
     EXPECT_EQ(net.recorder.matching("000#8202").size() == resets, keep) << "keep=" << keep;
     EXPECT_EQ(master.counters().boots, keep ? 1u : 2u) << "keep=" << keep;
-    EXPECT_EQ(net.recorder.matching("602#").size() == sdo, keep) << "keep=" << keep;
+    EXPECT_EQ(net.recorder.matching("602#2").size() == writes, keep) << "keep=" << keep;
     EXPECT_EQ(master.counters().kept_alive, keep ? 1u : 0u);
     EXPECT_TRUE(master.configured(2));
   }
@@ -342,6 +346,97 @@ TEST(NmtMasterBoot, AMandatorySlaveNotBootedWithinTheBootTimeFails) {
   ASSERT_NE(master.bootError(5), nullptr);
   EXPECT_EQ(master.bootError(5)->step, BootStep::BootTime);
   EXPECT_EQ(master.bootError(5)->text, "not booted within the boot time 0x1F89 of 500 ms");
+}
+
+// CiA 302-2: the boot's first SDO request uploads the device type 0x1000:00 - also when 0x1F84 expects
+// none (0): it proves the slave is there. A slave that boots up but answers no SDO fails there.
+TEST(NmtMasterBoot, TheFirstRequestUploadsTheDeviceTypeAlsoWhenNoneIsExpected) {
+  SlaveBoot b;
+  b.assignment = kAssignSlave | kAssignBoot;
+  b.writes = {dcfValue(0x1017, 0, 50, 2)};
+  BootRig r(b);
+  ASSERT_EQ(r.ctrl.od().find(kObjDeviceType, 2)->asUnsigned(), 0u) << "no device type expected";
+  r.start(true);
+  r.net.bus.advanceTo(50'000);
+  const auto sdo = r.net.recorder.matching("602#");
+  ASSERT_FALSE(sdo.empty());
+  EXPECT_EQ(sdo.front().frame, "602#4000100000000000");
+  EXPECT_TRUE(r.master.configured(2));
+
+  Network net;  // the tool port plays node 5: it boots up, then answers nothing
+  NmtMaster master(net.addEds(odPath("controller.eds")));
+  master.addSlave(5);
+  SlaveBoot mute;
+  mute.assignment = kAssignSlave | kAssignBoot | assignRetries(1);
+  master.setBoot(5, mute);
+  net.startAll();
+  master.begin(net.bus.now());
+  net.recorder.log.clear();
+  net.send("705#00");
+  net.bus.advanceTo(net.bus.now() + 3'000'000);
+  const auto uploads = net.recorder.matching("605#40");
+  ASSERT_EQ(uploads.size(), 2u) << "the upload and its retry";
+  EXPECT_EQ(uploads.front().frame, "605#4000100000000000");
+  EXPECT_EQ(net.recorder.matching("605#").front().frame, "605#4000100000000000") << "the first SDO request";
+  ASSERT_NE(master.bootError(5), nullptr);
+  EXPECT_EQ(master.bootError(5)->step, BootStep::Identity);
+  EXPECT_EQ(master.bootError(5)->abort_code, kAbortTimeout);
+  EXPECT_EQ(master.bootError(5)->text.rfind("0x1000:00 read failed: ", 0), 0u) << master.bootError(5)->text;
+}
+
+// CiA 302-2 (as Lely's master): every booted slave gets its own NMT start, also one whose heartbeat
+// already says Operational (kept alive) - unless 0x1F80 bit 3 says the master shall not start the slaves.
+TEST(NmtMasterBoot, ABootedSlaveThatAlreadyRunsIsStartedUnless0x1F80Bit3) {
+  for (bool no_start : {false, true}) {
+    SlaveBoot b;
+    b.assignment = kAssignSlave | kAssignBoot | kAssignKeepAlive;
+    BootRig r(b);
+    r.ctrl.od().find(kObjStartup, 0)->set<std::uint32_t>(kStartupMaster | (no_start ? kStartupNoSlaveStart : 0u));
+    r.net.startAll();
+    r.net.send("000#0102");  // another master started it
+    r.net.bus.advanceTo(300'000);
+    ASSERT_EQ(r.ctrl.heartbeatConsumer().remoteState(2), NmtState::Operational);
+    r.net.recorder.log.clear();
+    r.master.begin(r.net.bus.now());
+    r.net.bus.advanceTo(400'000);
+    EXPECT_EQ(r.master.counters().kept_alive, 1u);
+    Frames nmt;
+    for (const auto& l : r.net.recorder.matching("000#")) nmt.push_back(l.frame);
+    EXPECT_EQ(nmt, no_start ? Frames{} : Frames{"000#0102"}) << "no_start=" << no_start;
+  }
+}
+
+// A device without RTR has bit 30 of its TPDO COB-IDs set and refuses it cleared: the master reads the
+// COB-ID before its first write and keeps the bit in the disable and the enable (bit 31 as written).
+TEST(NmtMasterBoot, TpdoCobIdsKeepTheDevicesBit30) {
+  std::ifstream in(odPath("sensor.eds"));
+  std::string eds((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string from = "[1800sub1]";
+  const auto def = eds.find("DefaultValue=$NODEID+0x180", eds.find(from));
+  ASSERT_NE(def, std::string::npos);
+  eds.replace(def, 26, "DefaultValue=$NODEID+0x40000180");
+  const std::string path = ::testing::TempDir() + "sensor_no_rtr.eds";
+  std::ofstream(path) << eds;
+  SlaveBoot b;
+  b.assignment = kAssignSlave | kAssignBoot;
+  b.writes = {dcfValue(0x1800, 1, 0x80000182u, 4), dcfValue(0x1800, 2, 1, 1), dcfValue(0x1800, 1, 0x182u, 4)};
+  BootRig r(b, path);
+  r.sensor.od().addValidator(0x1800, 1, [](const Entry&, const std::uint8_t* d, std::size_t len) {
+    return len == 4 && (d[3] & 0x40) != 0 ? kSdoOk : kAbortValueRange;  // no RTR: bit 30 stays set
+  });
+  ASSERT_EQ(r.sensor.od().find(0x1800, 1)->get<std::uint32_t>(), 0x40000182u);
+  r.start(true);
+  r.net.bus.advanceTo(400'000);  // through its first heartbeat (100 ms)
+  ASSERT_EQ(r.master.bootError(2), nullptr) << r.master.bootError(2)->text;
+  EXPECT_TRUE(r.master.configured(2));
+  EXPECT_EQ(r.sensor.od().find(0x1800, 1)->get<std::uint32_t>(), 0x40000182u);
+  Frames cob;
+  for (const auto& l : r.net.recorder.matching("602#")) {
+    if (l.frame.compare(4, 8, "40001801") == 0 || l.frame.compare(4, 8, "23001801") == 0) cob.push_back(l.frame);
+  }
+  EXPECT_EQ(cob, (Frames{"602#4000180100000000", "602#23001801820100C0", "602#2300180182010040",
+                         "602#4000180100000000"}))
+      << "read, disable, enable, read back";
 }
 
 TEST(NmtMaster, TheStartGraceFollowsTheHeartbeat) {
