@@ -121,6 +121,7 @@ class ControllerNode {
   void takeCauses(canopen::TimeUs now) noexcept;
   void recover(double y, canopen::TimeUs now) noexcept;
   void onSlaveEvent(std::uint8_t id, canopen::SlaveEvent ev);
+  void valveBooted();  // the valve's boot checked its identity: its error value may go out
 
   std::function<canopen::TimeUs()> clock_;
   std::unique_ptr<canopen::Node> node_;

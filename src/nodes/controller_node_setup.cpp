@@ -148,7 +148,7 @@ void ControllerNode::onOperational(TimeUs now) {
   sensor_->onOperational(now);
   master_->begin(now);
   valve_->release(ValveDriver::kHoldSelf, now);
-  valve_->errorValueDue();
+  valve_->errorValueDue();  // goes out once the valve's boot has checked its identity (valveBooted)
   valve_->pushErrorValue(params_->safeCommand());
 }
 
@@ -160,16 +160,25 @@ void ControllerNode::takeCommitted(double y) noexcept {
 
 void ControllerNode::start(TimeUs now) { node_->start(now); }  // the state hook goes on to Operational
 
+// Its identity checked: the error value goes out now - before the NMT start that follows this event -
+// unless the SDO client is busy (then from the cycle).
+void ControllerNode::valveBooted() {
+  valve_->errorValueDue();
+  valve_->pushErrorValue(params_->safeCommand());
+}
+
 void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
   const bool is_valve = id == valve_->id();
   const char* role = is_valve ? "valve" : "sensor";
   switch (ev) {
     case SlaveEvent::Configured:
-      if (!is_valve) sensor_->onBooted(node_->now());
+      if (is_valve) valveBooted();
+      else sensor_->onBooted(node_->now());
       if (log_) log_(std::string(role) + " (node " + std::to_string(id) + "): identity checked, configuration written and read back");
       break;
     case SlaveEvent::KeptAlive:
-      if (!is_valve) sensor_->onBooted(node_->now());
+      if (is_valve) valveBooted();
+      else sensor_->onBooted(node_->now());
       if (log_)
         log_(std::string(role) + " (node " + std::to_string(id) +
              "): kept alive (Operational, heartbeat live): identity checked, not reset or configured again");

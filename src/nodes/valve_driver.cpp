@@ -20,7 +20,9 @@ void ValveDriver::pushErrorValue(double safe_u) noexcept {
   // CiA 401: the valve outputs 0x6444:n on a communication error; make it the controller's safe value.
   const std::int32_t v = scaling_.commandCounts(safe_u);
   auto& sdo = node_.sdoClient();
-  if (sdo.busy()) return;
+  // Nothing is written to a slave before its boot has checked its identity (0x1000, 0x1018 against
+  // 0x1F84-0x1F88): until then, or after a failed boot, the value waits.
+  if (sdo.busy() || !master_.configured(id_)) return;
   push_ = false;
   if (error_value_index_ == 0) return;
   sdo.downloadValue<std::int32_t>(id_, error_value_index_, error_value_sub_, v, [this](std::uint32_t code, const std::uint8_t*, std::size_t) {

@@ -26,7 +26,8 @@ class ValveDriver {
 
   void command(double u) noexcept { cmd_.set(scaling_.commandCounts(u)); }  // relative volts
   void zero() noexcept { cmd_.set(0); }
-  // The error value follows the safe value: written when the SDO client is free.
+  // The error value follows the safe value: written when the SDO client is free and the valve's boot
+  // has checked its identity (NmtMaster::configured), never before.
   void errorValueDue() noexcept { push_ = true; }
   bool errorValuePending() const noexcept { return push_; }
   void pushErrorValue(double safe_u) noexcept;

@@ -328,6 +328,36 @@ TEST(RigBoot, AWrongIdentityIsReportedAndTheSlaveLeftStopped) {
   EXPECT_NE(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Operational);
 }
 
+// Nothing is written to a slave before its boot has checked its identity (0x1018 against 0x1F85-0x1F88):
+// no SDO download to the valve (its configuration, its error value 0x6444) before the answer to the
+// upload of its vendor-ID 0x1018:01; a valve with the wrong vendor-ID gets no write at all.
+TEST(RigBoot, NothingIsWrittenToTheValveBeforeItsIdentityIsChecked) {
+  for (bool wrong : {false, true}) {
+    const std::string vendor = wrong ? "vendor_id = 0x00001234" : "vendor_id = 0x0000ABCD";
+    const auto path = writeTemp("rig.ini", rigText({{"vendor_id = 0x00000000\nproduct_code = 0x00000003",
+                                                     vendor + "\nproduct_code = 0x00000003"}}));
+    nodes::EmulatorConfig e = emulator();
+    e.valve_eds = edsWith("valve.eds", {{"1018sub1", "0x0000ABCD"}});
+    nodes::VirtualRig rig(controllerFromRig(path, nullptr), e);
+    std::vector<std::string> frames;
+    rig.addTap([&frames](const Frame& f, canopen::TimeUs) { frames.push_back(canopen::formatFrame(f)); });
+    rig.start();
+    rig.runFor(2.0);
+    auto first = [&frames](auto pred) { return static_cast<std::size_t>(std::find_if(frames.begin(), frames.end(), pred) - frames.begin()); };
+    const std::size_t identity = first([](const std::string& f) { return f.rfind("583#43181001", 0) == 0; });
+    const std::size_t write = first([](const std::string& f) { return f.rfind("603#2", 0) == 0; });
+    const std::size_t error_value = first([](const std::string& f) { return f.rfind("603#2", 0) == 0 && f.compare(6, 4, "4464") == 0; });
+    ASSERT_LT(identity, frames.size()) << "the vendor-ID was read; wrong=" << wrong;
+    EXPECT_EQ(rig.controller().faultCounters().slave_boot_failures, wrong ? 1u : 0u);
+    if (wrong) {
+      EXPECT_EQ(write, frames.size()) << "nothing written to a valve of another vendor, no 0x6444 either";
+    } else {
+      EXPECT_GT(write, identity) << frames[write];
+      EXPECT_LT(error_value, frames.size()) << "the error value is written once the identity is checked";
+    }
+  }
+}
+
 TEST(RigBoot, ARefusedWriteIsReportedWithItsAbortCode) {
   std::vector<std::string> log;
   const auto path = writeTemp("rig.ini", rigText() +
