@@ -24,11 +24,14 @@ bool hasParam(const std::vector<model::ParamSpec>& specs, const std::string& nam
 }  // namespace
 
 model::Model withReplacement(const Rung& fin, const std::string& effect, const std::string& by) {
+  // The effects whose physics the richer form holds too go with the one it replaces.
+  const auto absorbed = by.empty() ? std::vector<std::string>{} : model::makeEffect(by)->absorbs();
+  const auto kept = [&](const std::string& e) { return std::find(absorbed.begin(), absorbed.end(), e) == absorbed.end(); };
   model::Model m(fin.model.core());
   m.setOutputForm(fin.model.outputForm());
   for (const auto& e : fin.effects)
-    if (e != effect) m.addEffect(e);
-    else if (!by.empty()) m.addEffect(by);
+    if (e != effect && kept(e)) m.addEffect(e);
+    else if (e == effect && !by.empty()) m.addEffect(by);
   const auto by_specs = by.empty() ? std::vector<model::ParamSpec>{} : model::makeEffect(by)->params();
   for (int i = 0; i < fin.model.numEffects(); ++i) {
     const auto& eff = fin.model.effect(i);
@@ -37,7 +40,7 @@ model::Model withReplacement(const Rung& fin, const std::string& effect, const s
       const std::string& param = eff.params()[q].name;
       const double v = fin.model.effectParams(i)[q];
       if (name != effect) {
-        m.setEffectParam(name, param, v);
+        if (kept(name)) m.setEffectParam(name, param, v);
       } else if (hasParam(by_specs, param)) {
         m.setEffectParam(by, param, v);
       }
@@ -91,18 +94,44 @@ void Diagnosis::searchByGa(CandidateResult& c, const model::Model& base) const {
   if (rv < c.rmse_val) c.model = f.model, c.rmse_val = rv, c.rmse_train = ident::rmseFrom(f.model, train_);
 }
 
+namespace {
+
+// The model without one of its effects, the others' parameters kept.
+model::Model without(const model::Model& m, const std::string& name) {
+  model::Model out(m.core());
+  out.setOutputForm(m.outputForm());
+  for (int i = 0; i < m.numEffects(); ++i)
+    if (m.effect(i).name() != name) out.addEffect(m.effect(i).name());
+  for (int i = 0; i < m.numEffects(); ++i) {
+    if (m.effect(i).name() == name) continue;
+    const auto& specs = m.effect(i).params();
+    for (size_t q = 0; q < specs.size(); ++q) out.setEffectParam(m.effect(i).name(), specs[q].name, m.effectParams(i)[q]);
+  }
+  return out;
+}
+
+// Whether the richer form drops an effect of the rung besides the one it replaces (Effect::absorbs).
+bool absorbsSome(const Rung& cur, const std::string& richer) {
+  for (const auto& a : model::makeEffect(richer)->absorbs())
+    if (std::find(cur.effects.begin(), cur.effects.end(), a) != cur.effects.end()) return true;
+  return false;
+}
+
+}  // namespace
+
 void Diagnosis::tryRefinement(const std::string& effect, const std::string& richer) {
   const Rung& cur = res_.ladder.back();
   if (std::find(cur.effects.begin(), cur.effects.end(), effect) == cur.effects.end()) return;
   log("refinements: " + effect + " as " + richer + " ...");
-  const model::Model base = withReplacement(cur, effect, "");
+  const model::Model refined = withReplacement(cur, effect, richer);
+  const model::Model base = without(refined, richer);
   const int round = static_cast<int>(res_.ladder.size());
   const ResidualReport rr = analyze(train_, simulate(base, train_));
   // A quick search from the current fit first: the GA's longer one only for a form that already helps by
-  // min_gain there.
-  auto c = fitEach({withReplacement(cur, effect, richer)}, cur.model, {richer}, round, rr, "refine ", s_.method,
-                   Search::Quick, kQuickCover).front();
-  if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain) {
+  // min_gain there - or that drops an effect it holds as well, whose quick search starts without that
+  // effect's part of the fit.
+  auto c = fitEach({refined}, cur.model, {richer}, round, rr, "refine ", s_.method, Search::Quick, kQuickCover).front();
+  if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain && !absorbsSome(cur, richer)) {
     log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " + fmt("%.5g", cur.rmse_val) +
         "): not searched further");
     return;
@@ -113,7 +142,9 @@ void Diagnosis::tryRefinement(const std::string& effect, const std::string& rich
       ")");
   if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain) return;
   Rung r;
-  for (const auto& x : cur.effects) r.effects.push_back(x == effect ? richer : x);
+  for (const auto& x : cur.effects)
+    if (x == effect) r.effects.push_back(richer);
+    else if (c.model.hasEffect(x)) r.effects.push_back(x);  // not one the richer form absorbed
   r.model = c.model;
   r.rmse_train = c.rmse_train;
   r.rmse_val = c.rmse_val;

@@ -60,6 +60,12 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
     if (u == "y-unit") {
       lo *= ry / 40.0;
       hi *= ry / 40.0;
+    } else if (u == "1/y-unit") {
+      lo *= 40.0 / ry;
+      hi *= 40.0 / ry;
+    } else if (u == "1/y-unit^2") {
+      lo *= (40.0 / ry) * (40.0 / ry);
+      hi *= (40.0 / ry) * (40.0 / ry);
     } else if (u == "y-level") {
       // A level outside the data's range is indistinguishable from no effect (flat cost).
       lo = *ymin;

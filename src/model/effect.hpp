@@ -23,7 +23,8 @@ enum class Stage { Input, Output };
 //  "s" time (clamped to the sample time and record length), "Hz" frequency, "y-unit" a size in
 //  output units (scaled with the output's range), "y-level" an output level (within its range),
 //  "u-unit" a size in input units, "u-level" an input level, "u-unit/s" an input rate,
-//  "y-unit/load-unit" a compliance, "-" dimensionless (bounds as given).
+//  "y-unit/load-unit" a compliance, "1/y-unit" and "1/y-unit^2" a curve's slope and curvature per output
+//  unit, "-" dimensionless (bounds as given).
 struct ParamSpec {
   std::string name;
   double lo;    // identification bound (for a 40 mm / 10 V / 1 kHz rig; scaled to the data)
@@ -72,6 +73,9 @@ class Effect {
   // the ladder ends above the noise with one of them (Diagnosis::refinements). A model holds at most one
   // of them and it (Model::addEffect).
   virtual std::vector<std::string> refines() const { return {}; }
+  // Effects of the chain whose physics this richer form holds as well (muscle_balance's force-length map:
+  // saturation's stiffening towards the end of the stroke). A refinement into it drops them.
+  virtual std::vector<std::string> absorbs() const { return {}; }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }
   // Whether the effect has a direction-dependent version ("<name>_updown": separate parameters for a
