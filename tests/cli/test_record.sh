@@ -43,7 +43,7 @@ check "the paced record is an evenly sampled measurement" \
   --out "$work/both.csv" > /dev/null 2> "$work/both_err.txt"
 check "--input with --trajectory exits non-zero" test $? -ne 0
 check "--input with --trajectory: one line" test "$(wc -l < "$work/both_err.txt")" -eq 1
-check "--input with --trajectory: named" grep -q -- "--input excludes --trajectory" "$work/both_err.txt"
+check "--input with --trajectory: named" grep -qE -- "--(input|trajectory) excludes --(trajectory|input)" "$work/both_err.txt"
 check "--input with --trajectory: no file" test ! -e "$work/both.csv"
 "$PAMC" controller --od "$SRC/od" --input random:1:-3:3 --controller amc --out "$work/c.csv" > /dev/null 2> "$work/ctrl_err.txt"
 check "controller --input with --controller exits non-zero" test $? -ne 0
