@@ -163,6 +163,7 @@ Trajectory Trajectory::chirp(double f0, double f1, double offset, double amplitu
 Trajectory Trajectory::randomRampHold(std::uint64_t seed, double lo, double hi) {
   Trajectory t;
   t.shape = Shape::RandomRampHold;
+  t.seed = seed;
   t.lo = lo;
   t.hi = hi;
   std::mt19937_64 rng(seed);
