@@ -20,6 +20,7 @@
 #include "nodes/decoder.hpp"
 #include "nodes/emulator_node.hpp"
 #include "app/command.hpp"
+#include "app/measurement_record.hpp"
 
 namespace pamc::app {
 
@@ -42,8 +43,9 @@ struct Joiner {
 struct TrackingSummary {
   double acc = 0, max = 0;
   std::uint64_t n = 0;
+  bool open_loop_input = false;  // --input: the "setpoint" is the command, there is nothing tracked
   void add(const nodes::CycleRecord& r) {
-    if (r.fault != 0) return;
+    if (r.fault != 0 || open_loop_input) return;
     const double e = r.yd - r.y;
     acc += e * e;
     max = std::max(max, std::fabs(e));
@@ -80,6 +82,7 @@ class Logger {
   }
   nodes::SpscRing<LogItem, 1 << 16> frames;
   nodes::SpscRing<nodes::CycleRecord, 1 << 15>* records = nullptr;
+  MeasurementRecord* measurement = nullptr;  // --out: the records as a measurement, written at the end
   void start() {
     thread_ = std::thread([this] {
       while (!quit_) {
@@ -109,6 +112,7 @@ class Logger {
     wrote = false;
     while (records && records->pop(r)) {
       summary.add(r);
+      if (measurement) measurement->add(r);
       if (csv_) {
         std::fprintf(csv_, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%u,%.1f\n", r.t, r.yd, r.y, r.u, r.u_n, r.u_c, r.y_hat,
                      r.fault, static_cast<double>(r.latency_us));

@@ -58,6 +58,8 @@ class ControllerCommand final : public Command {
     auto loggerp = std::make_unique<Logger>(candump, iface, csv, c.period_us);
     auto& logger = *loggerp;
     logger.records = &node.records();
+    MeasurementRecord measurement(c.layout.feedback);
+    attachMeasurement(logger, measurement, run_);
     can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
     canopen::EventLoop loop(can, node.node());
     g_loop = &loop;
@@ -89,6 +91,7 @@ class ControllerCommand final : public Command {
                 static_cast<unsigned long long>(st.tx_queued), static_cast<unsigned long long>(st.tx_dropped),
                 static_cast<unsigned long long>(st.tx_expired), static_cast<unsigned long long>(st.error_frames));
     if (auto why = nodes::runFailure(node)) throw std::runtime_error(*why);
+    writeMeasurement(measurement, run_.out);
     return 0;
   }
 

@@ -18,8 +18,8 @@ class EmulateCommand final : public Command {
  public:
   explicit EmulateCommand(CLI::App& app)
       : Command(app.add_subcommand("emulate", "excite the plant emulator open loop and write a measurement CSV")) {
-    cmd_->add_option("--input", em_input, "command u(t) [V]: sine:F:OFFSET:AMP, triangle:F:LO:HI, square:F:LO:HI, "
-                                          "chirp:F0:F1:OFFSET:AMP:DURATION, random:SEED:LO:HI, ...")
+    cmd_->add_option("--input", em_input, "command u(t) [V]: " + control::Trajectory::forms() +
+                                              " (docs/MODELING.md, \"Designing a record\")")
         ->capture_default_str();
     cmd_->add_option("--input-from", em_input_from,
                      "replay the command (and a 'load' column, if any) of this measurement CSV instead of --input; "

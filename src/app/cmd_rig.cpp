@@ -208,6 +208,8 @@ class RigCommand final : public Command {
     auto loggerp = std::make_unique<Logger>(candump, kInProcessBusName, run_.csv, run_.period_us);
     auto& logger = *loggerp;
     logger.records = ring.get();
+    MeasurementRecord measurement(c.layout.feedback);
+    attachMeasurement(logger, measurement, run_);
     int progress_fd = -1;
     if (!progress.empty()) {
       progress_fd = ::open(progress.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
@@ -256,6 +258,7 @@ class RigCommand final : public Command {
                 rt_.priority > 0 ? ("SCHED_FIFO " + std::to_string(rt_.priority) + ", mlockall").c_str() : "normal scheduling",
                 w.quantile(0.5), w.quantile(0.99), w.max(), static_cast<unsigned long long>(r.wake_overruns),
                 static_cast<unsigned long long>(w.count()));
+    writeMeasurement(measurement, run_.out);
     return 0;
   }
 
@@ -269,12 +272,15 @@ class RigCommand final : public Command {
       hooks.until_stopped = true;
       hooks.on_step = [](canopen::TimeUs) { return !g_stop.load(); };
     }
-    // Records are kept only for --csv (a run until Ctrl-C would otherwise grow without bound).
+    // Records are kept only for --csv and --out (a run until Ctrl-C would otherwise grow without bound).
     TrackingSummary t;
+    t.open_loop_input = run_.openLoopInput();
     std::vector<nodes::CycleRecord> kept;
+    MeasurementRecord measurement(c.layout.feedback);
     hooks.on_record = [&](const nodes::CycleRecord& x) {
       t.add(x);
       if (!run_.csv.empty()) kept.push_back(x);
+      if (!run_.out.empty()) measurement.add(x);
     };
     std::fprintf(stderr, "in-process bus: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
                  c.node_id ? c.node_id : 1u, c.sensor_id, c.valve_id, run_.preroll,
@@ -297,6 +303,7 @@ class RigCommand final : public Command {
     if (!r.failure.empty() && !forever)
       throw std::runtime_error("the loop never started: " + r.failure + "; devices that differ from pamc's own need "
                                "a rig file that describes them (--rig, docs/RIG.md)");
+    writeMeasurement(measurement, run_.out);
     return 0;
   }
 

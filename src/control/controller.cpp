@@ -12,6 +12,7 @@ const char* toString(Kind k) {
     case Kind::PI: return "pi";
     case Kind::PidEso: return "eso";
     case Kind::PiAmc: return "amc";
+    case Kind::Input: return "input";
   }
   return "?";
 }
@@ -21,7 +22,8 @@ Kind kindFromString(const std::string& s) {
   if (s == "pi" || s == "pid") return Kind::PI;
   if (s == "eso" || s == "pid+eso" || s == "pideso") return Kind::PidEso;
   if (s == "amc" || s == "pi+amc" || s == "pid+amc" || s == "piamc") return Kind::PiAmc;
-  throw std::invalid_argument("unknown controller '" + s + "' (known: open, pi, eso, amc)");
+  if (s == "input") return Kind::Input;
+  throw std::invalid_argument("unknown controller '" + s + "' (known: open, pi, eso, amc, input)");
 }
 
 // ---------------------------------------------------------------- inverse static characteristic
@@ -215,6 +217,25 @@ class OpenLoop final : public Controller {
   ControllerConfig cfg_;
   InverseStatic inv_;
   double gain_ = 1.0, offset_ = 0.0;  // the linear inverse's line [mm/V], [mm]
+};
+
+// The identification input straight to the valve: u = yd within the valve's range. Nothing is estimated;
+// y_hat is the measured position, so a record shows what the sensor gave.
+class Input final : public Controller {
+ public:
+  explicit Input(const ControllerConfig& c) : u_min_(c.u_min), u_max_(c.u_max) {}
+  Kind kind() const override { return Kind::Input; }
+  void activate(double, double) noexcept override {}
+  ControlOutput update(double u_wanted, double, double y, double) noexcept override {
+    ControlOutput o;
+    o.u = o.u_n = std::clamp(u_wanted, u_min_, u_max_);
+    o.saturated = o.u != u_wanted;
+    o.y_hat = y;
+    return o;
+  }
+
+ private:
+  double u_min_, u_max_;
 };
 
 // The last usable (finite) measured position: a non-finite one is never used.
@@ -434,6 +455,7 @@ std::unique_ptr<Controller> makeController(Kind kind, const ControllerConfig& cf
     case Kind::PI: return std::make_unique<Pi>(cfg);
     case Kind::PidEso: return std::make_unique<PidEso>(cfg);
     case Kind::PiAmc: return std::make_unique<PiAmc>(cfg);
+    case Kind::Input: return std::make_unique<Input>(cfg);
   }
   throw std::invalid_argument("unknown controller kind");
 }

@@ -1,5 +1,6 @@
 // Position controllers of the paper: open loop (inverse static characteristic), PI (eq. 16),
-// PI + active model compensation (eqs. 14-19) and PID + extended state observer (eqs. 22-25).
+// PI + active model compensation (eqs. 14-19) and PID + extended state observer (eqs. 22-25); and the
+// feed-through of an identification input (Kind::Input).
 //
 // Lifecycle: construction (makeController) may allocate and throw on a bad configuration; activate()
 // resets state; update() runs once per cycle, is noexcept, allocation-free and returns the valve
@@ -28,11 +29,13 @@
 
 namespace pamc::control {
 
-enum class Kind { OpenLoop = 0, PI = 1, PidEso = 2, PiAmc = 3 };
+// Input: no controller - the "setpoint" is the valve command itself (an identification input, `--input`),
+// passed through within [u_min, u_max]; the measured position is not used.
+enum class Kind { OpenLoop = 0, PI = 1, PidEso = 2, PiAmc = 3, Input = 4 };
 const char* toString(Kind k);
 // Whether the kind runs the model (the open loop's inverse, the AMC's estimator and prediction).
 constexpr bool usesModel(Kind k) noexcept { return k == Kind::OpenLoop || k == Kind::PiAmc; }
-Kind kindFromString(const std::string& s);  // "open", "pi", "eso", "amc" (throws)
+Kind kindFromString(const std::string& s);  // "open", "pi", "eso", "amc", "input" (throws)
 
 struct ControllerConfig {
   double Ts = 1e-3;

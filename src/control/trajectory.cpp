@@ -9,6 +9,21 @@
 #include <vector>
 
 namespace pamc::control {
+namespace {
+
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+// Lines of a multisine: the multiples of f0 up to f1 (a hair of tolerance so that f1 = k f0 is one).
+std::size_t multisineLines(double f0, double f1) {
+  return f0 > 0.0 ? static_cast<std::size_t>(std::floor(f1 / f0 * (1.0 + 1e-12))) : 0;
+}
+
+}  // namespace
+
 
 double Trajectory::at(double t) const noexcept {
   const double ph = freq_hz * t - std::floor(freq_hz * t);  // phase in [0,1)
@@ -28,7 +43,9 @@ double Trajectory::at(double t) const noexcept {
       const double k = duration > 0 ? (freq_end_hz - freq_hz) / duration : 0.0;
       return offset + amplitude * std::sin(2.0 * M_PI * (freq_hz * tt + 0.5 * k * tt * tt));
     }
-    case Shape::RandomRampHold: {
+    case Shape::Multisine: return uniformTable(t);
+    case Shape::RandomRampHold:
+    case Shape::Aprbs: {
       if (knot_t.size() < 2) return lo;
       const double tt = std::fmod(std::max(t, 0.0), knot_t.back());
       const auto it = std::upper_bound(knot_t.begin(), knot_t.end(), tt);
@@ -39,6 +56,19 @@ double Trajectory::at(double t) const noexcept {
     }
   }
   return 0.0;
+}
+
+// Multisine: samples at an even step over one period, linear between them (the last joins the first).
+double Trajectory::uniformTable(double t) const noexcept {
+  const std::size_t n = knot_v.size();
+  if (n == 0 || !(duration > 0.0)) return lo;
+  double x = std::fmod(std::max(t, 0.0), duration) / duration * static_cast<double>(n);
+  // On a sample (a cycle of the loop that the table's step divides) to within rounding: that sample.
+  if (const double r = std::round(x); std::fabs(x - r) < 1e-6) x = r < static_cast<double>(n) ? r : 0.0;
+  const std::size_t i = std::min(static_cast<std::size_t>(x), n - 1);
+  const double f = x - static_cast<double>(i);
+  const double v = knot_v[i] + f * (knot_v[(i + 1) % n] - knot_v[i]);
+  return std::clamp(v, lo, hi);  // a rounding of the interpolation never leaves [lo, hi]
 }
 
 std::string Trajectory::describe() const {
@@ -58,6 +88,14 @@ std::string Trajectory::describe() const {
       std::snprintf(b, sizeof b, "chirp %g -> %g Hz over %g s, %g sin + %g", freq_hz, freq_end_hz, duration, amplitude, offset);
       break;
     case Shape::RandomRampHold: std::snprintf(b, sizeof b, "random ramps and holds in [%g, %g]", lo, hi); break;
+    case Shape::Multisine:
+      std::snprintf(b, sizeof b, "multisine %g-%g Hz (%zu lines, period %g s, seed %llu) in [%g, %g]", freq_hz, freq_end_hz,
+                    multisineLines(freq_hz, freq_end_hz), duration, static_cast<unsigned long long>(seed), lo, hi);
+      break;
+    case Shape::Aprbs:
+      std::snprintf(b, sizeof b, "APRBS in [%g, %g], holds %g-%g s (seed %llu)", lo, hi, hold_min, hold_max,
+                    static_cast<unsigned long long>(seed));
+      break;
   }
   return b;
 }
@@ -125,6 +163,7 @@ Trajectory Trajectory::chirp(double f0, double f1, double offset, double amplitu
 Trajectory Trajectory::randomRampHold(std::uint64_t seed, double lo, double hi) {
   Trajectory t;
   t.shape = Shape::RandomRampHold;
+  t.seed = seed;
   t.lo = lo;
   t.hi = hi;
   std::mt19937_64 rng(seed);
@@ -148,45 +187,180 @@ Trajectory Trajectory::randomRampHold(std::uint64_t seed, double lo, double hi) 
   return t;
 }
 
-Trajectory Trajectory::parse(const std::string& spec) {
+namespace {
+
+// One period of sum_k sin(2 pi k i / n + phase_k), k = 1..lines, from tables of sin and cos over the
+// period (k i taken modulo n: exact periodicity, no phase drift).
+std::vector<double> multisineSamples(const std::vector<double>& phases, std::size_t n) {
+  std::vector<double> s(n), c(n), x(n, 0.0);
+  for (std::size_t j = 0; j < n; ++j) {
+    const double a = 2.0 * M_PI * static_cast<double>(j) / static_cast<double>(n);
+    s[j] = std::sin(a);
+    c[j] = std::cos(a);
+  }
+  for (std::size_t k = 1; k <= phases.size(); ++k) {
+    const double cp = std::cos(phases[k - 1]), sp = std::sin(phases[k - 1]);
+    std::size_t j = 0;  // k i mod n
+    for (std::size_t i = 0; i < n; ++i, j = (j + k) % n) x[i] += s[j] * cp + c[j] * sp;
+  }
+  return x;
+}
+
+// Affine map of x onto [lo, hi]: its minimum exactly lo, its maximum exactly hi.
+void scaleOnto(std::vector<double>& x, double lo, double hi) {
+  const auto [mn_it, mx_it] = std::minmax_element(x.begin(), x.end());
+  const double mn = *mn_it, mx = *mx_it;
+  const std::size_t i_mn = static_cast<std::size_t>(mn_it - x.begin()), i_mx = static_cast<std::size_t>(mx_it - x.begin());
+  for (double& v : x) v = std::clamp(lo + (hi - lo) * (v - mn) / (mx - mn), lo, hi);
+  x[i_mn] = lo;
+  x[i_mx] = hi;
+}
+
+}  // namespace
+
+Trajectory Trajectory::multisine(std::uint64_t seed, double f0, double f1, double lo, double hi) {
+  auto bad = [](const std::string& why) { throw std::invalid_argument(why); };
+  if (!(f0 > 0.0 && f0 <= f1)) bad("the band needs 0 < F0 <= F1");
+  if (f1 > kMultisineMaxHz) bad("F1 must be at most " + num(kMultisineMaxHz) + " Hz");
+  if (!(lo < hi)) bad("LO must be below HI");
+  const double period = 1.0 / f0;
+  if (period > kMaxTablePeriod_s) bad("F0 must be at least 1/" + num(kMaxTablePeriod_s) + " Hz (a period of at most " +
+                                      num(kMaxTablePeriod_s) + " s)");
+  const std::size_t lines = multisineLines(f0, f1);
+  const auto n = static_cast<std::size_t>(std::ceil(period / kMultisineStep_s - 1e-9));
+  // The tables cost lines x samples: keep the build well under a second.
+  if (static_cast<double>(lines) * static_cast<double>(n) > 2e8)
+    bad(std::to_string(lines) + " lines over a " + std::to_string(n) + "-sample period is too many: raise F0 or lower F1");
+  Trajectory t;
+  t.shape = Shape::Multisine;
+  t.seed = seed;
+  t.freq_hz = f0;
+  t.freq_end_hz = f1;
+  t.lo = lo;
+  t.hi = hi;
+  t.duration = period;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> phase(0.0, 2.0 * M_PI);
+  std::vector<double> phases(lines);
+  for (double& p : phases) p = phase(rng);
+  t.knot_v = multisineSamples(phases, n);
+  scaleOnto(t.knot_v, lo, hi);
+  return t;
+}
+
+Trajectory Trajectory::aprbs(std::uint64_t seed, double hold_min, double hold_max, double lo, double hi) {
+  if (!(hold_min >= kAprbsMinHold_s && hold_min <= hold_max) || !std::isfinite(hold_max))
+    throw std::invalid_argument("the holds need " + num(kAprbsMinHold_s) + " s <= HOLD_MIN <= HOLD_MAX");
+  if (!(lo < hi)) throw std::invalid_argument("LO must be below HI");
+  Trajectory t;
+  t.shape = Shape::Aprbs;
+  t.seed = seed;
+  t.hold_min = hold_min;
+  t.hold_max = hold_max;
+  t.lo = lo;
+  t.hi = hi;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> level(lo, hi), hold(hold_min, hold_max);
+  double now = 0.0;
+  while (now < kMaxTablePeriod_s) {
+    // A level and its hold: two knots at one value (the jump to the next level is the next knot).
+    const double v = level(rng);
+    t.knot_t.push_back(now);
+    t.knot_v.push_back(v);
+    now += hold_min == hold_max ? hold_min : hold(rng);
+    t.knot_t.push_back(now);
+    t.knot_v.push_back(v);
+  }
+  t.duration = now;
+  return t;
+}
+
+namespace {
+
+using Numbers = std::vector<double>;
+
+std::uint64_t seedOf(double v) {
+  if (v < 0 || v != std::floor(v) || v > 9.0e15) throw std::invalid_argument("the seed must be a non-negative integer");
+  return static_cast<std::uint64_t>(v);
+}
+
+// The forms parse() takes, one row each: its name, its numbers, how many (a second count: optional
+// numbers allowed), and how the numbers make it.
+struct Form {
+  const char* name;
+  const char* numbers;
+  std::size_t count, count_max;
+  Trajectory (*make)(const Numbers&);
+};
+
+constexpr Form kForms[] = {
+    {"const", "Y", 1, 1, [](const Numbers& v) { return Trajectory::constant(v[0]); }},
+    {"sine", "F:CENTRE:AMP", 3, 3, [](const Numbers& v) { return Trajectory::sine(v[0], v[2], v[1]); }},
+    {"triangle", "F:LO:HI", 3, 3, [](const Numbers& v) { return Trajectory::triangle(v[0], v[1], v[2]); }},
+    {"square", "F:LO:HI", 3, 3, [](const Numbers& v) { return Trajectory::square(v[0], v[1], v[2]); }},
+    {"sawtooth", "F:LO:HI", 3, 3, [](const Numbers& v) { return Trajectory::sawtooth(v[0], v[1], v[2]); }},
+    {"sinedesc", "F:CENTRE:A0:A1:DURATION[:PHASE_DEG]", 5, 6,
+     [](const Numbers& v) {
+       return Trajectory::sineDescending(v[0], v[1], v[2], v[3], v[4], v.size() == 6 ? v[5] * M_PI / 180.0 : 0.0);
+     }},
+    {"chirp", "F0:F1:OFFSET:AMP:DURATION", 5, 5,
+     [](const Numbers& v) { return Trajectory::chirp(v[0], v[1], v[2], v[3], v[4]); }},
+    {"random", "SEED:LO:HI", 3, 3, [](const Numbers& v) { return Trajectory::randomRampHold(seedOf(v[0]), v[1], v[2]); }},
+    {"multisine", "SEED:F0:F1:LO:HI", 5, 5,
+     [](const Numbers& v) { return Trajectory::multisine(seedOf(v[0]), v[1], v[2], v[3], v[4]); }},
+    {"aprbs", "SEED:HOLD_MIN:HOLD_MAX:LO:HI", 5, 5,
+     [](const Numbers& v) { return Trajectory::aprbs(seedOf(v[0]), v[1], v[2], v[3], v[4]); }},
+};
+
+std::vector<std::string> splitSpec(const std::string& spec) {
   std::vector<std::string> parts;
   std::stringstream ss(spec);
   std::string p;
   while (std::getline(ss, p, ':')) parts.push_back(p);
-  auto bad = [&](const std::string& why) {
-    throw std::invalid_argument("trajectory '" + spec + "': " + why +
-                                " (forms: const:Y, sine:F:CENTRE:AMP, triangle:F:LO:HI, square:F:LO:HI, "
-                                "sawtooth:F:LO:HI, sinedesc:F:CENTRE:A0:A1:DURATION[:PHASE_DEG], chirp:F0:F1:OFFSET:AMP:DURATION, random:SEED:LO:HI)");
-  };
-  if (parts.empty()) bad("empty");
-  std::vector<double> v;
-  for (size_t i = 1; i < parts.size(); ++i) {
+  return parts;
+}
+
+// The numbers after the name; throws with the one that is not a number.
+Numbers specNumbers(const std::vector<std::string>& parts) {
+  Numbers v;
+  for (std::size_t i = 1; i < parts.size(); ++i) {
     char* end = nullptr;
     const double d = std::strtod(parts[i].c_str(), &end);
-    if (parts[i].empty() || *end != '\0' || !std::isfinite(d)) bad("'" + parts[i] + "' is not a number");
+    if (parts[i].empty() || *end != '\0' || !std::isfinite(d))
+      throw std::invalid_argument("'" + parts[i] + "' is not a number");
     v.push_back(d);
   }
-  const std::string& k = parts[0];
-  auto need = [&](size_t n) {
-    if (v.size() != n) bad("expected " + std::to_string(n) + " numbers after '" + k + "'");
-  };
-  if (k == "const") { need(1); return constant(v[0]); }
-  if (k == "sine") { need(3); return sine(v[0], v[2], v[1]); }
-  if (k == "triangle") { need(3); return triangle(v[0], v[1], v[2]); }
-  if (k == "square") { need(3); return square(v[0], v[1], v[2]); }
-  if (k == "sawtooth") { need(3); return sawtooth(v[0], v[1], v[2]); }
-  if (k == "sinedesc") {
-    if (v.size() != 6) need(5);
-    return sineDescending(v[0], v[1], v[2], v[3], v[4], v.size() == 6 ? v[5] * M_PI / 180.0 : 0.0);
+  return v;
+}
+
+const Form& formNamed(const std::string& name, std::size_t numbers) {
+  for (const Form& f : kForms) {
+    if (name != f.name) continue;
+    if (numbers < f.count || numbers > f.count_max)
+      throw std::invalid_argument("expected " + std::to_string(f.count) + " numbers after '" + name + "' (" + f.name +
+                                  ":" + f.numbers + ")");
+    return f;
   }
-  if (k == "chirp") { need(5); return chirp(v[0], v[1], v[2], v[3], v[4]); }
-  if (k == "random") {
-    need(3);
-    if (v[0] < 0 || v[0] != std::floor(v[0])) bad("the seed must be a non-negative integer");
-    return randomRampHold(static_cast<std::uint64_t>(v[0]), v[1], v[2]);
+  throw std::invalid_argument("unknown shape '" + name + "'");
+}
+
+}  // namespace
+
+std::string Trajectory::forms() {
+  std::string s;
+  for (const Form& f : kForms) s += std::string(s.empty() ? "" : ", ") + f.name + ":" + f.numbers;
+  return s;
+}
+
+Trajectory Trajectory::parse(const std::string& spec) {
+  try {
+    const auto parts = splitSpec(spec);
+    if (parts.empty()) throw std::invalid_argument("empty");
+    const Numbers v = specNumbers(parts);
+    return formNamed(parts[0], v.size()).make(v);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("trajectory '" + spec + "': " + e.what() + " (forms: " + forms() + ")");
   }
-  bad("unknown shape '" + k + "'");
-  return {};
 }
 
 }  // namespace pamc::control

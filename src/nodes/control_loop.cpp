@@ -99,11 +99,14 @@ double ControlLoop::runSeconds() const noexcept {
 }
 
 void ControlLoop::startRamp(double y) noexcept {
-  const double gap = std::fabs(traj_.at(runSeconds()) - y);
+  // The ramp starts where the setpoint's quantity is now: the position, or - an input passed through to
+  // the valve - the command in effect.
+  const double from = kind_ == control::Kind::Input ? last_u_ : y;
+  const double gap = std::fabs(traj_.at(runSeconds()) - from);
   const double seconds = std::clamp(gap / std::max(ramp_mm_per_s_, 1e-6), 0.05, 5.0);
   ramp_ = true;
   slew_ = true;
-  ramp_from_ = y;
+  ramp_from_ = from;
   ramp_k0_ = cycle_;
   ramp_cycles_ = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(seconds / Ts_)));
 }

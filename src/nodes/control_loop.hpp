@@ -1,7 +1,8 @@
 // The control loop of the controller node, free of CANopen: each cycle it takes the position latched
 // at the SYNC, runs the controller towards the trajectory's setpoint and holds the command the valve
 // gets; after a restart (recovery, a committed parameter set) the setpoint ramps from the measured
-// position back to the trajectory and the command is rate-limited (bumpless). Runs in the cycle:
+// position back to the trajectory and the command is rate-limited (bumpless). With Kind::Input the
+// trajectory is the valve command itself (an identification input): it ramps from the command in effect. Runs in the cycle:
 // nothing allocated, nothing thrown (configure() excepted, which runs between cycles).
 #pragma once
 

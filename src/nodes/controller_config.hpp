@@ -46,7 +46,7 @@ struct ControllerNodeConfig {
   unsigned period_us = 0;             // SYNC period override (0: 0x1006 of the EDS)
   std::uint8_t sensor_id = 2, valve_id = 3;
   int recover_cycles = 500;           // a fault must be gone this long before control resumes
-  double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast
+  double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast (V/s for Kind::Input)
   double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
   double no_position_s = 1.0;         // no position this long after entering Operational (or after the sensor's boot): Fault::NoPosition
   SlaveLayout layout;

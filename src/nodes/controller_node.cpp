@@ -100,6 +100,7 @@ void ControllerNode::send(CycleRecord rec, TimeUs now) noexcept {
     rec.u = loop_->command();
     rec.fault = static_cast<std::uint8_t>(faults_->fault());
     rec.latency_us = static_cast<float>(lat);
+    rec.p = valve_->pressureBar();
     records_.push(rec);
   }
 }

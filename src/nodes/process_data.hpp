@@ -71,6 +71,7 @@ struct Scaling {
     return static_cast<std::int16_t>(
         std::lround(std::clamp(bar, 0.0, kPressureFullScale_bar) * pressure_full_counts / kPressureFullScale_bar));
   }
+  double bar(double counts) const noexcept { return counts * kPressureFullScale_bar / pressure_full_counts; }
   bool isDefault() const noexcept {
     return position_step_mm == kPositionStep_mm && command_full_counts == kAnalogFullScaleCounts && command_zero_counts == 0.0;
   }

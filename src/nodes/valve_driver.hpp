@@ -4,6 +4,7 @@
 // supervision of its feedback PDO, heartbeat and state, and the reasons to hold it in Pre-operational.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <optional>
 
@@ -22,7 +23,10 @@ class ValveDriver {
   // error_value_index 0: the valve has no error value to write.
   ValveDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
               bool feedback, std::uint16_t error_value_index, std::uint8_t error_value_sub);
-  void bind() { cmd_ = node_.od().ref<std::int16_t>(0x3002, 0); }
+  void bind() {
+    cmd_ = node_.od().ref<std::int16_t>(0x3002, 0);
+    pressure_ = node_.od().ref<std::int16_t>(0x3001, 0);
+  }
 
   void command(double u) noexcept { cmd_.set(scaling_.commandCounts(u)); }  // relative volts
   void zero() noexcept { cmd_.set(0); }
@@ -37,6 +41,8 @@ class ValveDriver {
   void release(std::uint8_t reason, canopen::TimeUs now) noexcept { master_.release(id_, reason, now); }
   std::uint8_t holdReasons() const noexcept { return master_.holdReasons(id_); }
 
+  // The pressure its feedback PDO brought (RPDO2 into 0x3001) [bar]; NaN without a feedback PDO.
+  double pressureBar() const noexcept { return feedback_ ? scaling_.bar(pressure_.get()) : NAN; }
   std::uint8_t id() const noexcept { return id_; }
   std::uint64_t sdoErrors() const noexcept { return sdo_errors_; }
 
@@ -49,6 +55,7 @@ class ValveDriver {
   std::uint16_t error_value_index_;
   std::uint8_t error_value_sub_;
   canopen::Ref<std::int16_t> cmd_{nullptr};
+  canopen::Ref<std::int16_t> pressure_{nullptr};
   bool push_ = false;
   std::uint64_t sdo_errors_ = 0;  // writing the error value failed
 };

@@ -66,6 +66,7 @@ const char* label(control::Kind k) {
     case control::Kind::PI: return "PID";
     case control::Kind::PidEso: return "PID+ESO";
     case control::Kind::PiAmc: return "PID+AMC";
+    case control::Kind::Input: return "input";
   }
   return "?";
 }
@@ -76,6 +77,7 @@ const char* colour(control::Kind k) {
     case control::Kind::PI: return "#1f77b4";
     case control::Kind::PidEso: return "#2ca02c";
     case control::Kind::PiAmc: return "#d62728";
+    case control::Kind::Input: return "#7f7f7f";
   }
   return "#000000";
 }

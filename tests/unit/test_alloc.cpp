@@ -80,7 +80,7 @@ TEST(Allocation, ForceLoopCyclesAllocateNothing) {
 
 INSTANTIATE_TEST_SUITE_P(Controllers, AllocationFree,
                          ::testing::Values(control::Kind::OpenLoop, control::Kind::PI, control::Kind::PidEso,
-                                           control::Kind::PiAmc),
+                                           control::Kind::PiAmc, control::Kind::Input),
                          [](const auto& info) { return std::string(control::toString(info.param)); });
 
 // The whole rig on the in-process bus - controller node (SYNC, RPDO latch, PI + AMC with a rolled-out
@@ -124,5 +124,36 @@ TEST(Allocation, RigCyclesOnTheBusAllocateNothing) {
   EXPECT_TRUE(ctrl->running());
   EXPECT_GE(ctrl->faultCounters().episodes, 1u) << "the fault path ran inside the counted window";
   EXPECT_GE(ctrl->faultCounters().recoveries, 1u);
+  EXPECT_EQ(allocs, 0);
+}
+
+// --input on the rig: the multisine's table read each cycle, the command passed through, a fault
+// episode and the recovery's ramp from the command in effect - nothing allocated.
+TEST(Allocation, RigInputCyclesAllocateNothing) {
+  if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  const std::string od = std::string(PAMC_SOURCE_DIR) + "/od/";
+  nodes::ControllerNodeConfig c;
+  c.eds_path = od + "controller.eds";
+  c.kind = static_cast<int>(control::Kind::Input);
+  c.has_trajectory = true;
+  c.trajectory = control::Trajectory::parse("multisine:1:0.1:5:-3:3");
+  c.preroll_s = 0.2;
+  nodes::EmulatorConfig e;
+  e.sensor_eds = od + "sensor.eds";
+  e.valve_eds = od + "valve.eds";
+  e.sensor_silent_at_s = 4.0;
+  e.sensor_silent_for_s = 0.2;
+  nodes::VirtualRig rig(c, e);
+  rig.setRecordSink([](const nodes::CycleRecord&) {});
+  rig.start();
+  rig.runFor(1.0);
+  long allocs = 0;
+  {
+    CountAllocations count;
+    rig.runFor(10.0);
+    allocs = count.count();
+  }
+  EXPECT_TRUE(rig.controller().running());
+  EXPECT_GE(rig.controller().faultCounters().recoveries, 1u) << "the fault path ran inside the counted window";
   EXPECT_EQ(allocs, 0);
 }
