@@ -38,7 +38,7 @@
 namespace pamc::model {
 namespace {
 
-constexpr int kSubsteps = 8;
+constexpr int kSubsteps = 4;
 constexpr int kElements = 3;
 
 // Parameter indices.
@@ -83,7 +83,11 @@ class MuscleBalance final : public Effect {
     for (int i = 0; i < kElements; ++i) s[kZ0 + i] = 0.0;
   }
   double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
-    for (int i = 0; i < kSubsteps; ++i) subStep(p, s, in);
+    Travels d;
+    const double spread = std::sqrt(std::max(p[kSpread], 1.0));
+    d[0] = std::max(std::fabs(p[kDelta]), 1e-9);
+    for (int i = 1; i < kElements; ++i) d[i] = d[i - 1] * spread;
+    for (int i = 0; i < kSubsteps; ++i) subStep(p, d, s, in);
     return s[kY];
   }
 
@@ -95,10 +99,8 @@ class MuscleBalance final : public Effect {
   static double level(const double* p, double in) noexcept {
     return std::fabs(p[kZmax]) + std::fabs(p[kZp]) * std::max(in + p[kW], 0.0);
   }
-  static double travel(const double* p, int i) noexcept {
-    const double spread = std::max(p[kSpread], 1.0);
-    return std::max(std::fabs(p[kDelta]), 1e-9) * std::pow(spread, 0.5 * i);
-  }
+  // The elements' pre-sliding travels: delta, delta sqrt(spread), delta spread.
+  using Travels = double[kElements];
 
   // Static equilibrium without friction, in + mapExcess(y) = y, by a few Newton steps from y = in.
   static double restPosition(const double* p, double in) noexcept {
@@ -114,15 +116,15 @@ class MuscleBalance final : public Effect {
     return std::isfinite(y) ? y : in;
   }
 
-  static void subStep(const double* p, double* s, double in) noexcept {
+  static void subStep(const double* p, const Travels& d, double* s, double in) noexcept {
     const double y = s[kY], v = s[kV];
     const double lvl = level(p, in);
     double z = 0.0, slope_pos = 0.0, slope_neg = 0.0;  // friction, and its slope dz/dy moving up / down
     for (int i = 0; i < kElements; ++i) {
-      const double zi = s[kZ0 + i], d = travel(p, i);
+      const double zi = s[kZ0 + i];
       z += zi;
-      slope_pos += (1.0 - zi) / d;
-      slope_neg += (1.0 + zi) / d;
+      slope_pos += (1.0 - zi) / d[i];
+      slope_neg += (1.0 + zi) / d[i];
     }
     const double scale = lvl / kElements;
     z *= scale;
@@ -139,19 +141,20 @@ class MuscleBalance final : public Effect {
       y1 = y + (y1 - y) * shrink;
       v1 -= b1 * dz;
     }
-    advanceFriction(p, s, y1 - y);
+    advanceFriction(d, s, y1 - y);
     endStops(p, y1, v1);
     s[kY] = y1;
     s[kV] = v1;
   }
 
   // Each Dahl element exactly along the travel dy: z -> sgn + (z - sgn) exp(-|dy| / delta_i).
-  static void advanceFriction(const double* p, double* s, double dy) noexcept {
+  static void advanceFriction(const Travels& d, double* s, double dy) noexcept {
     if (dy == 0.0) return;
     const double sgn = dy > 0.0 ? 1.0 : -1.0;
     for (int i = 0; i < kElements; ++i) {
       double& zi = s[kZ0 + i];
-      zi = sgn + (zi - sgn) * std::exp(-std::fabs(dy) / travel(p, i));
+      if (zi == sgn) continue;  // sliding: stays at its level
+      zi = sgn + (zi - sgn) * std::exp(-std::fabs(dy) / d[i]);
     }
   }
 
