@@ -157,3 +157,28 @@ TEST(Allocation, RigInputCyclesAllocateNothing) {
   EXPECT_GE(rig.controller().faultCounters().recoveries, 1u) << "the fault path ran inside the counted window";
   EXPECT_EQ(allocs, 0);
 }
+
+// The AMC whose model ends in the muscle's whole-stroke force balance (muscle_balance, its stops and
+// friction elements in use).
+TEST(Allocation, MuscleBalanceCyclesAllocateNothing) {
+  if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  control::ControllerConfig cfg;
+  cfg.model = model::Model({7.5, 1.0, 24.0, 1.0, 0.3, 0.3});
+  cfg.model.addEffect("muscle_balance");
+  for (const auto& [k, v] : {std::pair{"a1", -0.012}, {"zp", 0.05}, {"spread", 4.0}, {"lo", 0.0}, {"hi", 38.0}})
+    cfg.model.setEffectParam("muscle_balance", k, v);
+  auto ctrl = control::makeController(control::Kind::PiAmc, cfg);
+  ctrl->activate(0.0, 20.0);
+  long allocs = 0;
+  double y = 20.0;
+  {
+    CountAllocations c;
+    for (int k = 0; k < 10000; ++k) {
+      const double yd = 18 + 15 * std::sin(2 * M_PI * 0.5 * k * 1e-3);
+      const auto o = ctrl->update(yd, yd, y);
+      y += 0.05 * (20.0 + 5.0 * o.u - y);
+    }
+    allocs = c.count();
+  }
+  EXPECT_EQ(allocs, 0);
+}

@@ -1,0 +1,140 @@
+// muscle_balance: the force balance of a muscle over its whole stroke - its force-length-pressure map, the
+// braid friction of several break-away levels growing with the pressure, the end stops. Its limit
+// (force_loop), its static equilibrium (solved here by bisection), the stops, the friction's growth with
+// the pressure (its cycle without allocation: test_alloc.cpp).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "model/model.hpp"
+
+using namespace pamc;
+
+namespace {
+
+constexpr double kTs = 1e-3;
+
+// y = the effect alone: a core with rho = 1, k = 1, b = 0 passes the input through.
+model::Model alone(const std::string& effect, const std::map<std::string, double>& params) {
+  model::Model m({1.0, 1.0, 0.0, 1.0, 0.3, 0.3});
+  m.addEffect(effect);
+  for (const auto& [k, v] : params) m.setEffectParam(effect, k, v);
+  return m;
+}
+
+// Random ramps and holds over [lo, hi], reproducible.
+std::vector<double> rampsAndHolds(double lo, double hi, size_t n, unsigned seed) {
+  std::vector<double> u(n);
+  unsigned s = seed;
+  auto next = [&s] { return (s = s * 1103515245u + 12345u) / 4294967296.0; };
+  double v = 0.5 * (lo + hi), target = v, rate = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    if (std::fabs(target - v) < 1e-9 && next() < 0.002) {
+      target = lo + (hi - lo) * next();
+      rate = (0.5 + 20.0 * next()) * kTs;
+    }
+    v += std::clamp(target - v, -rate, rate);
+    u[i] = v;
+  }
+  return u;
+}
+
+double rms(const std::vector<double>& a, const std::vector<double>& b) {
+  double s = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) s += (a[i] - b[i]) * (a[i] - b[i]);
+  return std::sqrt(s / static_cast<double>(a.size()));
+}
+
+// The balance's static position without friction, (in + w)(1 + a1 y + a2 y^2) - w - y = 0, by bisection.
+double staticPosition(double in, double w, double a1, double a2) {
+  auto f = [&](double y) { return (in + w) * (1.0 + a1 * y + a2 * y * y) - w - y; };
+  double lo = -100.0, hi = 100.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (f(mid) > 0.0 ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+}  // namespace
+
+// With a straight map, friction that does not grow with the pressure, one break-away level and no stops
+// it is force_loop (its own integration: within a small fraction of the travel).
+TEST(MuscleBalance, WithoutItsMapSpreadAndStopsItIsForceLoop) {
+  const auto u = rampsAndHolds(0.0, 30.0, 20000, 5);
+  const std::map<std::string, double> shared = {{"fn", 6.0}, {"zeta", 0.4}, {"zmax", 0.8}, {"delta", 0.3}};
+  const auto y_fl = alone("force_loop", shared).simulate(u, kTs);
+  const auto y_mb = alone("muscle_balance", shared).simulate(u, kTs);
+  const double span = *std::max_element(y_fl.begin(), y_fl.end()) - *std::min_element(y_fl.begin(), y_fl.end());
+  EXPECT_LT(rms(y_fl, y_mb), 2e-3 * span) << rms(y_fl, y_mb);
+}
+
+// Held, without friction, the payload settles where the map's force balances the spring and the weight.
+TEST(MuscleBalance, HeldItRestsWhereTheMapBalances) {
+  const double w = 20.0, a1 = -0.015, a2 = 8e-5;
+  const std::map<std::string, double> p = {{"fn", 5.0}, {"zeta", 0.6}, {"zmax", 0.0}, {"w", w}, {"a1", a1}, {"a2", a2}};
+  for (const double in : {2.0, 15.0, 35.0}) {
+    std::vector<double> u(6000, in);
+    u.insert(u.begin(), 10, 0.0);  // from rest at 0, a step to in
+    const auto y = alone("muscle_balance", p).simulate(u, kTs);
+    EXPECT_NEAR(y.back(), staticPosition(in, w, a1, a2), 1e-6) << in;
+    // The map stiffens the muscle as it contracts: less travel than the straight balance's.
+    if (in > 5.0) EXPECT_LT(y.back(), in) << in;
+  }
+}
+
+TEST(MuscleBalance, APayloadPushedIntoAStopRestsOnIt) {
+  const std::map<std::string, double> p = {{"fn", 8.0}, {"zeta", 0.2}, {"zmax", 0.2}, {"lo", 0.0}, {"hi", 25.0}};
+  std::vector<double> u(3000, 10.0);
+  std::fill(u.begin() + 500, u.begin() + 1500, 40.0);  // into the upper stop
+  std::fill(u.begin() + 1500, u.end(), -20.0);           // into the lower stop
+  const auto y = alone("muscle_balance", p).simulate(u, kTs);
+  EXPECT_NEAR(y[490], 10.0, 1e-3);
+  EXPECT_DOUBLE_EQ(y[1400], 25.0);  // resting: no bounce off the stop
+  EXPECT_DOUBLE_EQ(y[1499], 25.0);
+  EXPECT_DOUBLE_EQ(y[2900], 0.0);
+  for (const double v : y) EXPECT_TRUE(v >= 0.0 && v <= 25.0) << v;
+}
+
+// The loop's width (the position falling against rising at the same input, slow triangles of +-8 about a
+// level) grows with the pressure when the friction does (zp: by 2 zp level), and not without it.
+TEST(MuscleBalance, TheFrictionGrowsWithThePressure) {
+  auto width = [](double zp, double centre) {
+    const std::map<std::string, double> p = {{"fn", 10.0}, {"zeta", 0.7}, {"zmax", 0.3}, {"delta", 0.2}, {"zp", zp}};
+    std::vector<double> u;
+    for (int k = 0; k < 2; ++k) {
+      for (int i = 0; i < 8000; ++i) u.push_back(centre - 8.0 + 16.0 * i / 8000.0);
+      for (int i = 0; i < 8000; ++i) u.push_back(centre + 8.0 - 16.0 * i / 8000.0);
+    }
+    const auto y = alone("muscle_balance", p).simulate(u, kTs);
+    return y[u.size() - 4000] - y[u.size() - 12000];  // at the centre: falling minus rising
+  };
+  const double w0_low = width(0.0, 10.0), w0_high = width(0.0, 30.0);
+  EXPECT_NEAR(w0_low, w0_high, 1e-3);
+  // 2 zmax, the Dahl loop's width, plus the viscous lag of each branch, (2 zeta / wn) times the rate 2 /s.
+  EXPECT_NEAR(w0_low, 2 * 0.3 + 2 * (2 * 0.7 / (2 * M_PI * 10.0)) * 2.0, 0.01);
+  EXPECT_NEAR(width(0.05, 10.0) - w0_low, 2 * 0.05 * 10.0, 0.05);
+  EXPECT_NEAR(width(0.05, 30.0) - w0_high, 2 * 0.05 * 30.0, 0.05);
+}
+
+// Several break-away levels: with its travels spread, the elements with longer travels are still loading
+// after a reversal - the payload travels back further before the friction holds it; the loop's full width
+// stays 2 zmax.
+TEST(MuscleBalance, SpreadTravelsRoundTheReversal) {
+  auto afterReversal = [](double spread) {
+    const std::map<std::string, double> p = {{"fn", 10.0}, {"zeta", 0.7}, {"zmax", 0.5}, {"delta", 0.1}, {"spread", spread}};
+    std::vector<double> u;
+    for (int i = 0; i < 8000; ++i) u.push_back(10.0 * i / 8000.0);
+    for (int i = 0; i < 8000; ++i) u.push_back(10.0 - 10.0 * i / 8000.0);
+    const auto y = alone("muscle_balance", p).simulate(u, kTs);
+    return std::make_pair(y[7999] - y[8400], y[7999] - y[15999] - 10.0);  // travel back after 0.5 V; the loop's end
+  };
+  const auto one = afterReversal(1.0), spread = afterReversal(16.0);
+  EXPECT_GT(spread.first, 2.0 * one.first);
+  EXPECT_NEAR(spread.second, one.second, 0.01);
+  EXPECT_NEAR(one.second, -2 * 0.5, 0.08);
+}
