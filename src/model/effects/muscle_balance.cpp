@@ -32,6 +32,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "model/bouc_wen.hpp"
 #include "model/effect.hpp"
 #include "model/effects/second_order.hpp"
 
@@ -83,10 +84,10 @@ class MuscleBalance final : public Effect {
     for (int i = 0; i < kElements; ++i) s[kZ0 + i] = 0.0;
   }
   double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
-    Travels d;
+    Travels d;  // their inverses
     const double spread = std::sqrt(std::max(p[kSpread], 1.0));
-    d[0] = std::max(std::fabs(p[kDelta]), 1e-9);
-    for (int i = 1; i < kElements; ++i) d[i] = d[i - 1] * spread;
+    d[0] = 1.0 / std::max(std::fabs(p[kDelta]), 1e-9);
+    for (int i = 1; i < kElements; ++i) d[i] = d[i - 1] / spread;
     for (int i = 0; i < kSubsteps; ++i) subStep(p, d, s, in);
     return s[kY];
   }
@@ -99,7 +100,7 @@ class MuscleBalance final : public Effect {
   static double level(const double* p, double in) noexcept {
     return std::fabs(p[kZmax]) + std::fabs(p[kZp]) * std::max(in + p[kW], 0.0);
   }
-  // The elements' pre-sliding travels: delta, delta sqrt(spread), delta spread.
+  // The inverses of the elements' pre-sliding travels: delta, delta sqrt(spread), delta spread.
   using Travels = double[kElements];
 
   // Static equilibrium without friction, in + mapExcess(y) = y, by a few Newton steps from y = in.
@@ -123,8 +124,8 @@ class MuscleBalance final : public Effect {
     for (int i = 0; i < kElements; ++i) {
       const double zi = s[kZ0 + i];
       z += zi;
-      slope_pos += (1.0 - zi) / d[i];
-      slope_neg += (1.0 + zi) / d[i];
+      slope_pos += (1.0 - zi) * d[i];
+      slope_neg += (1.0 + zi) * d[i];
     }
     const double scale = lvl / kElements;
     z *= scale;
@@ -154,7 +155,11 @@ class MuscleBalance final : public Effect {
     for (int i = 0; i < kElements; ++i) {
       double& zi = s[kZ0 + i];
       if (zi == sgn) continue;  // sliding: stays at its level
-      zi = sgn + (zi - sgn) * std::exp(-std::fabs(dy) / d[i]);
+      // exp(-x) = 1 - x (1 - exp(-x)) / x: the Bouc-Wen core's series below its limit (no exp on a
+      // sub-step's short travel, within 2e-12 relative), exp above it.
+      const double x = std::fabs(dy) * d[i];
+      const double decay = x < detail::kSeriesLimit ? 1.0 - x * detail::boucWenSeries(x) : std::exp(-x);
+      zi = sgn + (zi - sgn) * decay;
     }
   }
 
