@@ -39,6 +39,13 @@ const std::vector<EffectInfo>& effectTable() {
       {"load", {{"compliance", -10.0, 10.0, 0.05}}, true, "displacement drops by compliance x load"},
       {"saturation", {{"knee", 0.0, 40.0, 30.0}, {"width", 0.1, 80.0, 10.0}}, false,
        "displacement flattens above the knee towards knee + width"},
+      {"muscle_balance",
+       {{"fn", 0.2, 100.0, 10.0}, {"zeta", 0.01, 3.0, 0.5}, {"w", -100.0, 100.0, 0.0}, {"L", 5.0, 1e4, 1e4},
+        {"f0", 0.0, 10.0, 0.0}, {"fp", 0.0, 0.2, 0.0}, {"k_slip", 0.01, 100.0, 1.0}, {"spread", 1.0, 100.0, 1.0},
+        {"lo", -1e9, 1e9, -1e9}, {"hi", -1e9, 1e9, 1e9}},
+       false,
+       "payload's force balance with an exponential force-length map, elastoplastic Maxwell-slip friction whose "
+       "levels grow with the pressure, and inelastic end stops"},
       {"warm_up", {{"tau", 1.0, 3600.0, 60.0}, {"gain", -0.5, 0.5, 0.1}, {"shift", -10.0, 10.0, 0.0}}, false,
        "travel grows and length shifts with a thermal time constant after the start"},
       // Outside pamc's catalogue (unseen.json): physics the model has no effect for.
@@ -172,8 +179,15 @@ void validateEffects(const std::vector<EffectSpec>& effects) {
       }
     }
   }
-  if (seen.count("mass_spring") && seen.count("force_loop"))
-    throw std::invalid_argument("mass_spring and force_loop are alternatives: take one");
+  if (seen.count("mass_spring") + seen.count("force_loop") + seen.count("muscle_balance") > 1)
+    throw std::invalid_argument("mass_spring, force_loop and muscle_balance are alternatives: take one");
+  if (seen.count("muscle_balance")) {
+    const EffectSpec& e = *std::find_if(effects.begin(), effects.end(), [](const EffectSpec& x) {
+      return x.name == "muscle_balance";
+    });
+    auto at = [&](const char* k, double def) { return e.params.count(k) ? e.params.at(k) : def; };
+    if (!(at("lo", -1e9) < at("hi", 1e9))) throw std::invalid_argument("effect muscle_balance: lo must be below hi");
+  }
   if (seen.count("pressure_lag") + seen.count("direction_lag") + seen.count("valve_flow") > 1)
     throw std::invalid_argument("pressure_lag, direction_lag and valve_flow are alternatives: take one");
 }
@@ -185,7 +199,8 @@ double Record::noise() const { return std::sqrt(noise_std * noise_std + quantum 
 
 namespace {
 
-enum : int { kV, kL, kP, kH, kZa, kZc, kZf, kX, kXd, kZl, kN };
+constexpr int kSlipElements = 4;  // muscle_balance's Maxwell-slip elements
+enum : int { kV, kL, kP, kH, kZa, kZc, kZf, kX, kXd, kZl, kE0, kN = kE0 + kSlipElements };
 using Vec = std::array<double, kN>;
 
 double param(const EffectSpec& e, const std::string& name) {
@@ -198,6 +213,81 @@ double param(const EffectSpec& e, const std::string& name) {
 
 double sgn(double x) { return x > 0.0 ? 1.0 : x < 0.0 ? -1.0 : 0.0; }
 
+// muscle_balance in the oracle's own laws (forces over the nominal stiffness, in mm; s the stage input):
+//   x'' = wn^2 (F(s, x) - x - F_f) - 2 zeta wn x'
+//   F(s, x) = (s + w) exp(-x / L) - w            exponential force-length map (s + w: the pressure's force)
+//   F_f = sum_i k_i (x - q_i)                    elastoplastic Maxwell-slip elements, i = 0..3: a spring k_i
+//   q_i = clamp(q_i, x - E_i, x + E_i)           from x to its anchor q_i, which slips when the spring's force
+//                                                reaches the break-away k_i E_i (a play operator of x)
+//   k_i = k_slip spread^(-i / 3),  E_i = N(s) / (4 k_i),  N(s) = f0 + fp max(s + w, 0)
+//   at a stop (x = lo or hi) with the net force into it the payload rests: x' = x'' = 0
+// The anchors are algebraic: within a step they are clamped from the step's start, and the step is cut
+// where the payload turns round or meets a stop, so x is monotone over every step and the clamp exact.
+struct Balance {
+  double w = 0, L = 1e4, f0 = 0, fp = 0, k_slip = 1, spread = 1, lo = -1e9, hi = 1e9;
+  static constexpr double kStopTol = 1e-9;  // [mm] how close to a stop a contact is made
+  static constexpr double kTurnTol = 1e-6;  // [mm/s] how small the velocity past a turn may be
+
+  double muscle(double s, double x) const { return (s + w) * std::exp(-x / L) - w; }
+  double level(double s) const { return f0 + fp * std::max(s + w, 0.0); }
+  double levelRate(double s, double sd) const { return s + w > 0.0 ? fp * sd : 0.0; }
+  double stiffness(int i) const { return k_slip * std::pow(spread, -static_cast<double>(i) / (kSlipElements - 1)); }
+
+  // The position at rest with the elements unloaded, F(s, x) = x (Newton from x = s: for s + w >= 0 the
+  // difference is convex and falling), held within the stops.
+  double rest(double s) const {
+    double x = s;
+    for (int it = 0; it < 100; ++it) {
+      const double e = std::exp(-x / L), g = (s + w) * e - w - x, dg = -(s + w) * e / L - 1.0;
+      const double dx = g / dg;
+      x -= dx;
+      if (std::fabs(dx) < 1e-14 * (1.0 + std::fabs(x))) break;
+    }
+    return std::clamp(x, lo, hi);
+  }
+
+  // The friction force F_f; the anchors slipped to the position x[kX] and the level at s.
+  double friction(Vec& x, double s) const {
+    double f = 0.0;
+    const double n = level(s) / kSlipElements;
+    for (int i = 0; i < kSlipElements; ++i) {
+      const double k = stiffness(i), E = n / k;
+      double& q = x[kE0 + i];
+      q = std::clamp(q, x[kX] - E, x[kX] + E);
+      f += k * (x[kX] - q);
+    }
+    return f;
+  }
+
+  // The payload's rates for stage input s into d (the anchors' are 0); returns the position.
+  double rates(Vec& x, double s, double wn, double zeta, Vec& d) const {
+    const double a = wn * wn * (muscle(s, x[kX]) - x[kX] - friction(x, s)) - 2.0 * zeta * wn * x[kXd];
+    const bool held = (x[kX] <= lo && x[kXd] <= 0.0 && a <= 0.0) || (x[kX] >= hi && x[kXd] >= 0.0 && a >= 0.0);
+    d[kX] = held ? 0.0 : x[kXd];
+    d[kXd] = held ? 0.0 : a;
+    return x[kX];
+  }
+
+  // The fraction of the step from x to xn at which the payload meets a stop (xn beyond it by more than
+  // kStopTol) or turns round (the velocity changes sign and ends above kTurnTol); 1 when neither.
+  double eventFraction(const Vec& x, const Vec& xn) const {
+    const double a = x[kX], b = xn[kX], va = x[kXd], vb = xn[kXd];
+    if (b < lo - kStopTol && a >= lo - kStopTol) return std::clamp((a - lo) / (a - b), 0.0, 1.0);
+    if (b > hi + kStopTol && a <= hi + kStopTol) return std::clamp((hi - a) / (b - a), 0.0, 1.0);
+    if (va * vb < 0.0 && std::fabs(vb) > kTurnTol) return std::clamp(va / (va - vb), 0.0, 1.0);
+    return 1.0;
+  }
+  // A payload within kStopTol of a stop and moving into it comes to rest on it (inelastic contact).
+  bool settle(Vec& xn) const {
+    const bool at_lo = xn[kX] <= lo + kStopTol && xn[kXd] < 0.0;
+    const bool at_hi = xn[kX] >= hi - kStopTol && xn[kXd] > 0.0;
+    if (!at_lo && !at_hi) return false;
+    xn[kX] = at_lo ? lo : hi;
+    xn[kXd] = 0.0;
+    return true;
+  }
+};
+
 // The valve stage's output v and the load signal L with their rates at some time.
 struct Drive {
   double v, vd, L, Ld;
@@ -207,7 +297,8 @@ struct System {
   Core c;
   double tv = 1e-6;
   bool dead = false, lag = false, asym = false, load = false, sat = false, creep = false, fric = false,
-       mass = false, floop = false, warm = false;
+       mass = false, floop = false, mb = false, warm = false;
+  Balance bal;
   double delay = 0.0;
   double thr = 0, lag_tau = 0, lag_slew = 0;
   double as_gain = 0, as_wu = 1, as_wd = 1;
@@ -319,6 +410,14 @@ struct System {
       y = x[kX];
       yd = x[kXd];
     }
+    if (mb) {
+      if (rest) {
+        x[kX] = bal.rest(y);
+        for (int i = 0; i < kSlipElements; ++i) x[kE0 + i] = x[kX];
+      }
+      y = bal.rates(x, y, wn, zeta, d);
+      yd = d[kX];
+    }
     if (warm) {
       const double phi = -std::expm1(-t / wu_tau);
       y += phi * (wu_gain * (y - y_start) + wu_shift);
@@ -327,6 +426,13 @@ struct System {
     return y;
   }
 };
+
+Balance balanceOf(const EffectSpec& e) {
+  Balance b;
+  b.w = param(e, "w"), b.L = param(e, "L"), b.f0 = param(e, "f0"), b.fp = param(e, "fp");
+  b.k_slip = param(e, "k_slip"), b.spread = param(e, "spread"), b.lo = param(e, "lo"), b.hi = param(e, "hi");
+  return b;
+}
 
 System makeSystem(const Core& core, const std::vector<EffectSpec>& effects, const SimOptions& opt) {
   validateEffects(effects);
@@ -350,6 +456,8 @@ System makeSystem(const Core& core, const std::vector<EffectSpec>& effects, cons
     else if (n == "force_loop")
       s.floop = true, s.wn = 2.0 * M_PI * param(e, "fn"), s.zeta = param(e, "zeta"), s.fl_zmax = param(e, "zmax"),
       s.fl_delta = param(e, "delta");
+    else if (n == "muscle_balance")
+      s.mb = true, s.wn = 2.0 * M_PI * param(e, "fn"), s.zeta = param(e, "zeta"), s.bal = balanceOf(e);
     else if (n == "warm_up")
       s.warm = true, s.wu_tau = param(e, "tau"), s.wu_gain = param(e, "gain"), s.wu_shift = param(e, "shift");
     else if (n == "dead_zone") s.dz = true, s.dz_c = param(e, "centre"), s.dz_w = param(e, "width");
@@ -462,6 +570,14 @@ class Integrator {
         err = std::max(err, std::fabs(e) / sc);
       }
       if (err <= 1.0 || h < 1e-14) {
+        if (sys_.mb) {
+          const double f = sys_.bal.eventFraction(x, xn);
+          if (f < 1.0 && h * f > 1e-14) {  // the step cut where the payload turns round or meets a stop
+            h_ = h * f;
+            continue;
+          }
+          if (sys_.bal.settle(xn)) sys_.eval(t + h, xn, drive(t + h), &k7, false);
+        }
         t = last ? t1 : t + h;
         x = xn;
         k1 = k7;

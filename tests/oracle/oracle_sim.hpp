@@ -20,6 +20,8 @@
 //     -> friction_hysteresis  z' = a g y' / (1 + a g), a = zmax / delta, g = 1 - sgn(y') z / zmax;  y -= z
 //     -> mass_spring  x'' = wn^2 (y - x) - 2 zeta wn x';  y = x
 //        or force_loop x'' = wn^2 (y - x - z) - 2 zeta wn x',  z' = (zmax / delta)(1 - sgn(x') z / zmax) x'
+//        or muscle_balance x'' = wn^2 ((y + w) exp(-x / L) - w - x - F_f) - 2 zeta wn x', F_f elastoplastic
+//                    Maxwell-slip elements with levels f0 + fp max(y + w, 0), inelastic stops lo, hi
 //     -> warm_up      y += (1 - exp(-t / tau)) (gain (y - y(0)) + shift)
 //
 // The sample y_k is the output at the end of the sample in which u_k was held ((k+1) Ts: open-loop DAQ
@@ -68,7 +70,7 @@ struct EffectSpec {
 EffectSpec parseEffect(const std::string& text);
 // "k=6.5,rho=1.15,..." over the given core; throws std::invalid_argument.
 Core parseCore(const std::string& text, Core base = {});
-// Checks names, parameters, bounds and combinations (mass_spring or force_loop, not both); throws
+// Checks names, parameters, bounds and combinations (one of mass_spring, force_loop, muscle_balance); throws
 // std::invalid_argument.
 void validateEffects(const std::vector<EffectSpec>& effects);
 

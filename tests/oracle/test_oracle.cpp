@@ -106,6 +106,121 @@ TEST(OracleIntegrator, TighterToleranceAndHalfStepChangeFarLessThanNoise) {
   }
 }
 
+// ---- muscle_balance ---------------------------------------------------------------------------
+
+namespace {
+
+// The law muscle_balance is meant to have (oracle_sim.cpp), written here once more: the position at
+// rest at stage input s with friction force f (+: opposing a rise), by bisection.
+struct BalanceLaw {
+  double w, L, f0, fp;
+  double rest(double s, double f) const {
+    auto g = [&](double x) { return (s + w) * std::exp(-x / L) - w - x - f; };
+    double a = -200.0, b = 200.0;
+    for (int i = 0; i < 200; ++i) {
+      const double m = 0.5 * (a + b);
+      (g(m) > 0.0 ? a : b) = m;
+    }
+    return 0.5 * (a + b);
+  }
+  double level(double s) const { return f0 + fp * std::max(s + w, 0.0); }
+};
+
+EffectSpec balance(const std::string& extra) { return parseEffect("muscle_balance:fn=8,zeta=0.7,w=10,L=60" + extra); }
+
+// The output where the command first crosses `level` going in `dir` (+1 up, -1 down) after sample `from`.
+double atCrossing(const std::vector<double>& u, const std::vector<double>& y, size_t from, double level, int dir) {
+  for (size_t k = from; k + 1 < u.size(); ++k)
+    if (dir * (u[k] - level) <= 0.0 && dir * (u[k + 1] - level) > 0.0) return y[k];
+  return NAN;
+}
+
+}  // namespace
+
+TEST(OracleBalance, AtRestTheForceBalanceHolds) {
+  const BalanceLaw law{10.0, 60.0, 0.2, 0.01};
+  const auto u = step(500, 0.0, 3000, 2.0);  // s = 6.5 u + 20 (linear core)
+  const auto y = yClean(linearCore(), {balance("")}, u);
+  EXPECT_NEAR(y[0], law.rest(20.0, 0.0), 1e-9);
+  EXPECT_NEAR(y.back(), law.rest(33.0, 0.0), 1e-6);
+  EXPECT_GT(std::fabs(y.back() - 33.0), 1.0);  // the map is felt
+  // With friction, after a slow rise the payload rests within the friction band, short of the free balance.
+  auto v = ramp(0.0, 2.0, 10000);
+  v.insert(v.end(), 3000, 2.0);
+  const auto yf = yClean(linearCore(), {balance(",f0=0.2,fp=0.01,k_slip=2,spread=8")}, v);
+  const double n = law.level(33.0), lo = law.rest(33.0, n), hi = law.rest(33.0, -n);
+  EXPECT_GE(yf.back(), lo - 1e-6);
+  EXPECT_LE(yf.back(), hi + 1e-6);
+  EXPECT_LT(yf.back(), law.rest(33.0, 0.0) - 0.25 * (hi - lo) / 2.0);
+  EXPECT_LT(std::fabs(yf.back() - yf[yf.size() - 500]), 1e-6);  // at rest
+}
+
+TEST(OracleBalance, RestsOnAStopWhenPushedIntoIt) {
+  const BalanceLaw law{10.0, 60.0, 0.0, 0.0};
+  // u = 3: s = 39.5, the stop about 1.5 mm short of the free balance
+  const double top = std::round(law.rest(39.5, 0.0) - 1.5);
+  const auto u = step(500, 0.0, 2000, 3.0);
+  const auto free = yClean(linearCore(), {balance("")}, u);
+  const auto y = yClean(linearCore(), {balance(",hi=" + std::to_string(top))}, u);
+  const auto hit = static_cast<size_t>(
+      std::find_if(y.begin(), y.end(), [&](double v) { return v >= top - 1e-9; }) - y.begin());
+  ASSERT_LT(hit, y.size());
+  EXPECT_GT(free[hit] - free[hit - 1], 1e-3);  // still moving fast when it arrives
+  for (size_t k = hit; k < y.size(); ++k) ASSERT_NEAR(y[k], top, 1e-9) << k;  // rests, no bounce
+  for (size_t k = 0; k < hit; ++k) ASSERT_NEAR(y[k], free[k], 1e-9) << k;     // untouched before
+  // Pushed down onto the lower stop it rests there; pulled off, it leaves for its free balance.
+  const double bottom = std::round(law.rest(13.5, 0.0) + 1.0);  // u = -1: s = 13.5
+  auto d = step(500, 0.0, 2000, -1.0);
+  d.insert(d.end(), 2000, 0.0);
+  const auto yd = yClean(linearCore(), {balance(",lo=" + std::to_string(bottom))}, d);
+  for (size_t k = 1000; k < 2500; ++k) ASSERT_NEAR(yd[k], bottom, 1e-9) << k;
+  EXPECT_GT(yd[2600], bottom + 0.5);
+  EXPECT_NEAR(yd.back(), law.rest(20.0, 0.0), 1e-6);
+}
+
+TEST(OracleBalance, FrictionLoopWidensWithThePressure) {
+  // Slow triangles over 2 V at a low and a high pressure; the loop's width where the command crosses the
+  // middle is the friction band's, x(s, -N(s)) - x(s, +N(s)), N = f0 + fp (s + w) with all elements slipped.
+  const BalanceLaw law{10.0, 60.0, 0.2, 0.01};
+  double width[2], expected[2];
+  for (int j = 0; j < 2; ++j) {
+    const double lo = j == 0 ? -1.5 : 2.5, mid = lo + 1.0, s = 6.5 * mid + 20.0;
+    const auto u = makeSignal("triangle:f=0.02,lo=" + std::to_string(lo) + ",hi=" + std::to_string(lo + 2.0), 100.0, Ts, 1);
+    const auto y = yClean(linearCore(), {balance(",f0=0.2,fp=0.01,k_slip=2,spread=8")}, u);
+    // the first fall and the second rise: the first rise started from unloaded elements
+    expected[j] = law.rest(s, -law.level(s)) - law.rest(s, law.level(s));
+    width[j] = atCrossing(u, y, 25000, mid, -1) - atCrossing(u, y, 50000, mid, +1);
+    std::printf("loop at s = %.2f mm: width %.4f mm, the band's %.4f mm\n", s, width[j], expected[j]);
+    EXPECT_NEAR(width[j], expected[j], 0.03 * expected[j]) << j;
+  }
+  EXPECT_GT(width[1], 1.2 * width[0]);
+  EXPECT_NEAR(width[1] / width[0], expected[1] / expected[0], 0.03 * expected[1] / expected[0]);
+}
+
+TEST(OracleBalance, IntegrationConverges) {
+  // Over a wide range, with friction and both stops met: 1e-11 against 1e-13, and steps of at most 10 us.
+  const auto u = makeSignal("steps:lo=-3.5,hi=4,min=0.3,max=1.5,dur=5+multisine:fmin=0.1,fmax=4,n=15,lo=-3.5,hi=4", 10.0, Ts, 3);
+  const std::vector<EffectSpec> e = {
+      parseEffect("muscle_balance:fn=6,zeta=0.3,w=15,L=100,f0=0.15,fp=0.008,k_slip=3,spread=10,lo=2,hi=28")};
+  const double noise = std::sqrt(0.005 * 0.005 + 0.001 * 0.001 / 12.0);
+  const auto base = yClean(Core{}, e, u);
+  SimOptions fine = clean();
+  fine.rtol = fine.atol = 1e-13;
+  SimOptions tiny = clean();
+  tiny.max_step = 1e-5;
+  EXPECT_LT(maxAbsDiff(base, yClean(Core{}, e, u, fine)), 1e-3 * noise);
+  EXPECT_LT(maxAbsDiff(base, yClean(Core{}, e, u, tiny)), 1e-3 * noise);
+  EXPECT_GT(std::count_if(base.begin(), base.end(), [](double v) { return v == 2.0; }), 50);
+  EXPECT_GT(std::count_if(base.begin(), base.end(), [](double v) { return v == 28.0; }), 50);
+}
+
+TEST(OracleBalance, IsAnAlternativeOfTheOtherPayloads) {
+  EXPECT_THROW(validateEffects({parseEffect("muscle_balance"), parseEffect("force_loop")}), std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("muscle_balance"), parseEffect("mass_spring")}), std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("muscle_balance:lo=3,hi=2")}), std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("muscle_balance:L=1")}), std::invalid_argument);
+}
+
 // ---- the core ---------------------------------------------------------------------------------
 
 TEST(OracleCore, SlowRampFollowsTheBoucWenClosedForm) {
@@ -455,6 +570,27 @@ TEST(OracleCases, ARecordIsReproducibleAndTheTwoRecordsDiffer) {
   EXPECT_EQ(a.y, b.y);
   EXPECT_NE(a.u, v.u);
   EXPECT_NEAR(a.noise(), std::sqrt(c.noise_std * c.noise_std + 1e-6 / 12.0), 1e-12);
+}
+
+// The pre-decided whole-stroke case (wide_range.json, judged by tools/wide_range_judge.py): well-formed,
+// over -3.5..4 V, its training record meets both end stops.
+TEST(OracleCases, TheWideRangeCaseIsWellFormedAndMeetsBothStops) {
+  const auto cases = loadCases(std::string(PAMC_ORACLE_SOURCE_DIR) + "/wide_range.json");
+  ASSERT_EQ(cases.size(), 1u);
+  const Case& c = cases[0];
+  ASSERT_EQ(c.effects.size(), 1u);
+  EXPECT_EQ(c.effects[0].name, "muscle_balance");
+  EXPECT_EQ(c.expected, std::vector<std::string>{"muscle_balance"});
+  EXPECT_NE(c.train.seed, c.validate.seed);
+  EXPECT_NE(c.train.input, c.validate.input);
+  EXPECT_TRUE(c.train.duration >= 30 && c.train.duration <= 60);
+  const Record r = makeCaseRecord(c, "train");
+  EXPECT_NEAR(*std::min_element(r.u.begin(), r.u.end()), -3.5, 0.2);
+  EXPECT_NEAR(*std::max_element(r.u.begin(), r.u.end()), 4.0, 0.2);
+  for (const char* stop : {"lo", "hi"}) {
+    const double at = c.effects[0].params.at(stop);
+    EXPECT_GT(std::count(r.y_clean.begin(), r.y_clean.end(), at), 20) << stop;
+  }
 }
 
 // The pre-committed set outside the catalogue (unseen.json): every case loads, names its kind, and its
