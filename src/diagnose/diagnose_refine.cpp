@@ -3,6 +3,7 @@
 // direction-dependent versions of the lagging effects (separate parameters for a rising and a falling
 // input, "<name>_updown").
 #include <algorithm>
+#include <optional>
 
 #include "diagnose/diagnosis.hpp"
 #include "io/text.hpp"
@@ -63,14 +64,21 @@ bool refines(const std::string& richer, const std::string& effect) {
 // afresh on the final model without it, by the GA over its whole box (the core refitted with it: the core
 // fitted beside the simpler effect sits in another basin - on the Bouc-Wen benchmark the richer form
 // started from mass_spring's fit ended at 0.09 mm, searched afresh at 0.009), and refitted on all the
-// training samples; taken into the ladder when it lowers the validated RMSE by min_gain. Not when the
-// final model is at the noise.
+// training samples; taken into the ladder when it lowers the validated RMSE by min_gain. The richer forms
+// of one effect compete (mass_spring as hysteretic_spring or as muscle_balance): the best is taken. Not
+// when the final model is at the noise.
 void Diagnosis::refinements() {
   const Rung fin = res_.ladder.back();
   if (noise_ > 0 && fin.rmse_val < kAtNoise * noise_) return;
-  for (const auto& e : fin.effects)
-    for (const auto& richer : richer_)
-      if (refines(richer, e)) tryRefinement(e, richer);
+  for (const auto& e : fin.effects) {
+    std::optional<Rung> best;
+    for (const auto& richer : richer_) {
+      if (!refines(richer, e)) continue;
+      auto r = tryRefinement(e, richer);
+      if (r && (!best || r->rmse_val < best->rmse_val)) best = std::move(r);
+    }
+    if (best) res_.ladder.push_back(std::move(*best));
+  }
 }
 
 // The richer form searched by the GA over its whole box as well (the core with it), longer than a round's
@@ -119,9 +127,9 @@ bool absorbsSome(const Rung& cur, const std::string& richer) {
 
 }  // namespace
 
-void Diagnosis::tryRefinement(const std::string& effect, const std::string& richer) {
+std::optional<Rung> Diagnosis::tryRefinement(const std::string& effect, const std::string& richer) {
   const Rung& cur = res_.ladder.back();
-  if (std::find(cur.effects.begin(), cur.effects.end(), effect) == cur.effects.end()) return;
+  if (std::find(cur.effects.begin(), cur.effects.end(), effect) == cur.effects.end()) return std::nullopt;
   log("refinements: " + effect + " as " + richer + " ...");
   const model::Model refined = withReplacement(cur, effect, richer);
   const model::Model base = without(refined, richer);
@@ -134,13 +142,13 @@ void Diagnosis::tryRefinement(const std::string& effect, const std::string& rich
   if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain && !absorbsSome(cur, richer)) {
     log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " + fmt("%.5g", cur.rmse_val) +
         "): not searched further");
-    return;
+    return std::nullopt;
   }
   searchByGa(c, base);
   refitIfBetter(c);
   log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " + fmt("%.5g", cur.rmse_val) +
       ")");
-  if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain) return;
+  if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain) return std::nullopt;
   Rung r;
   for (const auto& x : cur.effects)
     if (x == effect) r.effects.push_back(richer);
@@ -151,7 +159,7 @@ void Diagnosis::tryRefinement(const std::string& effect, const std::string& rich
   r.removed = effect;
   r.replaced_by = richer;
   r.refined = true;
-  res_.ladder.push_back(std::move(r));
+  return r;
 }
 
 // The final model with `effect` in its direction-dependent version, both parameter sets at its fit.

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -87,7 +88,8 @@ class Diagnosis {
   void prune();
   // diagnose_refine.cpp: the final model in richer forms and direction-dependent versions.
   void refinements();
-  void tryRefinement(const std::string& effect, const std::string& richer);
+  // The rung with `effect` in its richer form, when that lowers the validated RMSE by min_gain.
+  std::optional<Rung> tryRefinement(const std::string& effect, const std::string& richer);
   void searchByGa(CandidateResult& c, const model::Model& base) const;
   void directions();
   void probes();

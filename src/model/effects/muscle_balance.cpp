@@ -21,11 +21,11 @@
 //   With spread 1 they are one Dahl element, force_loop's friction.
 // - The end stops lo, hi: a payload pushed into a stop rests on it (the contact is inelastic).
 //
-// With a1 = a2 = 0, zp = 0, spread = 1 and the stops outside the motion it is force_loop; with a payload
-// much faster than the record (large fn) it is friction_hysteresis, the Dahl friction driven by the
-// output's motion. It refines both (Effect::refines): diagnose tries it in their place when the ladder ends
-// above the noise with one of them, warm-started from its parameters (same names), and drops saturation,
-// whose stiffening its map holds (Effect::absorbs).
+// With a1 = a2 = 0, zp = 0, spread = 1 and the stops outside the motion it is force_loop (with zmax 0 as
+// well, mass_spring); with a payload much faster than the record (large fn) it is friction_hysteresis, the
+// Dahl friction driven by the output's motion. It refines the three (Effect::refines): diagnose tries it in
+// their place when the ladder ends above the noise with one of them, warm-started from its parameters
+// (same names), and drops saturation, whose stiffening its map holds (Effect::absorbs).
 //
 // Integration: kSubsteps per sample; each the payload's exact map at the nominal stiffness (mass_spring's)
 // under the rest of the force held over the sub-step (the map's and the friction's part at the sub-step's
@@ -59,7 +59,7 @@ class MuscleBalance final : public Effect {
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 40; }  // force_loop's place: the last block of the chain
   const char* alternativeTo() const override { return "mass_spring"; }
-  std::vector<std::string> refines() const override { return {"force_loop", "friction_hysteresis"}; }
+  std::vector<std::string> refines() const override { return {"mass_spring", "force_loop", "friction_hysteresis"}; }
   std::vector<std::string> absorbs() const override { return {"saturation"}; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
