@@ -130,6 +130,10 @@ bool absorbsSome(const Rung& cur, const std::string& richer) {
 std::optional<Rung> Diagnosis::tryRefinement(const std::string& effect, const std::string& richer) {
   const Rung& cur = res_.ladder.back();
   if (std::find(cur.effects.begin(), cur.effects.end(), effect) == cur.effects.end()) return std::nullopt;
+  // A form that holds other effects as well (muscle_balance: the whole stroke's balance, with saturation's
+  // stiffening in its map) replaces them together: only where the rung holds one of them. Elsewhere a
+  // curve it would bend into shape is the probes' to name (a curved sensor: output_curve).
+  if (!model::makeEffect(richer)->absorbs().empty() && !absorbsSome(cur, richer)) return std::nullopt;
   log("refinements: " + effect + " as " + richer + " ...");
   const model::Model refined = withReplacement(cur, effect, richer);
   const model::Model base = without(refined, richer);
@@ -139,7 +143,8 @@ std::optional<Rung> Diagnosis::tryRefinement(const std::string& effect, const st
   // min_gain there - or that drops an effect it holds as well, whose quick search starts without that
   // effect's part of the fit.
   auto c = fitEach({refined}, cur.model, {richer}, round, rr, "refine ", s_.method, Search::Quick, kQuickCover).front();
-  if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain && !absorbsSome(cur, richer)) {
+  const bool absorbing = !model::makeEffect(richer)->absorbs().empty();
+  if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain && !absorbing) {
     log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " + fmt("%.5g", cur.rmse_val) +
         "): not searched further");
     return std::nullopt;

@@ -12,9 +12,9 @@ using canopen::TimeUs;
 
 void ControllerNode::takeCauses(TimeUs now) noexcept {
   if (!faults_->takeCauses(now)) return;
-  // The safe state begins: the valve gets the safe value in this cycle's TPDO.
+  // The safe state begins: the loop's command is the safe value, which send() gives the valve in this
+  // cycle's TPDO (the one write of the cycle).
   loop_->enterSafe(params_->safeCommand());
-  valve_->command(loop_->command());
 }
 
 void ControllerNode::recover(double y, TimeUs now) noexcept {

@@ -23,9 +23,10 @@
 //
 // With a1 = a2 = 0, zp = 0, spread = 1 and the stops outside the motion it is force_loop (with zmax 0 as
 // well, mass_spring); with a payload much faster than the record (large fn) it is friction_hysteresis, the
-// Dahl friction driven by the output's motion. It refines the three (Effect::refines): diagnose tries it in
-// their place when the ladder ends above the noise with one of them, warm-started from its parameters
-// (same names), and drops saturation, whose stiffening its map holds (Effect::absorbs).
+// Dahl friction driven by the output's motion. It refines the three (Effect::refines) and absorbs
+// saturation, whose stiffening its map holds (Effect::absorbs): diagnose tries it in their place, with
+// saturation dropped, when the ladder ends above the noise with one of them and saturation, warm-started
+// from its parameters (same names).
 //
 // Integration: kSubsteps per sample; each the payload's exact map at the nominal stiffness (mass_spring's)
 // under the rest of the force held over the sub-step (the map's and the friction's part at the sub-step's
