@@ -89,6 +89,39 @@ INSTANTIATE_TEST_SUITE_P(Controllers, AllocationFree,
 #include "nodes/emulator_node.hpp"
 #include "rig/virtual_rig.hpp"
 
+namespace {
+
+// The in-process rig with its emulator; the sensor falls silent for 0.2 s at 4 s (position missing,
+// heartbeat lost, safe state), comes back, and the loop recovers.
+nodes::EmulatorConfig emulatorWithSilentSensor(const std::string& od) {
+  nodes::EmulatorConfig e;
+  e.sensor_eds = od + "sensor.eds";
+  e.valve_eds = od + "valve.eds";
+  e.sensor_silent_at_s = 4.0;
+  e.sensor_silent_for_s = 0.2;
+  return e;
+}
+
+// Heap allocations over 10 s of the rig's cycles, after 1 s to settle; the rig ran its fault path.
+long rigAllocations(const nodes::ControllerNodeConfig& c, const nodes::EmulatorConfig& e) {
+  nodes::VirtualRig rig(c, e);
+  rig.setRecordSink([](const nodes::CycleRecord&) {});  // drained, not kept
+  rig.start();
+  rig.runFor(1.0);
+  long allocs = 0;
+  {
+    CountAllocations count;
+    rig.runFor(10.0);
+    allocs = count.count();
+  }
+  EXPECT_TRUE(rig.controller().running());
+  EXPECT_GE(rig.controller().faultCounters().episodes, 1u) << "the fault path ran inside the counted window";
+  EXPECT_GE(rig.controller().faultCounters().recoveries, 1u);
+  return allocs;
+}
+
+}  // namespace
+
 TEST(Allocation, RigCyclesOnTheBusAllocateNothing) {
   if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const std::string od = std::string(PAMC_SOURCE_DIR) + "/od/";
@@ -102,29 +135,9 @@ TEST(Allocation, RigCyclesOnTheBusAllocateNothing) {
   c.has_trajectory = true;
   c.trajectory = control::Trajectory::triangle(0.5, 5.0, 25.0);
   c.preroll_s = 0.2;
-  nodes::EmulatorConfig e;
-  e.sensor_eds = od + "sensor.eds";
-  e.valve_eds = od + "valve.eds";
+  auto e = emulatorWithSilentSensor(od);
   e.payload_at_s = 5.0;
-  // A fault episode inside the counted window: the sensor falls silent for 0.2 s (position missing,
-  // heartbeat lost, safe state), comes back, and the loop recovers with its bumpless ramp.
-  e.sensor_silent_at_s = 4.0;
-  e.sensor_silent_for_s = 0.2;
-  nodes::VirtualRig rig(c, e);
-  rig.setRecordSink([](const nodes::CycleRecord&) {});  // drained, not kept
-  rig.start();
-  rig.runFor(1.0);
-  long allocs = 0;
-  {
-    CountAllocations count;
-    rig.runFor(10.0);
-    allocs = count.count();
-  }
-  auto* ctrl = &rig.controller();
-  EXPECT_TRUE(ctrl->running());
-  EXPECT_GE(ctrl->faultCounters().episodes, 1u) << "the fault path ran inside the counted window";
-  EXPECT_GE(ctrl->faultCounters().recoveries, 1u);
-  EXPECT_EQ(allocs, 0);
+  EXPECT_EQ(rigAllocations(c, e), 0);
 }
 
 // --input on the rig: the multisine's table read each cycle, the command passed through, a fault
@@ -138,24 +151,7 @@ TEST(Allocation, RigInputCyclesAllocateNothing) {
   c.has_trajectory = true;
   c.trajectory = control::Trajectory::parse("multisine:1:0.1:5:-3:3");
   c.preroll_s = 0.2;
-  nodes::EmulatorConfig e;
-  e.sensor_eds = od + "sensor.eds";
-  e.valve_eds = od + "valve.eds";
-  e.sensor_silent_at_s = 4.0;
-  e.sensor_silent_for_s = 0.2;
-  nodes::VirtualRig rig(c, e);
-  rig.setRecordSink([](const nodes::CycleRecord&) {});
-  rig.start();
-  rig.runFor(1.0);
-  long allocs = 0;
-  {
-    CountAllocations count;
-    rig.runFor(10.0);
-    allocs = count.count();
-  }
-  EXPECT_TRUE(rig.controller().running());
-  EXPECT_GE(rig.controller().faultCounters().recoveries, 1u) << "the fault path ran inside the counted window";
-  EXPECT_EQ(allocs, 0);
+  EXPECT_EQ(rigAllocations(c, emulatorWithSilentSensor(od)), 0);
 }
 
 // The AMC whose model ends in the muscle's whole-stroke force balance (muscle_balance, its stops and
