@@ -8,14 +8,10 @@
 #include <stdexcept>
 #include <vector>
 
+#include "io/text.hpp"
+
 namespace pamc::control {
 namespace {
-
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
 
 // Lines of a multisine: the multiples of f0 up to f1 (a hair of tolerance so that f1 = k f0 is one).
 std::size_t multisineLines(double f0, double f1) {
@@ -221,11 +217,11 @@ void scaleOnto(std::vector<double>& x, double lo, double hi) {
 Trajectory Trajectory::multisine(std::uint64_t seed, double f0, double f1, double lo, double hi) {
   auto bad = [](const std::string& why) { throw std::invalid_argument(why); };
   if (!(f0 > 0.0 && f0 <= f1)) bad("the band needs 0 < F0 <= F1");
-  if (f1 > kMultisineMaxHz) bad("F1 must be at most " + num(kMultisineMaxHz) + " Hz");
+  if (f1 > kMultisineMaxHz) bad("F1 must be at most " + io::fmt("%g", kMultisineMaxHz) + " Hz");
   if (!(lo < hi)) bad("LO must be below HI");
   const double period = 1.0 / f0;
-  if (period > kMaxTablePeriod_s) bad("F0 must be at least 1/" + num(kMaxTablePeriod_s) + " Hz (a period of at most " +
-                                      num(kMaxTablePeriod_s) + " s)");
+  if (period > kMaxTablePeriod_s) bad("F0 must be at least 1/" + io::fmt("%g", kMaxTablePeriod_s) + " Hz (a period of at most " +
+                                      io::fmt("%g", kMaxTablePeriod_s) + " s)");
   const std::size_t lines = multisineLines(f0, f1);
   const auto n = static_cast<std::size_t>(std::ceil(period / kMultisineStep_s - 1e-9));
   // The tables cost lines x samples: keep the build well under a second.
@@ -250,7 +246,7 @@ Trajectory Trajectory::multisine(std::uint64_t seed, double f0, double f1, doubl
 
 Trajectory Trajectory::aprbs(std::uint64_t seed, double hold_min, double hold_max, double lo, double hi) {
   if (!(hold_min >= kAprbsMinHold_s && hold_min <= hold_max) || !std::isfinite(hold_max))
-    throw std::invalid_argument("the holds need " + num(kAprbsMinHold_s) + " s <= HOLD_MIN <= HOLD_MAX");
+    throw std::invalid_argument("the holds need " + io::fmt("%g", kAprbsMinHold_s) + " s <= HOLD_MIN <= HOLD_MAX");
   if (!(lo < hi)) throw std::invalid_argument("LO must be below HI");
   Trajectory t;
   t.shape = Shape::Aprbs;

@@ -15,10 +15,10 @@ class RangeWatch {
  public:
   // A new run with the model's range (unknown: nothing is watched).
   void configure(const model::OperatingRange& r, double Ts) noexcept {
+    seen_.store(false, std::memory_order_release);  // first: no reader takes the new range for the old sample
     range_ = r;
     Ts_ = Ts;
     primed_ = false;
-    seen_.store(false, std::memory_order_relaxed);
   }
 
   // One cycle: the command sent u [V relative], the measured position y [mm], at run time t [s].
