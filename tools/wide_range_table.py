@@ -8,7 +8,7 @@ Two pairs of records, each trained on one and validated on the other:
           ident_u1.csv
 
 For each, `pamc diagnose` runs and its ladder is printed as a Markdown table: the effects of every rung, its
-validated RMSE and that RMSE in units of the plant's sensor noise (its configured std with the
+validated RMSE (and its training RMSE) and the validated RMSE in units of the plant's sensor noise (its configured std with the
 quantisation, sqrt(std^2 + q^2 / 12)). The issue's target is a final rung at <= 10x the noise; the table
 says for each record whether it is met. Exits 0 (the table is a measurement, not a test), 2 on a usage error.
 
@@ -77,14 +77,15 @@ def rung_label(rung, first):
 
 
 def table(results, noise):
-    print("| record | rung | validated RMSE [mm] | x noise |")
-    print("|---|---|---|---|")
+    print("| record | rung | training RMSE [mm] | validated RMSE [mm] | x noise |")
+    print("|---|---|---|---|---|")
     for name, (what, rep, secs) in results.items():
         ladder = [r for r in rep["ladder"] if not r.get("probe")]
         for i, r in enumerate(ladder):
-            print("| %s | %s | %.4g | %.0f |" % (what if i == 0 else "", rung_label(r, i == 0), r["rmse_val"], r["rmse_val"] / noise))
+            print("| %s | %s | %.4g | %.4g | %.0f |" % (what if i == 0 else "", rung_label(r, i == 0), r["rmse_train"],
+                                                       r["rmse_val"], r["rmse_val"] / noise))
         final = ladder[-1]["rmse_val"] / noise
-        print("| | **final: %.0fx the noise - %s** (diagnose %.0f s) | | |" %
+        print("| | **final: %.0fx the noise - %s** (diagnose %.0f s) | | | |" %
               (final, "meets <= %gx" % TARGET if final <= TARGET else "above the %gx target" % TARGET, secs))
 
 
