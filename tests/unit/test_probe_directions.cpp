@@ -102,9 +102,11 @@ std::string table(const diagnose::DiagnoseResult& r) {
 // lags switched on the flow (Effect::followsInput), when two of them failed; the last four were added
 // after it, before anything else was tried on them. Where the catalogue ends at a payload's dynamics
 // (force_loop, mass_spring), which no probe overlaps, the valve is not named: seeds 21/22 (no probe
-// explains anything), 41/42 and 61/62 (direction_lag in its place explains half), 71/72. Those rows say
-// so (`named` false: not valve_flow at the noise) and fail once that changes, so that docs/MODELING.md is
-// brought up to date with it.
+// explains anything), 41/42 (direction_lag in its place explains half), 71/72. Those rows say so (`named`
+// false: not valve_flow at the noise) and fail once that changes, so that docs/MODELING.md is brought up
+// to date with it. Seeds 11/12 and 61/62 changed so when the warm starts of a scale spanning decades were
+// also spread in its logarithm (ident::fit): the catalogue then finds the lag's short rising time
+// constant, ends at pressure_lag_updown, and the probe goes in its place.
 struct ValvePair {
   std::uint64_t train, val;
   const char* replaces;  // the effect the probe is expected in place of ("" on top of the model)
@@ -151,9 +153,9 @@ TEST_P(OrificeFlow, TheProbeNamesItAndItsRisingFallingVersionReachesTheNoise) {
 }
 
 INSTANTIATE_TEST_SUITE_P(ProbeDirections, OrificeFlow,
-                         ::testing::Values(ValvePair{11, 12, "", true}, ValvePair{21, 22, "", false},
+                         ::testing::Values(ValvePair{11, 12, "pressure_lag_updown", true}, ValvePair{21, 22, "", false},
                                            ValvePair{31, 32, "pressure_lag_updown", true}, ValvePair{41, 42, "", false},
-                                           ValvePair{51, 52, "pressure_lag_updown", true}, ValvePair{61, 62, "", false},
+                                           ValvePair{51, 52, "pressure_lag_updown", true}, ValvePair{61, 62, "pressure_lag_updown", true},
                                            ValvePair{71, 72, "", false}),
                          [](const ::testing::TestParamInfo<ValvePair>& i) {
                            return "seeds" + std::to_string(i.param.train) + "and" + std::to_string(i.param.val);
