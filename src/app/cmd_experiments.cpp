@@ -57,7 +57,7 @@ class ExperimentsCommand final : public Command {
         throw std::invalid_argument("--only: unknown experiment '" + o +
                                     "' (known: table1, table2, triangle, discontinuous, payload)");
     s.fit.ga.seed = seed_;
-    s.ctrl = ctrl_.paperConfig(cmd_);  // the experiments read the model themselves (Table 1 reports on it)
+    s.ctrl = ctrl_.paperConfig();  // the experiments read the model themselves (Table 1 reports on it)
     s.log = progressLine;
     const auto t0 = std::chrono::steady_clock::now();
     const auto rep = sim::runExperiments(s);

@@ -52,7 +52,7 @@ class RobustnessCommand final : public Command {
     s.grid = !no_grid_;
     s.common_window = score_from_ == "common";
     s.figures = !no_figures_;
-    s.ctrl = ctrl_.paperConfig(cmd_);
+    s.ctrl = ctrl_.paperConfig();
     s.log = progressLine;
     const auto rep = sim::runRobustness(s);
     std::printf("\n%s", rep.text.c_str());

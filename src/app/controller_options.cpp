@@ -1,7 +1,6 @@
 #include "app/controller_options.hpp"
 
 #include "io/model_file.hpp"
-#include "sim/experiments.hpp"
 
 namespace pamc::app {
 
@@ -12,7 +11,9 @@ void ControllerOptions::add(CLI::App* a) {
 
 void ControllerOptions::addGains(CLI::App* a) {
   a->add_option("--kp", cc.kp, "PI proportional gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
-  a->add_option("--ki", cc.ki, "PI integral gain [V/(mm s)] (the paper prints 0.15; see docs/CALIBRATION.md)")
+  a->add_option("--ki", cc.ki,
+                "PI integral gain [V/(mm s)] (the default: the calibrated reading of the paper's printed 0.15, "
+                "docs/CALIBRATION.md)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   a->add_option("--kc", cc.kc, "AMC compensation gain [V/mm]")->capture_default_str()->check(CLI::NonNegativeNumber);
@@ -67,12 +68,10 @@ control::ControllerConfig ControllerOptions::config() const {
   return c;
 }
 
-control::ControllerConfig ControllerOptions::paperConfig(const CLI::App* cmd) const {
+control::ControllerConfig ControllerOptions::paperConfig() const {
   ControllerOptions o = *this;
   o.model_file.clear();  // the experiments read or identify their model themselves
-  control::ControllerConfig c = o.config();
-  if (cmd->get_option("--ki")->count() == 0) c.ki = sim::paperController().ki;
-  return c;
+  return o.config();
 }
 
 void ControllerKindOption::add(CLI::App* a) {

@@ -1,6 +1,6 @@
 // The controller's options, one struct shared by every command that builds a controller
 // (experiments, rig, controller): gains, the reading of eq. (17), the predictive AMC, the ESO, the
-// delay and the model file. Defaults are control::ControllerConfig's.
+// delay and the model file. Defaults are control::ControllerConfig's (the gains: control::kDefaultGains).
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -24,9 +24,9 @@ struct ControllerOptions {
   void addStructure(CLI::App* a);
   // The configuration with the model file read (throws with the file's one-line error).
   control::ControllerConfig config() const;
-  // The paper's experiments (experiments, robustness): config() without the model, with the reading of ki
-  // that `pamc calibrate` chose on the physics plant unless --ki was given on `cmd`.
-  control::ControllerConfig paperConfig(const CLI::App* cmd) const;
+  // The paper's experiments (experiments, robustness): config() without the model (they read or identify
+  // it themselves).
+  control::ControllerConfig paperConfig() const;
 };
 
 // --controller: open, pi (pid: the paper's "PID" is a PI), eso, amc.

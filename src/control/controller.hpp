@@ -16,6 +16,10 @@
 //    (0.15) the ramps lag ten times the paper's errors. The default ki is inferred from the paper's
 //    own results (docs/CALIBRATION.md); --ki 0.15 is the printed value;
 //  - kc [V/mm] multiplies the predicted error of eq. (18).
+//
+// The default gains are kDefaultGains, written once: ControllerConfig's defaults, the command line's
+// (--kp, --ki, --kc show them), the fault tools', the experiments' and the EDS defaults of 0x2000:01-03
+// (a test holds od/controller.eds to them) all read it.
 #pragma once
 
 #include <array>
@@ -37,13 +41,21 @@ const char* toString(Kind k);
 constexpr bool usesModel(Kind k) noexcept { return k == Kind::OpenLoop || k == Kind::PiAmc; }
 Kind kindFromString(const std::string& s);  // "open", "pi", "eso", "amc", "input" (throws)
 
+// The PI and AMC gains every tool runs unless told otherwise: kp and kc as the paper prints them, ki the
+// reading of the printed 0.15 that `pamc calibrate` chose on the physics plant (docs/CALIBRATION.md).
+struct Gains {
+  double kp;  // [V/mm]
+  double ki;  // [V/(mm s)]
+  double kc;  // [V/mm]
+};
+inline constexpr Gains kDefaultGains{0.1, 3.0, 0.06};
+
 struct ControllerConfig {
   double Ts = 1e-3;
   double u_min = kCommandMin, u_max = kCommandMax;  // valve command range [V]
-  double kp = 0.1;                   // [V/mm]
-  // [V/(mm s)]: fitted to the paper's results (docs/CALIBRATION.md); the printed value is 0.15.
-  double ki = 1.3;
-  double kc = 0.06;                  // [V/mm]
+  double kp = kDefaultGains.kp;  // [V/mm]
+  double ki = kDefaultGains.ki;  // [V/(mm s)]; the printed value is 0.15
+  double kc = kDefaultGains.kc;  // [V/mm]
   // AMC prediction horizon in samples: 1 is eq. (17); longer horizons roll the model out so that
   // its lags and delays shape the compensation (see docs/CONTROL.md). 0: automatic - 1 with
   // amc_inverse = 0, otherwise the bus delay plus the time the model takes to make 10 % of its response

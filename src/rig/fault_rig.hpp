@@ -57,7 +57,7 @@ std::string busFaultDescription(BusFault f);
 struct FaultRigOptions {
   std::string od_dir = "od";
   control::Kind kind = control::Kind::PiAmc;
-  double kp = 0.1, ki = 1.5, kc = 0.06;
+  double kp = control::kDefaultGains.kp, ki = control::kDefaultGains.ki, kc = control::kDefaultGains.kc;
   double preroll_s = 1.0;
   double inject_at_s = 3.0;  // trajectory time of the injection
   double after_s = 8.0;      // run on this long after the fault cleared
@@ -105,7 +105,7 @@ std::string faultTableMarkdown(const std::vector<FaultRun>& runs);
 struct SoakOptions {
   std::string od_dir = "od";
   control::Kind kind = control::Kind::PiAmc;
-  double kp = 0.1, ki = 1.5, kc = 0.06;
+  double kp = control::kDefaultGains.kp, ki = control::kDefaultGains.ki, kc = control::kDefaultGains.kc;
   double hours = 24.0;                // simulated time in total
   double report_s = 3600.0;           // one report line per this much simulated time
   std::uint64_t seed = 1;             // fault times and choices, sensor noise

@@ -191,16 +191,10 @@ std::string formatCalibration(const CalibrationResult& r) {
 namespace pamc::sim {
 
 // The result of `pamc calibrate` (docs/CALIBRATION.md), per calibrationAxes(): hysteresis scale,
-// travel [mm], conductance [dm^3/(s bar)], payload mass [kg]; and the reading of ki it chose.
+// travel [mm], conductance [dm^3/(s bar)], payload mass [kg]. The reading of ki it chose is
+// control::kDefaultGains.ki, the default of every tool.
 namespace {
 const std::vector<double> kPaperPlantValues = {3.0, 3.0, 3.2, 16.0};
-constexpr double kPaperKi = 3.0;  // V/(mm s)
-}
-
-control::ControllerConfig paperController() {
-  control::ControllerConfig c;
-  c.ki = kPaperKi;
-  return c;
 }
 
 const char* const kCalibratedOn =

@@ -29,16 +29,15 @@ enum class SineStart { Centre, Trough };
 // `pamc calibrate` fitted to Table 1 and Table 2's triangle row (calibration.cpp, docs/CALIBRATION.md),
 // and the words the summary records for that.
 plant::PlantConfig paperPlant();
-// The controller defaults with the reading of ki that calibration chose (the paper's ESO is the
-// default of every controller).
-control::ControllerConfig paperController();
 extern const char* const kCalibratedOn;
 
 struct ExperimentSettings {
   std::string out_dir = "results";
   plant::PlantConfig plant = paperPlant();
   std::string calibrated_on = kCalibratedOn;  // the readings' record of what the plant was fitted to
-  control::ControllerConfig ctrl = paperController();  // gains and UKF settings; the model comes from table1's fit
+  // Gains (control::kDefaultGains: ki the reading calibration chose), the paper's ESO and the UKF
+  // settings, all ControllerConfig's defaults; the model comes from table1's fit.
+  control::ControllerConfig ctrl;
   ident::FitSettings fit{};
   std::string model_file;            // use this model instead of identifying one
   SineStart sine_start = SineStart::Centre;

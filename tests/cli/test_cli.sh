@@ -161,5 +161,18 @@ python3 "$SRC/tests/cli/one_place.py" "$SRC" > "$work/one_place.txt"
 check "each fact in one place ($(tail -1 "$work/one_place.txt"))" test $? -eq 0
 grep FAIL "$work/one_place.txt"
 
+# The default gains: every command that takes --ki shows one default, the controller's dictionary has it,
+# and the experiments run with it (summary.json's readings).
+ki_defaults=$(for c in experiments robustness controller "rig run" "rig faults" "rig soak" "rig guards"; do
+  "$PAMC" $c --help | sed -n 's/^ *--ki FLOAT[^=]*=\([^ ]*\) .*/\1/p'; done | sort -u)
+check "one --ki default in every --help (got: $(echo $ki_defaults))" test "$(echo "$ki_defaults" | wc -l)" -eq 1 -a -n "$ki_defaults"
+eds_ki=$(awk '/^\[2000sub2\]/{s=1} s && /^DefaultValue=/{sub(/.*=/, ""); print; exit}' "$SRC/od/controller.eds" | tr -d '\r')
+check "the EDS default of ki (0x2000:02 = $eds_ki) is the --ki default ($ki_defaults)" \
+  python3 -c "import sys; sys.exit(float('$eds_ki') != float('$ki_defaults'))"
+"$PAMC" experiments --only table1 --no-figures --out-dir "$work/ki" > /dev/null 2>&1
+run_ki=$(python3 -c "import json; print(json.load(open('$work/ki/summary.json'))['readings']['ki'])" 2> /dev/null)
+check "experiments run with the --ki default ($run_ki, --help $ki_defaults)" \
+  python3 -c "import sys; sys.exit(float('$run_ki') != float('$ki_defaults'))"
+
 echo "$passes passed, $fails failed"
 test $fails -eq 0

@@ -502,11 +502,14 @@ TEST(PhysicsCycle, StepAndMeasureAllocateNothing) {
 }
 #endif
 
-// The project's PI gains (kp 0.1 V/mm, ki 1.3 V/(mm s), integral clamped to the command range) close a
-// stable loop on the default rig: steps are reached and held without ringing, a slow sine is followed.
-TEST(PhysicsRig, ExistingPiGainsStabilise) {
+// The project's PI gains (kp 0.1 V/mm, ki 3 V/(mm s): control::kDefaultGains, written out here because
+// this test links no controller; and 1.3, the nodes' default before) with the integral clamped to the
+// command range close a stable loop on the default rig: steps are reached and held without ringing, a
+// slow sine is followed.
+class PhysicsRigGains : public ::testing::TestWithParam<double> {};
+TEST_P(PhysicsRigGains, ExistingPiGainsStabilise) {
   PhysicsPlant p(PhysicsConfig::defaults());
-  const double kp = 0.1, ki = 1.3, Ts = 1e-3;
+  const double kp = 0.1, ki = GetParam(), Ts = 1e-3;
   double integ = 0.0;
   p.reset(0.0);
   auto r_of = [](double t) {
@@ -534,3 +537,4 @@ TEST(PhysicsRig, ExistingPiGainsStabilise) {
   for (int h = 0; h < 3; ++h) EXPECT_LT(hi[h] - lo[h], 0.05) << "hold " << h;
   EXPECT_LT(err_sine, 2.5);  // half the sine's amplitude: followed, with the PI's lag
 }
+INSTANTIATE_TEST_SUITE_P(PhysicsRig, PhysicsRigGains, ::testing::Values(3.0, 1.3));

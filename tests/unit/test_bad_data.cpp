@@ -709,7 +709,8 @@ struct NodeRun {
 };
 
 // Controller, sensor and valve nodes on the in-process bus (1 ms SYNC, 0.2 Hz sine 10-20 mm, kp 0.1,
-// ki 1.5, kc 0.06 as in the fault rig, 2 s pre-roll); `edit` tampers with the position PDOs.
+// ki 1.5, kc 0.06 as in the fault rig when these runs were measured, 2 s pre-roll); `edit` tampers with
+// the position PDOs.
 NodeRun runNode(control::Kind kind, bool whole_model, const std::function<void(long, std::int32_t&)>& edit,
                 double duration_s = 6.0) {
   nodes::ControllerNodeConfig c;

@@ -14,6 +14,8 @@
 #include <thread>
 
 #include "canopen/bus.hpp"
+#include "canopen/node.hpp"
+#include "nodes/controller_parameters.hpp"
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
 #include "nodes/process_data.hpp"
@@ -305,4 +307,34 @@ TEST(SdoGuards, CommandLineValuesMeetTheSameRules) {
   c = controllerConfig();
   c.ctrl.model.core().gamma = -1.0;
   EXPECT_THROW(nodes::ControllerNode(c, port, [] { return canopen::TimeUs{0}; }), std::invalid_argument);
+}
+
+// The dictionary's defaults of the gain objects (0x2000) are the controllers' defaults
+// (control::ControllerConfig, its gains control::kDefaultGains): a node that boots on od/controller.eds
+// without a gain override runs what `pamc experiments` and the fault tools run.
+TEST(ControllerDictionary, GainDefaultsAreTheControllersDefaults) {
+  canopen::VirtualBus bus;
+  auto& port = bus.addPort();
+  auto node = canopen::Node::fromEds(kOd + "controller.eds", port);
+  control::ControllerConfig other;  // a base unlike the defaults: what read() returns is the dictionary's
+  other.kp = other.ki = other.kc = other.beta1 = other.beta2 = other.beta3 = -1.0;
+  other.delta = other.b0 = other.eso_gain = other.eso_tau = other.eso_wo = -1.0;
+  other.eso_order = 0;
+  const auto eds = nodes::ControllerParameters(*node, other).read().ctrl;
+  const control::ControllerConfig d;
+  EXPECT_EQ(d.kp, control::kDefaultGains.kp);
+  EXPECT_EQ(d.ki, control::kDefaultGains.ki);
+  EXPECT_EQ(d.kc, control::kDefaultGains.kc);
+  EXPECT_EQ(eds.kp, d.kp) << "0x2000:01";
+  EXPECT_EQ(eds.ki, d.ki) << "0x2000:02";
+  EXPECT_EQ(eds.kc, d.kc) << "0x2000:03";
+  EXPECT_EQ(eds.beta1, d.beta1) << "0x2000:04";
+  EXPECT_EQ(eds.beta2, d.beta2) << "0x2000:05";
+  EXPECT_EQ(eds.beta3, d.beta3) << "0x2000:06";
+  EXPECT_EQ(eds.delta, d.delta) << "0x2000:07";
+  EXPECT_EQ(eds.b0, d.b0) << "0x2000:08";
+  EXPECT_EQ(eds.eso_gain, d.eso_gain) << "0x2000:09";
+  EXPECT_EQ(eds.eso_tau, d.eso_tau) << "0x2000:0A";
+  EXPECT_EQ(eds.eso_wo, d.eso_wo) << "0x2000:0B";
+  EXPECT_EQ(eds.eso_order, d.eso_order) << "0x2000:0C";
 }
