@@ -30,7 +30,7 @@ class RobustnessCommand final : public Command {
         ->capture_default_str()
         ->check(CLI::Range(1, 64));
     cmd_->add_option("--score-from", score_from_,
-                     "where the sines (started away from home) are scored: 'common' - the three controllers over one "
+                     "where the sines (started away from home) are scored: 'common' - the four controllers over one "
                      "window, from the latest of their first reaches; 'own' - each from its own first reach (Table 2)")
         ->capture_default_str()
         ->check(CLI::IsMember({"common", "own"}));

@@ -57,7 +57,16 @@ void ControllerOptions::addStructure(CLI::App* a) {
                 "cycles from command to the measurement that shows it, beyond one sample (2 on the CAN bus)")
       ->capture_default_str()
       ->check(CLI::Range(0, 7));
-  a->add_option("--model", model_file, "identified model (JSON) for the AMC's UKF and the open loop");
+  a->add_option("--mbc-horizon", cc.mbc_horizon,
+                "MBC: samples ahead its inverse reaches the setpoint at; 0 = automatic (bus delay + the model's response "
+                "time)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 2000));
+  a->add_option("--mbc-error-tau", cc.mbc_error_tau_s,
+                "MBC: time constant [s] of the filter on the UKF's modelling-error estimate the feedforward aims off by")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  a->add_option("--model", model_file, "identified model (JSON) for the AMC's and MBC's UKF and the open loop");
 }
 
 control::ControllerConfig ControllerOptions::config() const {
@@ -75,9 +84,11 @@ control::ControllerConfig ControllerOptions::paperConfig() const {
 }
 
 void ControllerKindOption::add(CLI::App* a) {
-  a->add_option("--controller", name, "open, pi, pid (the same as pi: the paper's \"PID\" is a PI), eso or amc")
+  a->add_option("--controller", name,
+                "open, pi, pid (the same as pi: the paper's \"PID\" is a PI), eso, amc or mbc (model-based: the "
+                "model's inverse through the commands in flight, the PI on top; docs/CONTROL.md)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"open", "pi", "pid", "eso", "amc"}));
+      ->check(CLI::IsMember({"open", "pi", "pid", "eso", "amc", "mbc"}));
 }
 
 }  // namespace pamc::app

@@ -92,8 +92,7 @@ inline nodes::ControllerNodeConfig controllerNodeConfig(const OdOption& od, cons
     if (run.period_us) c.period_us = run.period_us;
   }
   c.log = [](const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); };
-  if ((c.kind == static_cast<int>(control::Kind::PiAmc) || c.kind == static_cast<int>(control::Kind::OpenLoop)) &&
-      ctrl.model_file.empty())
+  if (c.kind >= 0 && control::usesModel(static_cast<control::Kind>(c.kind)) && ctrl.model_file.empty())
     std::fprintf(stderr, "warning: no --model: the %s controller uses the model parameters of the EDS defaults\n",
                  kind.name.c_str());
   return c;

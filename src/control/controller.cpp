@@ -1,4 +1,5 @@
 #include "control/controller.hpp"
+#include "control/controller_parts.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -13,6 +14,7 @@ const char* toString(Kind k) {
     case Kind::PidEso: return "eso";
     case Kind::PiAmc: return "amc";
     case Kind::Input: return "input";
+    case Kind::Mbc: return "mbc";
   }
   return "?";
 }
@@ -23,7 +25,8 @@ Kind kindFromString(const std::string& s) {
   if (s == "eso" || s == "pid+eso" || s == "pideso") return Kind::PidEso;
   if (s == "amc" || s == "pi+amc" || s == "pid+amc" || s == "piamc") return Kind::PiAmc;
   if (s == "input") return Kind::Input;
-  throw std::invalid_argument("unknown controller '" + s + "' (known: open, pi, eso, amc, input)");
+  if (s == "mbc") return Kind::Mbc;
+  throw std::invalid_argument("unknown controller '" + s + "' (known: open, pi, eso, amc, mbc, input)");
 }
 
 // ---------------------------------------------------------------- inverse static characteristic
@@ -121,69 +124,19 @@ void validate(const ControllerConfig& c) {
   if (c.delay_cycles < 0 || c.delay_cycles > 7) bad("delay_cycles must be 0..7");
   if (c.amc_horizon < 0 || c.amc_horizon > 2000) bad("amc_horizon must be 0 (automatic) .. 2000 samples");
   if (!(c.amc_inverse >= 0.0 && c.amc_inverse <= 1.0)) bad("amc_inverse must be in [0, 1]");
+  if (c.mbc_horizon < 0 || c.mbc_horizon > 2000) bad("mbc_horizon must be 0 (automatic) .. 2000 samples");
+  if (!(c.mbc_error_tau_s > 0.0) || !std::isfinite(c.mbc_error_tau_s)) bad("mbc_error_tau_s must be positive");
+  if (c.mbc_horizon > 0 && c.mbc_horizon <= c.delay_cycles)
+    bad("mbc_horizon must be above delay_cycles (the command must act within the horizon)");
   if (c.amc_inverse > 0.0 && c.amc_horizon > 0 && c.amc_horizon <= c.delay_cycles)
     bad("the predictive AMC needs amc_horizon above delay_cycles (the command must act within the horizon)");
 }
 
 namespace {
 
-// The commands of the last few cycles, to tell the estimators which one was in effect when a
-// measurement was taken.
-class CommandHistory {
- public:
-  void fill(double u) noexcept { buf_.fill(u); }
-  void push(double u) noexcept {
-    head_ = (head_ + 1) & 7u;
-    buf_[head_] = u;
-  }
-  // ago = 0: the latest command.
-  double get(int ago) const noexcept { return buf_[(head_ - static_cast<unsigned>(ago)) & 7u]; }
-
- private:
-  std::array<double, 8> buf_{};
-  unsigned head_ = 0;
-};
-
-// PI of eq. (16) with conditional integration as anti-windup.
-class PiCore {
- public:
-  void configure(const ControllerConfig& c) {
-    kp_ = c.kp;
-    ki_ts_ = c.ki * c.Ts;  // continuous-time Ki [V/(mm s)], integral as sum of e*Ts
-    u_min_ = c.u_min;
-    u_max_ = c.u_max;
-  }
-  void reset(double integral) noexcept {
-    integ_ = std::isfinite(integral) ? std::clamp(integral, u_min_, u_max_) : 0.5 * (u_min_ + u_max_);
-  }
-  // Nominal output with this cycle's error integrated (tentatively). integrate = false holds the
-  // integral (no usable measurement); a non-finite error counts as none and is not integrated.
-  double nominal(double e, bool integrate = true) noexcept {
-    if (!std::isfinite(e)) e = 0.0, integrate = false;
-    e_ = e;
-    pending_ = integrate ? std::clamp(integ_ + ki_ts_ * e, u_min_, u_max_) : integ_;
-    return kp_ * e + pending_;
-  }
-  // Saturates u_n + extra; keeps the integration only if it does not push further into the limit.
-  double finish(double u_n, double extra, bool& saturated, double& u_n_out) noexcept {
-    if (!std::isfinite(extra)) extra = 0.0;
-    const double raw = u_n + extra;
-    const double u = std::clamp(raw, u_min_, u_max_);
-    saturated = u != raw;
-    if (saturated && (raw - u) * e_ > 0.0) {
-      u_n_out = u_n - pending_ + integ_;  // integration undone
-      return std::clamp(u_n_out + extra, u_min_, u_max_);
-    }
-    integ_ = pending_;
-    u_n_out = u_n;
-    return u;
-  }
-  double integral() const noexcept { return integ_; }
-
- private:
-  double kp_ = 0, ki_ts_ = 0, u_min_ = kCommandMin, u_max_ = kCommandMax;
-  double integ_ = 0, pending_ = 0, e_ = 0;
-};
+using detail::CommandHistory;
+using detail::LastGood;
+using detail::PiCore;
 
 class OpenLoop final : public Controller {
  public:
@@ -236,22 +189,6 @@ class Input final : public Controller {
 
  private:
   double u_min_, u_max_;
-};
-
-// The last usable (finite) measured position: a non-finite one is never used.
-class LastGood {
- public:
-  void reset(double y0) noexcept { y_ = std::isfinite(y0) ? y0 : NAN; }
-  // True if y is usable (and now the last good one).
-  bool take(double y) noexcept {
-    if (!std::isfinite(y)) return false;
-    y_ = y;
-    return true;
-  }
-  double get() const noexcept { return y_; }  // NaN until a finite position was seen
-
- private:
-  double y_ = NAN;
 };
 
 class Pi final : public Controller {
@@ -456,6 +393,7 @@ std::unique_ptr<Controller> makeController(Kind kind, const ControllerConfig& cf
     case Kind::PidEso: return std::make_unique<PidEso>(cfg);
     case Kind::PiAmc: return std::make_unique<PiAmc>(cfg);
     case Kind::Input: return std::make_unique<Input>(cfg);
+    case Kind::Mbc: return makeMbc(cfg);
   }
   throw std::invalid_argument("unknown controller kind");
 }

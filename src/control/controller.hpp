@@ -34,12 +34,14 @@
 namespace pamc::control {
 
 // Input: no controller - the "setpoint" is the valve command itself (an identification input, `--input`),
-// passed through within [u_min, u_max]; the measured position is not used.
-enum class Kind { OpenLoop = 0, PI = 1, PidEso = 2, PiAmc = 3, Input = 4 };
+// passed through within [u_min, u_max]; the measured position is not used. Mbc: model-based control (not
+// in the paper; docs/CONTROL.md) - the model's inverse through the commands in flight as a feedforward,
+// the nominal PI on top.
+enum class Kind { OpenLoop = 0, PI = 1, PidEso = 2, PiAmc = 3, Input = 4, Mbc = 5 };
 const char* toString(Kind k);
-// Whether the kind runs the model (the open loop's inverse, the AMC's estimator and prediction).
-constexpr bool usesModel(Kind k) noexcept { return k == Kind::OpenLoop || k == Kind::PiAmc; }
-Kind kindFromString(const std::string& s);  // "open", "pi", "eso", "amc", "input" (throws)
+// Whether the kind runs the model (the open loop's inverse, the AMC's and MBC's estimator and prediction).
+constexpr bool usesModel(Kind k) noexcept { return k == Kind::OpenLoop || k == Kind::PiAmc || k == Kind::Mbc; }
+Kind kindFromString(const std::string& s);  // "open", "pi", "eso", "amc", "input", "mbc" (throws)
 
 // The PI and AMC gains every tool runs unless told otherwise: kp and kc as the paper prints them, ki the
 // reading of the printed 0.15 that `pamc calibrate` chose on the physics plant (docs/CALIBRATION.md).
@@ -68,6 +70,14 @@ struct ControllerConfig {
   // error, g the model's response at the horizon to a change of the command. The compensation then
   // rests on how well the model knows the plant's dynamics.
   double amc_inverse = 0.0;
+  // MBC: the horizon in samples its inverse reaches the setpoint at (0: automatic - the bus delay plus
+  // the time the model takes to make 10 % of its response to a command step, at least one sample after
+  // the commands in flight).
+  int mbc_horizon = 0;
+  // MBC: time constant [s] of the filter on the UKF's modelling-error estimate that the feedforward aims
+  // off by. Chosen from 0.5, 2, 10 and 1000 s on Table 2's triangle along a diagnose ladder (docs/CONTROL.md,
+  // "Model-based control"): faster filters track better with the final model but worse with a middle rung.
+  double mbc_error_tau_s = 10.0;
   // Eq. (17) read as printed (true: Y_{k+1} = H(h_{k+1}, u_n(k)), the compensation feeding back on
   // itself through the direct feedthrough with gain kc k rho) or as an increment on the posterior
   // output (false); see docs/CONTROL.md. Only for the paper's form (amc_inverse = 0, horizon 1).
@@ -135,9 +145,12 @@ int modelResponseSamples(const model::Model& m, double Ts, double u_min, double 
 
 // The AMC horizon in effect for a configuration (resolves amc_horizon = 0).
 int amcHorizon(const ControllerConfig& c);
+// The MBC horizon in effect (resolves mbc_horizon = 0).
+int mbcHorizon(const ControllerConfig& c);
 
 // Throws std::invalid_argument on a bad configuration.
 std::unique_ptr<Controller> makeController(Kind kind, const ControllerConfig& cfg);
+std::unique_ptr<Controller> makeMbc(const ControllerConfig& cfg);  // Kind::Mbc (mbc.cpp)
 // The checks makeController makes before it builds anything (throws std::invalid_argument): cheap, so a
 // caller can refuse a configuration at once and build it elsewhere.
 void validate(const ControllerConfig& cfg);

@@ -37,6 +37,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
     if (!g.removed.empty()) l.back()["removed"] = g.removed;
     if (!g.replaced_by.empty()) l.back()["replaced_by"] = g.replaced_by;
     if (g.refined) l.back()["refined"] = true;
+    l.back()["model"] = io::modelToJson(g.model);  // each rung's fitted model: to try in closed loop
   }
   if (r.probe_rung) {
     const auto e = r.probes.front().effectsWith(r.ladder.back().effects);
@@ -119,7 +120,9 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
     }
     io::writeFileAtomic(p + "probes.csv", t);
   }
-  io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", toJson(r)["ladder"]}});
+  auto ladder = toJson(r)["ladder"];
+  for (auto& rung : ladder) rung.erase("model");  // the rungs' models are in diagnosis.json
+  io::writeModelFile(p + "model.json", r.ladder.back().model, {{"ladder", ladder}});
   // The best probe, when it explains enough to be a rung, as a ready model: to check in closed loop
   // (pamc rig run --model, pamc experiments --model) whether the structure it points to matters there.
   if (r.probe_rung)

@@ -128,6 +128,9 @@ void ControllerNode::configureFromOd() {
   if (overrides_->trajectoryOverridden()) traj = cfg.trajectory;  // shapes the OD cannot hold
   auto fresh_ctrl = control::makeController(kind, p.ctrl);
   const model::OperatingRange range = control::usesModel(kind) ? p.ctrl.model.range() : model::OperatingRange{};
+  if (kind == control::Kind::Mbc && !range.known && log_)
+    log_("mbc: the model records no range it was identified on (model.json without 'range'): its feedforward is "
+         "used everywhere, with no fallback to the PI");
   params_->adopt(std::move(p), kind);
   loop_->configure(std::move(fresh_ctrl), kind, traj, Ts, cfg.preroll_s, params_->safeCommand());
   loop_->watchRange(range);

@@ -48,7 +48,7 @@ Panel voltagePanel(const Context& x, const std::string& tag, const std::vector<c
   Panel p{"(c) control voltages: nominal u_n (solid), compensation u_c (dashed)", "t [s]", "u [V]", {}};
   for (auto k : kinds) {
     const std::string csv = csvOf(x, tag, k);
-    if (k == control::Kind::PiAmc || k == control::Kind::PidEso) {
+    if (k == control::Kind::PiAmc || k == control::Kind::PidEso || k == control::Kind::Mbc) {
       p.series.push_back({csv, "t", "u_n", std::string(label(k)) + " u_n", "lines", colour(k)});
       p.series.push_back({csv, "t", "u_c", std::string(label(k)) + " u_c", "lines dashtype 2", colour(k)});
     } else if (k == control::Kind::PI) {
@@ -67,6 +67,7 @@ const char* label(control::Kind k) {
     case control::Kind::PidEso: return "PID+ESO";
     case control::Kind::PiAmc: return "PID+AMC";
     case control::Kind::Input: return "input";
+    case control::Kind::Mbc: return "MBC";
   }
   return "?";
 }
@@ -78,6 +79,7 @@ const char* colour(control::Kind k) {
     case control::Kind::PidEso: return "#2ca02c";
     case control::Kind::PiAmc: return "#d62728";
     case control::Kind::Input: return "#7f7f7f";
+    case control::Kind::Mbc: return "#9467bd";
   }
   return "#000000";
 }

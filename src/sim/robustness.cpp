@@ -108,7 +108,7 @@ namespace {
 // ---------------------------------------------------------------- controllers and models
 
 // In the order of RobustnessScore's fields.
-const control::Kind kKinds[] = {control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc};
+const control::Kind kKinds[] = {control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc, control::Kind::Mbc};
 
 // A controller configuration with the inverse its runs start from; one per model.
 struct ControllerSet {
@@ -193,8 +193,8 @@ Job makeJob(const Variant& v, const RobustnessSettings& s, const std::map<double
   return j;
 }
 
-// The three controllers on one trajectory. A run that starts away from home is scored from its first
-// reach (Table 2's rule); with a common window all three from the latest of their first reaches, so that
+// The four controllers on one trajectory. A run that starts away from home is scored from its first
+// reach (Table 2's rule); with a common window all four from the latest of their first reaches, so that
 // the ratios compare the same stretch of time (a controller that reaches early is not scored on a
 // transient the others are not scored on).
 RobustnessScore scoreCase(const Job& job, const TrackingCase& c, bool common_window) {
@@ -205,7 +205,7 @@ RobustnessScore scoreCase(const Job& job, const TrackingCase& c, bool common_win
     latest = std::max(latest, scoredFrom(recs.back(), c.run));
   }
   auto rmse = [&](size_t i) { return tracking(recs[i], common_window ? latest : scoredFrom(recs[i], c.run)).rmse; };
-  return {c.tag, rmse(0), rmse(1), rmse(2), common_window ? latest : NAN};
+  return {c.tag, rmse(0), rmse(1), rmse(2), rmse(3), common_window ? latest : NAN};
 }
 
 // Every trajectory with every controller; fresh plants, controllers and records per run.
@@ -341,18 +341,19 @@ GridResult sweepGrid(RunContext& ctx, const RobustnessAxis& rows, const Robustne
 
 std::string scoreCells(const RobustnessScore& sc) {
   return sc.trajectory + "," + fmt("%.6g", sc.pi) + "," + fmt("%.6g", sc.eso) + "," + fmt("%.6g", sc.amc) + "," +
-         fmt("%.6g", sc.amcOverPi()) + "," + fmt("%.6g", sc.esoOverPi());
+         fmt("%.6g", sc.amcOverPi()) + "," + fmt("%.6g", sc.esoOverPi()) + "," + fmt("%.6g", sc.mbc) + "," +
+         fmt("%.6g", sc.mbcOverPi());
 }
 
 void writeAxisCsv(const std::string& dir, const AxisResult& r) {
-  std::string out = "value,trajectory,pi_rmse,eso_rmse,amc_rmse,amc_over_pi,eso_over_pi\n";
+  std::string out = "value,trajectory,pi_rmse,eso_rmse,amc_rmse,amc_over_pi,eso_over_pi,mbc_rmse,mbc_over_pi\n";
   for (size_t i = 0; i < r.axis.values.size(); ++i)
     for (const auto& sc : r.scores[i]) out += fmt("%.9g", r.axis.values[i]) + "," + scoreCells(sc) + "\n";
   io::writeFileAtomic(dir + "axis_" + r.axis.name + ".csv", out);
 }
 
 void writeGridCsv(const std::string& dir, const GridResult& g) {
-  std::string out = g.row_axis + "," + g.col_axis + ",trajectory,pi_rmse,eso_rmse,amc_rmse,amc_over_pi,eso_over_pi\n";
+  std::string out = g.row_axis + "," + g.col_axis + ",trajectory,pi_rmse,eso_rmse,amc_rmse,amc_over_pi,eso_over_pi,mbc_rmse,mbc_over_pi\n";
   for (size_t r = 0; r < g.row_values.size(); ++r)
     for (size_t c = 0; c < g.col_values.size(); ++c)
       for (const auto& sc : g.scores[r][c])
@@ -434,6 +435,7 @@ nlohmann::json scoresJson(const std::vector<RobustnessScore>& scores) {
   for (const auto& sc : scores)
     j[sc.trajectory] = {{"pi_rmse", sc.pi}, {"eso_rmse", sc.eso}, {"amc_rmse", sc.amc},
                         {"amc_over_pi", sc.amcOverPi()}, {"eso_over_pi", sc.esoOverPi()},
+                        {"mbc_rmse", sc.mbc}, {"mbc_over_pi", sc.mbcOverPi()},
                         {"scored_from_s", sc.scored_from_s}};  // null: each run from its own first reach
   return j;
 }
@@ -550,7 +552,7 @@ void writeSummary(const std::string& dir, RobustnessReport& rep, const Robustnes
   std::ostringstream t;
   t << "RMSE of PID+ESO and PI+AMC against PI (ratio < 1: better than PI) on the triangle, the two sines and the\n"
        "square wave, over plant changes the controllers were not tuned for ('*': nominal).\n"
-    << (s.common_window ? "The sines (started away from home) are scored over one window for all three controllers, from the\n"
+    << (s.common_window ? "The sines (started away from home) are scored over one window for all four controllers, from the\n"
                           "latest of their first reaches.\n\n"
                         : "Every run is scored from its own first reach (Table 2's rule).\n\n");
   nlohmann::json axes = nlohmann::json::object();
@@ -562,7 +564,7 @@ void writeSummary(const std::string& dir, RobustnessReport& rep, const Robustnes
   for (const auto& n : rep.strongest) t << " " << n;
   t << "\n\n";
   if (!rep.grid.scores.empty()) t << gridText(rep.grid);
-  t << rep.variants << " variants x " << rep.axes.front().scores.front().size() << " trajectories x 3 controllers in "
+  t << rep.variants << " variants x " << rep.axes.front().scores.front().size() << " trajectories x 4 controllers in "
     << fmt("%.1f", rep.seconds) << " s on " << s.threads << " worker threads\n";
   rep.text = t.str();
   rep.json = {{"axes", axes}, {"strongest", rep.strongest}, {"variants", rep.variants}, {"seconds", rep.seconds},

@@ -61,13 +61,14 @@ struct RobustnessSettings {
   std::function<void(const std::string&)> log;
 };
 
-// RMSE of the three controllers on one trajectory for one variant.
+// RMSE of the four controllers on one trajectory for one variant.
 struct RobustnessScore {
   std::string trajectory;
-  double pi = 0.0, eso = 0.0, amc = 0.0;
+  double pi = 0.0, eso = 0.0, amc = 0.0, mbc = 0.0;
   double scored_from_s = NAN;  // the common window's start (NaN: each run from its own first reach)
   double amcOverPi() const { return amc / pi; }
   double esoOverPi() const { return eso / pi; }
+  double mbcOverPi() const { return mbc / pi; }
 };
 
 struct AxisResult {
@@ -87,7 +88,7 @@ struct RobustnessReport {
   std::vector<AxisResult> axes;
   std::vector<std::string> strongest;  // the two axes of the grid (fewer when fewer axes ran)
   GridResult grid;                     // empty when no grid ran
-  int variants = 0;                    // plant/model variants run (each 4 trajectories x 3 controllers)
+  int variants = 0;                    // plant/model variants run (each 4 trajectories x 4 controllers)
   double seconds = 0.0;
   nlohmann::json json;
   std::string text;

@@ -81,6 +81,25 @@ static void BM_AmcCycle(benchmark::State& state) {
 }
 BENCHMARK(BM_AmcCycle);
 
+// The whole MBC cycle (control/mbc.cpp): UKF, the modelling-error filter, the inverse's secant steps
+// through the reference model's rollouts, PI, saturation; the same model and signals as BM_AmcCycle.
+static void BM_MbcCycle(benchmark::State& state) {
+  control::ControllerConfig cfg;
+  cfg.model = paperLikeModel();
+  auto c = control::makeController(control::Kind::Mbc, cfg);
+  c->activate(0.0, 17.0);
+  const Excitation target(15.0, 10.0, 1);
+  const Excitation measured(15.0, 10.0, 1, 0.1, 18);
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const double yd = target[k];
+    auto o = c->update(yd, yd, measured[k]);
+    ++k;
+    benchmark::DoNotOptimize(o);
+  }
+}
+BENCHMARK(BM_MbcCycle);
+
 // Identification of the Bouc-Wen core (five free parameters) on 50 000 samples of emulator data
 // (0.1 Hz sine, 2.9 V), validated on a record the fit never saw (0.05 Hz, 1.5 V around 1 V: another
 // amplitude, frequency and offset). Counters: rmse_mm on the fitted record, val_rmse_mm on the other.

@@ -90,8 +90,8 @@ TEST(SdoServer, AbortCodes) {
   EXPECT_EQ(net.exchange("605#0141424344454647"), Frames{"585#8000210010000706"});
   // Length: announced size of a REAL64 is not 8.
   EXPECT_EQ(net.exchange("601#2100200109000000"), Frames{"581#8000200112000706"});
-  // Value range from the EDS limits (0x2010 is 0..4).
-  EXPECT_EQ(net.exchange("601#2F10200005000000"), Frames{"581#8010200031000906"});
+  // Value range from the EDS limits (0x2010 is 0..5).
+  EXPECT_EQ(net.exchange("601#2F10200006000000"), Frames{"581#8010200031000906"});
   EXPECT_EQ(ctrl.od().entry(0x2010, 0).get<std::uint8_t>(), 1);
   // Value range refused by the application (within the EDS limit 10): kp = 8.0 (segmented, 8 bytes).
   EXPECT_EQ(net.exchange("601#2100200108000000"), Frames{"581#6000200100000000"});

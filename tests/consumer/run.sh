@@ -17,7 +17,7 @@ complete_words() {
     _ "$T/prefix/share/bash-completion/completions/pamc" "$@"
 }
 [ "$(complete_words pamc rig '')" = "run faults soak guards" ] || { echo "FAIL: completion of 'pamc rig '"; exit 1; }
-[ "$(complete_words pamc rig run --controller '')" = "open pi pid eso amc" ] || { echo "FAIL: completion of --controller"; exit 1; }
+[ "$(complete_words pamc rig run --controller '')" = "open pi pid eso amc mbc" ] || { echo "FAIL: completion of --controller"; exit 1; }
 [ "$(complete_words pamc monitor --rep)" = "--replay" ] || { echo "FAIL: completion of monitor --rep"; exit 1; }
 # The installed pamc finds its EDS files next to itself, from any working directory.
 (cd "$T" && "$T/prefix/bin/pamc" rig run --duration 1 --preroll 0.2 > "$T/rig.txt") || { cat "$T/rig.txt"; echo "FAIL: installed pamc rig"; exit 1; }

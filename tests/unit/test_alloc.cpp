@@ -80,7 +80,7 @@ TEST(Allocation, ForceLoopCyclesAllocateNothing) {
 
 INSTANTIATE_TEST_SUITE_P(Controllers, AllocationFree,
                          ::testing::Values(control::Kind::OpenLoop, control::Kind::PI, control::Kind::PidEso,
-                                           control::Kind::PiAmc, control::Kind::Input),
+                                           control::Kind::PiAmc, control::Kind::Input, control::Kind::Mbc),
                          [](const auto& info) { return std::string(control::toString(info.param)); });
 
 // The whole rig on the in-process bus - controller node (SYNC, RPDO latch, PI + AMC with a rolled-out

@@ -114,11 +114,11 @@ TEST(Robustness, ShortRunWritesFiniteRatiosThatMoveWithThePlant) {
   const auto rows = readCsv(s.out_dir + "/axis_flow.csv");
   ASSERT_EQ(rows.size(), 1u + 2u * 4u);
   EXPECT_EQ(rows[0], (std::vector<std::string>{"value", "trajectory", "pi_rmse", "eso_rmse", "amc_rmse", "amc_over_pi",
-                                               "eso_over_pi"}));
+                                               "eso_over_pi", "mbc_rmse", "mbc_over_pi"}));
   bool moved = false;
   for (size_t i = 1; i < rows.size(); ++i) {
-    ASSERT_EQ(rows[i].size(), 7u);
-    for (size_t c : {2u, 3u, 4u, 5u, 6u}) {
+    ASSERT_EQ(rows[i].size(), 9u);
+    for (size_t c : {2u, 3u, 4u, 5u, 6u, 7u, 8u}) {
       const double v = std::stod(rows[i][c]);
       EXPECT_TRUE(std::isfinite(v) && v > 0.0) << rows[i][c];
     }

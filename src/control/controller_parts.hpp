@@ -1,0 +1,92 @@
+// The parts the controllers are built from (controller.cpp, mbc.cpp): the commands in flight, the PI of
+// eq. (16) with its anti-windup, the last usable position. noexcept and allocation-free.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "control/controller.hpp"
+
+namespace pamc::control::detail {
+
+// The commands of the last few cycles, to tell the estimators which one was in effect when a
+// measurement was taken.
+class CommandHistory {
+ public:
+  void fill(double u) noexcept { buf_.fill(u); }
+  void push(double u) noexcept {
+    head_ = (head_ + 1) & 7u;
+    buf_[head_] = u;
+  }
+  // ago = 0: the latest command.
+  double get(int ago) const noexcept { return buf_[(head_ - static_cast<unsigned>(ago)) & 7u]; }
+
+ private:
+  std::array<double, 8> buf_{};
+  unsigned head_ = 0;
+};
+
+// PI of eq. (16) with conditional integration as anti-windup.
+class PiCore {
+ public:
+  void configure(const ControllerConfig& c) {
+    kp_ = c.kp;
+    ki_ts_ = c.ki * c.Ts;  // continuous-time Ki [V/(mm s)], integral as sum of e*Ts
+    u_min_ = c.u_min;
+    u_max_ = c.u_max;
+  }
+  void reset(double integral) noexcept {
+    integ_ = std::isfinite(integral) ? std::clamp(integral, u_min_, u_max_) : 0.5 * (u_min_ + u_max_);
+  }
+  // Nominal output with this cycle's error integrated (tentatively). integrate = false holds the
+  // integral (no usable measurement); a non-finite error counts as none and is not integrated.
+  double nominal(double e, bool integrate = true) noexcept {
+    if (!std::isfinite(e)) e = 0.0, integrate = false;
+    e_ = e;
+    pending_ = integrate ? std::clamp(integ_ + ki_ts_ * e, u_min_, u_max_) : integ_;
+    return kp_ * e + pending_;
+  }
+  // Saturates u_n + extra; keeps the integration only if it does not push further into the limit.
+  double finish(double u_n, double extra, bool& saturated, double& u_n_out) noexcept {
+    if (!std::isfinite(extra)) extra = 0.0;
+    const double raw = u_n + extra;
+    const double u = std::clamp(raw, u_min_, u_max_);
+    saturated = u != raw;
+    if (saturated && (raw - u) * e_ > 0.0) {
+      u_n_out = u_n - pending_ + integ_;  // integration undone
+      return std::clamp(u_n_out + extra, u_min_, u_max_);
+    }
+    integ_ = pending_;
+    u_n_out = u_n;
+    return u;
+  }
+  double integral() const noexcept { return integ_; }
+  // Moves the integral by delta (a feedforward switched on or off beside it, bumpless), within the
+  // range the command's difference can span.
+  void shift(double delta) noexcept {
+    if (std::isfinite(delta)) integ_ = std::clamp(integ_ + delta, u_min_ - u_max_, u_max_ - u_min_);
+  }
+
+ private:
+  double kp_ = 0, ki_ts_ = 0, u_min_ = kCommandMin, u_max_ = kCommandMax;
+  double integ_ = 0, pending_ = 0, e_ = 0;
+};
+
+// The last usable (finite) measured position: a non-finite one is never used.
+class LastGood {
+ public:
+  void reset(double y0) noexcept { y_ = std::isfinite(y0) ? y0 : NAN; }
+  // True if y is usable (and now the last good one).
+  bool take(double y) noexcept {
+    if (!std::isfinite(y)) return false;
+    y_ = y;
+    return true;
+  }
+  double get() const noexcept { return y_; }  // NaN until a finite position was seen
+
+ private:
+  double y_ = NAN;
+};
+
+}  // namespace pamc::control::detail

@@ -1,0 +1,175 @@
+// Model-based control (Kind::Mbc; not in the paper, docs/CONTROL.md "Model-based control"):
+//
+//   u_k = u_ff + kp e_k + ki sum(e Ts),   e_k = y_d(k) - y_k (the nominal PI, eq. 16, on top)
+//
+// u_ff is the model's inverse along the setpoint. A reference model - the model driven by the
+// feedforward alone, started at rest with the loop - is rolled, as a Smith predictor rolls its model,
+// through the feedforwards already sent and not yet in effect, then u_ff held; u_ff is the command for
+// which it reaches y_d(k + H) - m_k at the horizon H (a few secant steps from the last solution; H the bus
+// delay plus the time the model takes to make 10 % of its response, as the predictive AMC's). m_k is the
+// modelling error the UKF estimates - its posterior output against the reference model's - low-passed
+// (mbc_error_tau_s). Measurements reach the command only through m_k and the PI: an inverse re-solved
+// from the posterior every cycle is an integral action of gain 1/(model gain) per sample, which went
+// unstable on the physics plant with every model tried (docs/CONTROL.md).
+//
+// The feedforward is only used where the model was identified (model.json's `range`): a setpoint or a
+// position outside its output range, or a feedforward outside its input range, and the nominal PI runs
+// alone, its integral taking over the last feedforward (bumpless; taken back the same way on return).
+// So does a cycle whose estimator restarted or whose rollout was not finite, for kRecoverCycles after.
+// The estimator's own restarts are not faults here: the PI keeps the loop meanwhile.
+#include <algorithm>
+#include <cmath>
+
+#include "control/controller.hpp"
+#include "control/controller_parts.hpp"
+
+namespace pamc::control {
+
+namespace {
+
+// Cycles the feedforward stays off after the estimator restarted or its rollout failed.
+constexpr int kRecoverCycles = 200;
+// Secant steps of the inverse per cycle (warm-started from the last cycle's solution).
+constexpr int kInverseSteps = 3;
+
+class Mbc final : public Controller {
+ public:
+  explicit Mbc(const ControllerConfig& c) : cfg_(c), horizon_(mbcHorizon(c)) {
+    pi_.configure(c);
+    am_.configure(c.model, c.ukf, c.Ts);
+  }
+  Kind kind() const override { return Kind::Mbc; }
+  int lookahead() const override { return horizon_; }
+
+  void activate(double u0, double y0) noexcept override {
+    pi_.reset(u0);  // the PI alone holds u0 until the first feedforward is taken in (bumpless)
+    y_.reset(y0);
+    am_.reset(u0);
+    hist_.fill(u0);
+    u_ff_ = u_solved_ = u0;
+    miss_ = 0.0;
+    ff_hist_.fill(u0);
+    ctx_.Ts = cfg_.Ts;
+    cfg_.model.init(ref_, u0, ctx_);
+    y_ref_ = cfg_.model.step(ref_, u0, ctx_);
+    ff_on_ = false;
+    recover_ = 0;
+    gain_ = 1.0;
+  }
+
+  ControlOutput update(double yd, double yd_ahead, double y, double load) noexcept override {
+    ControlOutput o;
+    const auto est = am_.update(hist_.get(cfg_.delay_cycles), y, load);
+    o.y_hat = est.y_post;
+    o.estimator_reset = false;  // a restart turns the feedforward off; it is not a fault of this loop
+    o.measurement_rejected = est.rejected || !std::isfinite(y);
+    if (!o.measurement_rejected) y_.take(y);
+    if (est.status == estimation::UkfStatus::Reset) recover_ = kRecoverCycles;
+    ctx_.load = load;
+    followMiss(est);
+    const double ff = feedforward(yd_ahead - miss_);
+    const bool use = recover_ == 0 && std::isfinite(ff) && inRange(ff, yd_ahead, y_.get());
+    if (recover_ > 0) --recover_;
+    if (std::isfinite(ff)) u_solved_ = ff;
+    else recover_ = kRecoverCycles;
+    switchFeedforward(use, ff);
+    advanceReference(u_solved_);
+    // The nominal PI on the setpoint's error (on the reference model's instead, the square wave settled
+    // faster, but a model that cannot reach the setpoint held the loop short of it: docs/CONTROL.md).
+    const double un = pi_.nominal(yd - y_.get(), !o.measurement_rejected);
+    o.u_c = ff_on_ ? u_ff_ : 0.0;
+    o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
+    hist_.push(o.u);
+    return o;
+  }
+
+  double integral() const noexcept override { return pi_.integral(); }
+  const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
+
+ private:
+  // The model's output `horizon_` samples on from the reference state: the feedforwards in flight first,
+  // then u held.
+  double rollout(double u) const noexcept {
+    model::Model::State s = ref_;
+    double y = y_ref_;
+    const int d = cfg_.delay_cycles;
+    for (int i = 0; i < horizon_; ++i) y = cfg_.model.step(s, i < d ? ff_hist_.get(d - 1 - i) : u, ctx_);
+    return y;
+  }
+
+  // The command that, held after the feedforwards in flight, brings the reference model to `target` at
+  // the horizon; NaN if the rollout is not finite.
+  double feedforward(double target) noexcept {
+    double u = std::clamp(u_solved_, cfg_.u_min, cfg_.u_max);
+    for (int step = 0; step < kInverseSteps; ++step) {
+      const double yh = rollout(u);
+      if (!std::isfinite(yh)) return NAN;
+      const double miss = target - yh;
+      // The slope in the direction the command will move (the loop's branches differ).
+      const double du = std::copysign(0.01 * (cfg_.u_max - cfg_.u_min), miss);
+      const double g = (rollout(u + du) - yh) / du;
+      if (std::isfinite(g) && std::fabs(g) > 1e-3) gain_ = g;
+      u = std::clamp(u + miss / gain_, cfg_.u_min, cfg_.u_max);
+    }
+    return u;
+  }
+
+  // The modelling error as the UKF sees it - its posterior output against the reference model's - through a
+  // first-order filter of time constant mbc_error_tau_s: the feedforward aims the model that much off the
+  // setpoint, so that the plant lands on it. A restart of the estimator leaves it where it was.
+  void followMiss(const estimation::ActiveModelStep& est) noexcept {
+    if (est.status == estimation::UkfStatus::Reset || !std::isfinite(est.y_post) || !std::isfinite(y_ref_)) return;
+    miss_ += (est.y_post - y_ref_ - miss_) * std::min(1.0, cfg_.Ts / cfg_.mbc_error_tau_s);
+  }
+
+  // The reference model takes the feedforward that reaches its effect now (sent delay_cycles + 1 ago).
+  void advanceReference(double ff) noexcept {
+    ff_hist_.push(ff);
+    y_ref_ = cfg_.model.step(ref_, ff_hist_.get(cfg_.delay_cycles), ctx_);
+  }
+
+  // Where the model was identified: the setpoint and the position within its output range, the
+  // feedforward within its input range (the input rate is not asked: a setpoint step is faster than
+  // any record). A model without a range is used everywhere (the controller said so at its start).
+  bool inRange(double ff, double yd_ahead, double y) const noexcept {
+    const auto& r = cfg_.model.range();
+    if (!r.known) return true;
+    return r.input.contains(ff) && r.output.contains(yd_ahead) && (!std::isfinite(y) || r.output.contains(y));
+  }
+
+  // Takes the feedforward in or out with the PI's integral moved by it, so the command does not jump.
+  void switchFeedforward(bool use, double ff) noexcept {
+    if (use && !ff_on_) pi_.shift(-ff);
+    if (!use && ff_on_) pi_.shift(u_ff_);
+    ff_on_ = use;
+    if (use) u_ff_ = ff;
+  }
+
+  ControllerConfig cfg_;
+  int horizon_;
+  detail::PiCore pi_;
+  detail::LastGood y_;
+  detail::CommandHistory hist_;
+  estimation::ActiveModel am_;
+  detail::CommandHistory ff_hist_;  // the feedforwards sent, the reference model's input
+  model::Model::State ref_;         // the reference model: the model driven by the feedforward alone
+  double y_ref_ = 0.0;              // its output now
+  model::StepContext ctx_;
+  double u_ff_ = 0.0;      // the feedforward in the command (the last one, while it is off)
+  double u_solved_ = 0.0;  // the last finite solution of the inverse: the next cycle's start
+  double gain_ = 1.0;   // the model's response at the horizon to a unit command change [mm/V]
+  bool ff_on_ = false;  // the feedforward is in the command
+  double miss_ = 0.0;   // the modelling error: the UKF's posterior output - the reference model's, low-passed
+  int recover_ = 0;     // cycles left with the feedforward off after an estimator restart
+};
+
+}  // namespace
+
+int mbcHorizon(const ControllerConfig& c) {
+  if (c.mbc_horizon > 0) return c.mbc_horizon;
+  return std::min(2000, c.delay_cycles + modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1));
+}
+
+std::unique_ptr<Controller> makeMbc(const ControllerConfig& cfg) { return std::make_unique<Mbc>(cfg); }
+
+}  // namespace pamc::control
