@@ -63,11 +63,12 @@ static void BM_UkfStepWholeModel(benchmark::State& state) {
 }
 BENCHMARK(BM_UkfStepWholeModel);
 
-// The whole PI + AMC cycle: estimator update, PI, prediction (17), compensation, saturation.
-static void BM_AmcCycle(benchmark::State& state) {
+// One controller's whole cycle on the paper-like model, a slow sine to track and a measured position
+// with a faster ripple on it.
+static void controllerCycle(benchmark::State& state, control::Kind kind) {
   control::ControllerConfig cfg;
   cfg.model = paperLikeModel();
-  auto c = control::makeController(control::Kind::PiAmc, cfg);
+  auto c = control::makeController(kind, cfg);
   c->activate(0.0, 17.0);
   const Excitation target(15.0, 10.0, 1);                 // 0.38 rad/s
   const Excitation measured(15.0, 10.0, 1, 0.1, 18);      // + 0.1 mm at 6.9 rad/s
@@ -79,25 +80,14 @@ static void BM_AmcCycle(benchmark::State& state) {
     benchmark::DoNotOptimize(o);
   }
 }
+
+// The whole PI + AMC cycle: estimator update, PI, prediction (17), compensation, saturation.
+static void BM_AmcCycle(benchmark::State& state) { controllerCycle(state, control::Kind::PiAmc); }
 BENCHMARK(BM_AmcCycle);
 
 // The whole MBC cycle (control/mbc.cpp): UKF, the modelling-error filter, the inverse's secant steps
-// through the reference model's rollouts, PI, saturation; the same model and signals as BM_AmcCycle.
-static void BM_MbcCycle(benchmark::State& state) {
-  control::ControllerConfig cfg;
-  cfg.model = paperLikeModel();
-  auto c = control::makeController(control::Kind::Mbc, cfg);
-  c->activate(0.0, 17.0);
-  const Excitation target(15.0, 10.0, 1);
-  const Excitation measured(15.0, 10.0, 1, 0.1, 18);
-  std::size_t k = 0;
-  for (auto _ : state) {
-    const double yd = target[k];
-    auto o = c->update(yd, yd, measured[k]);
-    ++k;
-    benchmark::DoNotOptimize(o);
-  }
-}
+// through the reference model's rollouts, PI, saturation.
+static void BM_MbcCycle(benchmark::State& state) { controllerCycle(state, control::Kind::Mbc); }
 BENCHMARK(BM_MbcCycle);
 
 // Identification of the Bouc-Wen core (five free parameters) on 50 000 samples of emulator data
