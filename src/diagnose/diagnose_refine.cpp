@@ -25,9 +25,16 @@ bool hasParam(const std::vector<model::ParamSpec>& specs, const std::string& nam
 }  // namespace
 
 model::Model withReplacement(const Rung& fin, const std::string& effect, const std::string& by) {
-  // The effects whose physics the richer form holds too go with the one it replaces.
-  const auto absorbed = by.empty() ? std::vector<std::string>{} : model::makeEffect(by)->absorbs();
-  const auto kept = [&](const std::string& e) { return std::find(absorbed.begin(), absorbed.end(), e) == absorbed.end(); };
+  // The effects whose physics the richer form holds too go with the one it replaces: those it absorbs, and
+  // the other ones it refines (muscle_balance in friction_hysteresis's place takes force_loop's as well; a
+  // model refuses both).
+  std::vector<std::string> gone;
+  if (!by.empty()) {
+    const auto richer = model::makeEffect(by);
+    gone = richer->absorbs();
+    for (const auto& r : richer->refines()) gone.push_back(r);
+  }
+  const auto kept = [&](const std::string& e) { return std::find(gone.begin(), gone.end(), e) == gone.end(); };
   model::Model m(fin.model.core());
   m.setOutputForm(fin.model.outputForm());
   for (const auto& e : fin.effects)

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "diagnose/diagnosis.hpp"
 #include "model/model.hpp"
 
 using namespace pamc;
@@ -83,7 +84,9 @@ TEST(MuscleBalance, HeldItRestsWhereTheMapBalances) {
     const auto y = alone("muscle_balance", p).simulate(u, kTs);
     EXPECT_NEAR(y.back(), staticPosition(in, w, a1, a2), 1e-6) << in;
     // The map stiffens the muscle as it contracts: less travel than the straight balance's.
-    if (in > 5.0) EXPECT_LT(y.back(), in) << in;
+    if (in > 5.0) {
+      EXPECT_LT(y.back(), in) << in;
+    }
   }
 }
 
@@ -137,4 +140,17 @@ TEST(MuscleBalance, SpreadTravelsRoundTheReversal) {
   EXPECT_GT(spread.first, 2.0 * one.first);
   EXPECT_NEAR(spread.second, one.second, 0.01);
   EXPECT_NEAR(one.second, -2 * 0.5, 0.08);
+}
+
+// In the place of one effect it refines, the balance takes the others it refines and those it absorbs as
+// well: a rung of saturation + friction_hysteresis + force_loop (where diagnose ends on the paper's u0
+// record) becomes muscle_balance alone, with no model refusing two alternatives for the same physics.
+TEST(MuscleBalance, InOneEffectsPlaceItTakesTheOthersItStandsFor) {
+  diagnose::Rung rung;
+  rung.effects = {"saturation", "friction_hysteresis", "force_loop"};
+  for (const auto& e : rung.effects) rung.model.addEffect(e);
+  model::Model m;
+  ASSERT_NO_THROW(m = diagnose::detail::withReplacement(rung, "friction_hysteresis", "muscle_balance"));
+  EXPECT_TRUE(m.hasEffect("muscle_balance"));
+  for (const char* e : {"saturation", "friction_hysteresis", "force_loop"}) EXPECT_FALSE(m.hasEffect(e)) << e;
 }
