@@ -105,10 +105,14 @@ int modelResponseSamples(const model::Model& m, double Ts, double u_min, double 
   return kMax;
 }
 
+int responseHorizon(const ControllerConfig& c) {
+  return std::min(2000, c.delay_cycles + modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1));
+}
+
 int amcHorizon(const ControllerConfig& c) {
   if (c.amc_horizon > 0) return c.amc_horizon;
   if (c.amc_inverse <= 0.0) return 1;
-  return std::min(2000, c.delay_cycles + modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1));
+  return responseHorizon(c);
 }
 
 void validate(const ControllerConfig& c) {

@@ -143,6 +143,9 @@ class Controller {
 // pressure lag of time constant tau).
 int modelResponseSamples(const model::Model& m, double Ts, double u_min, double u_max, double fraction);
 
+// The automatic horizon of the predictive forms (AMC and MBC): the bus delay plus the samples the model
+// takes to make 10 % of its response to a command step.
+int responseHorizon(const ControllerConfig& c);
 // The AMC horizon in effect for a configuration (resolves amc_horizon = 0).
 int amcHorizon(const ControllerConfig& c);
 // The MBC horizon in effect (resolves mbc_horizon = 0).

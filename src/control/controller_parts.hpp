@@ -30,21 +30,26 @@ class CommandHistory {
 // PI of eq. (16) with conditional integration as anti-windup.
 class PiCore {
  public:
-  void configure(const ControllerConfig& c) {
+  // beside_feedforward: the integral is a correction to a feedforward that carries the command, so it
+  // may span the command's difference, [u_min - u_max, u_max - u_min]; alone it is the command's own
+  // level, within [u_min, u_max].
+  void configure(const ControllerConfig& c, bool beside_feedforward = false) {
     kp_ = c.kp;
     ki_ts_ = c.ki * c.Ts;  // continuous-time Ki [V/(mm s)], integral as sum of e*Ts
     u_min_ = c.u_min;
     u_max_ = c.u_max;
+    i_lo_ = beside_feedforward ? c.u_min - c.u_max : c.u_min;
+    i_hi_ = beside_feedforward ? c.u_max - c.u_min : c.u_max;
   }
   void reset(double integral) noexcept {
-    integ_ = std::isfinite(integral) ? std::clamp(integral, u_min_, u_max_) : 0.5 * (u_min_ + u_max_);
+    integ_ = std::isfinite(integral) ? std::clamp(integral, i_lo_, i_hi_) : 0.5 * (u_min_ + u_max_);
   }
   // Nominal output with this cycle's error integrated (tentatively). integrate = false holds the
   // integral (no usable measurement); a non-finite error counts as none and is not integrated.
   double nominal(double e, bool integrate = true) noexcept {
     if (!std::isfinite(e)) e = 0.0, integrate = false;
     e_ = e;
-    pending_ = integrate ? std::clamp(integ_ + ki_ts_ * e, u_min_, u_max_) : integ_;
+    pending_ = integrate ? std::clamp(integ_ + ki_ts_ * e, i_lo_, i_hi_) : integ_;
     return kp_ * e + pending_;
   }
   // Saturates u_n + extra; keeps the integration only if it does not push further into the limit.
@@ -62,14 +67,14 @@ class PiCore {
     return u;
   }
   double integral() const noexcept { return integ_; }
-  // Moves the integral by delta (a feedforward switched on or off beside it, bumpless), within the
-  // range the command's difference can span.
+  // Moves the integral by delta (a feedforward switched on or off beside it, bumpless).
   void shift(double delta) noexcept {
-    if (std::isfinite(delta)) integ_ = std::clamp(integ_ + delta, u_min_ - u_max_, u_max_ - u_min_);
+    if (std::isfinite(delta)) integ_ = std::clamp(integ_ + delta, i_lo_, i_hi_);
   }
 
  private:
   double kp_ = 0, ki_ts_ = 0, u_min_ = kCommandMin, u_max_ = kCommandMax;
+  double i_lo_ = kCommandMin, i_hi_ = kCommandMax;  // the integral's limits (configure)
   double integ_ = 0, pending_ = 0, e_ = 0;
 };
 

@@ -35,7 +35,7 @@ constexpr int kInverseSteps = 3;
 class Mbc final : public Controller {
  public:
   explicit Mbc(const ControllerConfig& c) : cfg_(c), horizon_(mbcHorizon(c)) {
-    pi_.configure(c);
+    pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
   }
   Kind kind() const override { return Kind::Mbc; }
@@ -167,7 +167,7 @@ class Mbc final : public Controller {
 
 int mbcHorizon(const ControllerConfig& c) {
   if (c.mbc_horizon > 0) return c.mbc_horizon;
-  return std::min(2000, c.delay_cycles + modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1));
+  return responseHorizon(c);
 }
 
 std::unique_ptr<Controller> makeMbc(const ControllerConfig& cfg) { return std::make_unique<Mbc>(cfg); }

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "control/controller.hpp"
+#include "control/controller_parts.hpp"
 #include "control/trajectory.hpp"
 #include "ident/identify.hpp"
 #include "plant/plant.hpp"
@@ -176,4 +177,20 @@ TEST(Mbc, HorizonIsAboveTheCommandsInFlight) {
   cfg.mbc_horizon = 2;
   EXPECT_THROW(control::makeController(control::Kind::Mbc, cfg), std::invalid_argument);
   EXPECT_EQ(control::kindFromString("mbc"), control::Kind::Mbc);
+}
+
+// Beside a feedforward the PI's integral is a correction that may span the command's whole difference:
+// switching a 5 V feedforward in at a command of -2 V moves the integral to -7 V, and the next cycle
+// keeps it there (clamped to the command's range, the switch would jump by 2 V).
+TEST(Mbc, ThePisIntegralBesideAFeedforwardSpansTheCommandsDifference) {
+  control::ControllerConfig cfg;
+  control::detail::PiCore alone, beside;
+  alone.configure(cfg);
+  beside.configure(cfg, true);
+  for (auto* pi : {&alone, &beside}) {
+    pi->reset(-2.0);
+    pi->shift(-5.0);
+  }
+  EXPECT_DOUBLE_EQ(beside.nominal(0.0), -7.0);
+  EXPECT_DOUBLE_EQ(alone.nominal(0.0), cfg.u_min);
 }
