@@ -593,6 +593,11 @@ class Integrator {
   }
   long steps() const { return steps_; }
   long rejected() const { return rejected_; }
+  // As constructed: the first step at the largest, the statistics at 0.
+  void restart() {
+    h_ = opt_.max_step;
+    steps_ = rejected_ = 0;
+  }
 
  private:
   const System& sys_;
@@ -613,20 +618,104 @@ double gauss(std::mt19937_64& g) {
 
 }  // namespace
 
+// The stepped chain: the system, its integrator, the delay's history of commands, the output stage
+// and the noise generator. Heap-held by Stepper (the integrator keeps a reference to the system).
+struct Stepper::Impl {
+  Impl(const Core& core, const std::vector<EffectSpec>& effects, const SimOptions& o)
+      : opt(o), sys(makeSystem(core, effects, o)), integ(sys, o), out(effects), effects_(effects) {
+    const double dn = sys.delay / opt.Ts;
+    nd = static_cast<long>(std::floor(dn + 1e-9));
+    frac = dn - static_cast<double>(nd);
+    if (frac < 1e-9) frac = 0.0;
+    hist.assign(static_cast<size_t>(nd + 2), 0.0);
+  }
+  // The command held in sample j (the first command before the start).
+  double cmd(long j) const { return j < 0 ? u0 : hist[static_cast<size_t>(j % static_cast<long>(hist.size()))]; }
+  // Integrates over sample k with its command in the history and the load L held.
+  void integrate(double L) {
+    const double t0 = static_cast<double>(k) * opt.Ts, t1 = static_cast<double>(k + 1) * opt.Ts;
+    if (frac == 0.0) {
+      const double uc = cmd(k - nd);
+      integ.run(x, t0, t1, uc, L, uc != prev_u || L != prev_L);
+      prev_u = uc;
+    } else {  // the delayed command switches within the sample at t0 + frac Ts
+      const double tm = t0 + frac * opt.Ts;
+      const double ua = cmd(k - nd - 1), ub = cmd(k - nd);
+      integ.run(x, t0, tm, ua, L, ua != prev_u || L != prev_L);
+      integ.run(x, tm, t1, ub, L, ub != ua);
+      prev_u = ub;
+    }
+    prev_L = L;
+  }
+
+  SimOptions opt;
+  System sys;
+  Integrator integ;
+  OutputStage out;
+  std::vector<EffectSpec> effects_;
+  Vec x{};
+  long nd = 0, k = 0;
+  double frac = 0.0, u0 = 0.0, prev_u = 0.0, prev_L = 0.0, clean = 0.0;
+  std::vector<double> hist;
+  std::mt19937_64 g;
+};
+
+Stepper::Stepper(const Core& core, const std::vector<EffectSpec>& effects, const SimOptions& opt) {
+  if (!(opt.Ts > 0) || !(opt.valve_tau > 0) || !(opt.rtol > 0) || !(opt.atol > 0) || !(opt.max_step > 0) ||
+      !(opt.noise_std >= 0) || !(opt.quantum >= 0))
+    throw std::invalid_argument("bad simulation options");
+  impl_ = std::make_unique<Impl>(core, effects, opt);
+  reset(0.0, 0.0);
+}
+
+Stepper::~Stepper() = default;
+
+void Stepper::reset(double u0, double load0) {
+  Impl& m = *impl_;
+  const double L = m.sys.load ? load0 : 0.0;
+  m.integ.restart();
+  m.out = OutputStage(m.effects_);
+  m.x = Vec{};
+  m.sys.y_start = m.sys.eval(0.0, m.x, Drive{u0, 0.0, L, 0.0}, nullptr, true);  // warm_up adds phi(0) = 0 here
+  m.clean = m.sys.y_start;
+  m.k = 0;
+  m.u0 = m.prev_u = u0;
+  m.prev_L = L;
+  std::fill(m.hist.begin(), m.hist.end(), u0);
+  m.g.seed(m.opt.noise_seed);
+}
+
+double Stepper::step(double u, double load) {
+  Impl& m = *impl_;
+  if (!std::isfinite(u)) throw std::invalid_argument("command not finite");
+  const double L = m.sys.load ? load : 0.0;
+  m.hist[static_cast<size_t>(m.k % static_cast<long>(m.hist.size()))] = u;
+  m.integrate(L);
+  const double t1 = static_cast<double>(m.k + 1) * m.opt.Ts;
+  const Drive dr{m.x[kV], (m.prev_u - m.x[kV]) / m.sys.tv, m.x[kL], (L - m.x[kL]) / m.sys.tv};
+  m.clean = m.out.step(t1, u, m.sys.eval(t1, m.x, dr, nullptr, false));
+  ++m.k;
+  double y = m.clean + (m.opt.noise_std > 0 ? m.opt.noise_std * gauss(m.g) : 0.0);
+  if (m.opt.quantum > 0) y = std::round(y / m.opt.quantum) * m.opt.quantum;
+  return y;
+}
+
+bool Stepper::needsLoad() const { return impl_->sys.load; }
+double Stepper::clean() const { return impl_->clean; }
+long Stepper::steps() const { return impl_->integ.steps(); }
+long Stepper::rejected() const { return impl_->integ.rejected(); }
+
 Record simulate(const Core& core, const std::vector<EffectSpec>& effects, const std::vector<double>& u,
                 const std::vector<double>* load, const SimOptions& opt) {
   if (u.empty()) throw std::invalid_argument("empty command");
   const bool has_load = load && !load->empty();
   if (has_load && load->size() != u.size()) throw std::invalid_argument("load column and command differ in length");
-  if (!(opt.Ts > 0) || !(opt.valve_tau > 0) || !(opt.rtol > 0) || !(opt.atol > 0) || !(opt.max_step > 0) ||
-      !(opt.noise_std >= 0) || !(opt.quantum >= 0))
-    throw std::invalid_argument("bad simulation options");
   for (double v : u)
     if (!std::isfinite(v)) throw std::invalid_argument("command not finite");
-  System sys = makeSystem(core, effects, opt);
-  if (sys.load && !has_load) throw std::invalid_argument("effect load needs a load column (--load SPEC)");
+  Stepper st(core, effects, opt);
+  if (st.needsLoad() && !has_load) throw std::invalid_argument("effect load needs a load column (--load SPEC)");
   const size_t n = u.size();
-  auto Lat = [&](size_t k) { return has_load && sys.load ? (*load)[k] : 0.0; };
+  auto Lat = [&](size_t k) { return has_load ? (*load)[k] : 0.0; };
 
   Record r;
   r.Ts = opt.Ts;
@@ -637,50 +726,14 @@ Record simulate(const Core& core, const std::vector<EffectSpec>& effects, const 
   r.y.resize(n);
   r.y_clean.resize(n);
   if (has_load) r.load = *load;
-
-  Vec x{};
-  sys.y_start = sys.eval(0.0, x, Drive{u[0], 0.0, Lat(0), 0.0}, nullptr, true);  // warm_up adds phi(0) = 0 here
-  Integrator integ(sys, opt);
-
-  // The delay in whole samples and the fraction of a sample.
-  const double dn = sys.delay / opt.Ts;
-  long nd = static_cast<long>(std::floor(dn + 1e-9));
-  double frac = dn - static_cast<double>(nd);
-  if (frac < 1e-9) frac = 0.0;
-  auto cmd = [&](long j) { return u[static_cast<size_t>(std::max(j, 0L))]; };
-
-  double prev_u = u[0], prev_L = Lat(0);
+  st.reset(u[0], Lat(0));
   for (size_t k = 0; k < n; ++k) {
-    const double t0 = static_cast<double>(k) * opt.Ts, t1 = static_cast<double>(k + 1) * opt.Ts;
-    const long kk = static_cast<long>(k);
-    const double L = Lat(k);
-    if (frac == 0.0) {
-      const double uc = cmd(kk - nd);
-      integ.run(x, t0, t1, uc, L, uc != prev_u || L != prev_L);
-      prev_u = uc;
-    } else {
-      // The delayed command switches within the sample at t0 + frac Ts.
-      const double tm = t0 + frac * opt.Ts;
-      const double ua = cmd(kk - nd - 1), ub = cmd(kk - nd);
-      integ.run(x, t0, tm, ua, L, ua != prev_u || L != prev_L);
-      integ.run(x, tm, t1, ub, L, ub != ua);
-      prev_u = ub;
-    }
-    prev_L = L;
-    r.t[k] = t0;
-    r.y_clean[k] = sys.eval(t1, x, Drive{x[kV], (prev_u - x[kV]) / sys.tv, x[kL], (L - x[kL]) / sys.tv}, nullptr, false);
+    r.t[k] = static_cast<double>(k) * opt.Ts;
+    r.y[k] = st.step(u[k], Lat(k));
+    r.y_clean[k] = st.clean();
   }
-  r.steps = integ.steps();
-  r.rejected = integ.rejected();
-  OutputStage out(effects);
-  for (size_t k = 0; k < n; ++k) r.y_clean[k] = out.step(static_cast<double>(k + 1) * opt.Ts, u[k], r.y_clean[k]);
-
-  std::mt19937_64 g(opt.noise_seed);
-  for (size_t k = 0; k < n; ++k) {
-    double y = r.y_clean[k] + (opt.noise_std > 0 ? opt.noise_std * gauss(g) : 0.0);
-    if (opt.quantum > 0) y = std::round(y / opt.quantum) * opt.quantum;
-    r.y[k] = y;
-  }
+  r.steps = st.steps();
+  r.rejected = st.rejected();
   return r;
 }
 

@@ -31,6 +31,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -92,6 +93,32 @@ struct Record {
   long steps = 0, rejected = 0;  // integrator statistics
   // The std of the measurement error including quantisation: sqrt(std^2 + q^2 / 12).
   double noise() const;
+};
+
+// The chain stepped one sample at a time, as the plant of a closed loop, where a sample's command is known
+// only when the sample starts. simulate() steps it over a whole command, so a stepped run is the batch run
+// sample for sample.
+class Stepper {
+ public:
+  // Throws std::invalid_argument on bad effects or options.
+  Stepper(const Core& core, const std::vector<EffectSpec>& effects, const SimOptions& opt);
+  ~Stepper();
+  Stepper(const Stepper&) = delete;
+  Stepper& operator=(const Stepper&) = delete;
+
+  // At rest under the command u0 and the load, t = 0, the noise restarted from its seed.
+  void reset(double u0, double load = 0.0);
+  // Holds u and the load over the next sample; returns the measurement at its end (noise, quantisation).
+  // Throws std::invalid_argument on a non-finite command.
+  double step(double u, double load = 0.0);
+  double clean() const;    // the last sample's output without noise [mm]
+  bool needsLoad() const;  // the effect load is on
+  long steps() const;      // integrator statistics since the reset
+  long rejected() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 // Simulates the chain for the command u (one value per sample) and, when non-null and non-empty, the

@@ -251,6 +251,44 @@ TEST(OracleCore, OutputRespondsToTheCommandOfTheSameSample) {
   EXPECT_GT(std::fabs(y[500] - y[499]), 5.0);  // the step is complete at the end of its own sample
 }
 
+// ---- stepped, as the plant of a closed loop ----------------------------------------------------
+
+// A proportional loop on the stepper: each command is computed from the last measurement, which a batch
+// run cannot do. The loop settles where the core's gain puts it, and a reset replays the run exactly.
+TEST(OracleStepper, AProportionalLoopSettlesAndAResetReplaysIt) {
+  SimOptions o;  // noise and quantisation on: the replay must restart the noise too
+  Stepper st(Core{}, {parseEffect("pressure_lag:tau=0.02"), parseEffect("delay:d=0.0025")}, o);
+  auto run = [&] {
+    st.reset(0.0);
+    std::vector<double> y;
+    double u = 0.0, yk = Core{}.b;
+    for (int k = 0; k < 3000; ++k) {
+      u = std::clamp(u + 0.02 * (25.0 - yk), -5.0, 5.0);  // integral action on the setpoint 25 mm
+      yk = st.step(u);
+      y.push_back(yk);
+    }
+    return y;
+  };
+  const auto a = run(), b = run();
+  EXPECT_EQ(a, b);
+  EXPECT_NEAR(st.clean(), 25.0, 0.05);  // the integral drives the error to the noise
+}
+
+// A sample's measurement depends on no later command: with a delay of 2.5 samples a command changed at
+// sample j first shows at the end of sample j + 2.
+TEST(OracleStepper, ACommandActsAfterTheDelayAndNotBefore) {
+  Stepper a(Core{}, {parseEffect("delay:d=0.0025")}, clean()), b(Core{}, {parseEffect("delay:d=0.0025")}, clean());
+  a.reset(0.5);
+  b.reset(0.5);
+  const int j = 100;
+  for (int k = 0; k < j + 5; ++k) {
+    const double ya = a.step(0.5), yb = b.step(k >= j ? 1.5 : 0.5);
+    if (k <= j + 1) EXPECT_EQ(ya, yb) << k;
+    else EXPECT_GT(yb - ya, 1.0) << k;
+  }
+  EXPECT_THROW(a.step(NAN), std::invalid_argument);
+}
+
 // ---- the effects ------------------------------------------------------------------------------
 
 TEST(OracleEffects, DelayShiftsTheStepResponseByDelayWithinASample) {
