@@ -9,9 +9,12 @@ On the calibrated physics plant `pamc experiments` runs on (`pamc plant --calibr
   3. each rung's model given to `pamc experiments --model` (Table 2's triangle): PI and MBC tracking RMSE;
   4. the reference model and the final model through Table 2, the square and sawtooth waves and the payload
      step: every row of the MBC beside the PI, with the bounds of issue 36 step 2 said met or not.
+With --oracle-plant CASES.json the same table on a second plant that shares no code with the physics plant
+or src/model: the test oracle's simulator (tests/oracle), its records written by pamc_oracle_sim from the
+case's train and validate specs, the experiments run by pamc_oracle_experiments with the oracle as the plant.
 Prints Markdown tables. Exits 0 (the tables are a measurement, not a test), 2 on a usage error.
 
-  tools/mbc_table.py [--pamc BIN] [--out-dir DIR] [--plant-file PLANT.json]
+  tools/mbc_table.py [--pamc BIN] [--out-dir DIR] [--plant-file PLANT.json | --oracle-plant CASES.json]
 """
 import argparse
 import json
@@ -47,6 +50,23 @@ def records(pamc, d, plant):
     return train, val
 
 
+def oracle_records(oracle_bin, d, cases):
+    paths = []
+    for which in ("train", "validate"):
+        path = os.path.join(d, "oracle_%s.csv" % which)
+        run([oracle_bin, "--cases", cases, "--record", which, "--case", only_case(cases), "--out", path])
+        paths.append(path)
+    return paths
+
+
+def only_case(cases):
+    with open(cases) as f:
+        names = [c["name"] for c in json.load(f)["cases"]]
+    if len(names) != 1:
+        sys.exit("mbc_table: %s holds %d cases, the plant must be the only one" % (cases, len(names)))
+    return names[0]
+
+
 def rung_models(pamc, d, train, val):
     js = os.path.join(d, "diagnosis.json")
     t0 = time.time()
@@ -64,10 +84,11 @@ def rung_models(pamc, d, train, val):
     return rungs
 
 
-def experiments(pamc, d, model, only, name):
+def experiments(runner, d, model, only, name):
+    """runner: the command before the options, [pamc, "experiments"] or [pamc_oracle_experiments, --cases, F]."""
     out = os.path.join(d, name)
     t0 = time.time()
-    run([pamc, "experiments", "--model", model, "--only", only, "--no-figures", "--out-dir", out])
+    run(runner + ["--model", model, "--only", only, "--no-figures", "--out-dir", out])
     log("experiments %s (%s): %.0f s" % (name, only, time.time() - t0))
     with open(os.path.join(out, "summary.json")) as f:
         return json.load(f)
@@ -145,25 +166,44 @@ def main():
     ap.add_argument("--pamc", default=os.path.join(ROOT, "build", "src", "pamc"))
     ap.add_argument("--out-dir", help="keep the records, models and runs here (default: a temporary folder)")
     ap.add_argument("--plant-file", help="plant to emulate the records on (default: `pamc plant --calibrated`)")
+    ap.add_argument("--oracle-plant", metavar="CASES.json",
+                    help="the second plant: the test oracle's only case in this file (tests/oracle/closed_loop_plant.json)")
     a = ap.parse_args()
     if not os.access(a.pamc, os.X_OK):
         ap.error("no pamc binary at %s (build first: tools/build.sh)" % a.pamc)
+    if a.plant_file and a.oracle_plant:
+        ap.error("--plant-file and --oracle-plant are two plants: give one")
     d = a.out_dir or tempfile.mkdtemp(prefix="pamc_mbc_")
     os.makedirs(d, exist_ok=True)
-    plant = a.plant_file or os.path.join(d, "plant.json")
-    if not a.plant_file:
-        run([a.pamc, "plant", "--calibrated"], out=plant)
-    log("records on %s, in %s" % (plant, d))
-    train, val = records(a.pamc, d, plant)
-    rungs = rung_models(a.pamc, d, train, val)
+    if a.oracle_plant:
+        oracle_dir = os.path.join(os.path.dirname(os.path.dirname(a.pamc)), "tests", "oracle")
+        sim_bin, exp_bin = (os.path.join(oracle_dir, b) for b in ("pamc_oracle_sim", "pamc_oracle_experiments"))
+        for b in (sim_bin, exp_bin):
+            if not os.access(b, os.X_OK):
+                ap.error("no %s (build first: tools/build.sh)" % b)
+        log("records on the oracle's plant %s, in %s" % (a.oracle_plant, d))
+        train, val = oracle_records(sim_bin, d, a.oracle_plant)
+        runner = [exp_bin, "--cases", a.oracle_plant]
+    else:
+        plant = a.plant_file or os.path.join(d, "plant.json")
+        if not a.plant_file:
+            run([a.pamc, "plant", "--calibrated"], out=plant)
+        log("records on %s, in %s" % (plant, d))
+        train, val = records(a.pamc, d, plant)
+        runner = [a.pamc, "experiments"]
+    tables(runner, a.pamc, d, train, val)
+
+
+def tables(runner, pamc, d, train, val):
+    rungs = rung_models(pamc, d, train, val)
     for i, r in enumerate(rungs):
-        r["summary"] = experiments(a.pamc, d, r["path"], "triangle", "rung%d" % i)
+        r["summary"] = experiments(runner, d, r["path"], "triangle", "rung%d" % i)
     print("MBC along the diagnose ladder (%s -> %s), Table 2's triangle:\n" % (os.path.basename(train), os.path.basename(val)))
     ladder_table(rungs)
     full = "table2,discontinuous,payload"
     criteria_table("The reference model fitted on the record (" + rungs[0]["label"] + ")",
-                   experiments(a.pamc, d, rungs[0]["path"], full, "plain"), bound_plain)
-    criteria_table("The final model (" + rungs[-1]["label"] + ")", experiments(a.pamc, d, rungs[-1]["path"], full, "final"),
+                   experiments(runner, d, rungs[0]["path"], full, "plain"), bound_plain)
+    criteria_table("The final model (" + rungs[-1]["label"] + ")", experiments(runner, d, rungs[-1]["path"], full, "final"),
                    bound_final)
 
 

@@ -160,7 +160,14 @@ PlantKind kindOf(const nlohmann::json& j, const std::string& where) {
 }
 }  // namespace
 
-const char* plantKindName(PlantKind k) noexcept { return k == PlantKind::Physics ? "physics" : "model"; }
+const char* plantKindName(PlantKind k) noexcept {
+  switch (k) {
+    case PlantKind::Physics: return "physics";
+    case PlantKind::Model: return "model";
+    case PlantKind::External: return "external";
+  }
+  return "?";
+}
 
 PlantConfig PlantConfig::defaults() {
   PlantConfig c = modelDefaults();
@@ -212,6 +219,7 @@ PlantConfig PlantConfig::fromFile(const std::string& path) {
 
 nlohmann::json PlantConfig::toJson() const {
   nlohmann::json j;
+  if (kind == PlantKind::External) return {{"kind", "external"}, {"name", external.name}, {"Ts", Ts}};
   if (kind == PlantKind::Physics) {
     physics::PhysicsConfig p = physics;
     p.Ts = Ts;
@@ -257,12 +265,20 @@ Plant::Plant(const PlantConfig& cfg) : cfg_(cfg), rng_(cfg.seed) {
     if (!cfg_.quantization) p.quantum_mm = 0.0;
     physics_ = std::make_unique<physics::PhysicsPlant>(p);
   }
+  if (cfg_.kind == PlantKind::External) {
+    if (!cfg_.external.make) throw std::invalid_argument("plant of kind external without its dynamics");
+    external_ = cfg_.external.make(cfg_.Ts);
+  }
   reset(0.0);
 }
 
 void Plant::reset(double u0, double force_N) noexcept {
   if (physics_) {
     physics_->reset(u0, force_N);
+    return;
+  }
+  if (external_) {
+    external_->reset(validCommand(u0), force_N);
     return;
   }
   model::StepContext c;
@@ -277,19 +293,25 @@ void Plant::reset(double u0, double force_N) noexcept {
 
 double Plant::step(double u, double force_N) noexcept {
   if (physics_) return physics_->step(u, force_N);
+  if (external_) return external_->step(validCommand(u), force_N);
   model::StepContext c;
   c.Ts = cfg_.Ts;
   c.load = force_N;
-  if (!std::isfinite(u)) u = 0.0;  // a valve holds mid-range on a nonsense command
-  u = std::clamp(u, cfg_.u_min, cfg_.u_max);
+  u = validCommand(u);
   double y = cfg_.truth.step(st_, u, c);
   if (cfg_.stroke_limits) y = std::clamp(y, cfg_.stroke_min_mm, cfg_.stroke_max_mm);
   y_ = y;
   return y;
 }
 
+double Plant::validCommand(double u) const noexcept {
+  if (!std::isfinite(u)) u = 0.0;  // a valve holds mid-range on a nonsense command
+  return std::clamp(u, cfg_.u_min, cfg_.u_max);
+}
+
 double Plant::measure() noexcept {
   if (physics_) return physics_->measure();
+  if (external_) return external_->measure();
   double y = y_;
   if (cfg_.sensor_noise && cfg_.noise_std_mm > 0) y += cfg_.noise_std_mm * noise_(rng_);
   if (cfg_.quantization) y = std::round(y / cfg_.quantum_mm) * cfg_.quantum_mm;
@@ -298,6 +320,7 @@ double Plant::measure() noexcept {
 
 double Plant::pressure_bar() const noexcept {
   if (physics_) return physics_->pressure_bar();
+  if (external_) return external_->pressure_bar();
   const double frac = (st_.u_eff_prev - cfg_.u_min) / (cfg_.u_max - cfg_.u_min);
   return std::clamp(frac, 0.0, 1.0) * cfg_.pressure_max_bar;
 }

@@ -5,10 +5,15 @@
 //    code with the model it is used to judge (docs/PHYSICS.md);
 //  - "model": the PAM model itself (Bouc-Wen core plus physical effects from the catalogue) with the parts
 //    only a rig has - stroke limits, a pressure reading, sensor noise and 0.001 mm quantisation - for
-//    tests that need data of a known structure in the model's own terms (docs/CALIBRATION.md).
+//    tests that need data of a known structure in the model's own terms (docs/CALIBRATION.md);
+//  - external, set by a harness and never by a plant file: dynamics from outside the library (the test
+//    oracle's simulator in tests/oracle, which shares no code with pamc), stepped where the physics plant
+//    would be, so the experiments run unchanged on a second, independent plant.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <random>
 #include <string>
@@ -20,8 +25,27 @@
 
 namespace pamc::plant {
 
-enum class PlantKind { Physics, Model };
+enum class PlantKind { Physics, Model, External };
 const char* plantKindName(PlantKind k) noexcept;
+
+// The dynamics of a plant of kind external. Plant hands it a finite command within the valve's range.
+class ExternalDynamics {
+ public:
+  virtual ~ExternalDynamics() = default;
+  // At rest under the command u0 [V] and the external force [N].
+  virtual void reset(double u0, double force_N) noexcept = 0;
+  // Holds u for one sample under the force; the true position at the end of the sample [mm].
+  virtual double step(double u, double force_N) noexcept = 0;
+  // The true position now [mm], and what its sensor reads of it.
+  virtual double position() const noexcept = 0;
+  virtual double measure() noexcept = 0;
+  virtual double pressure_bar() const noexcept { return NAN; }
+};
+struct ExternalPlant {
+  std::string name;  // how summaries name the plant
+  // A fresh, independent instance stepped at Ts [s]; called once per Plant (runs may be in parallel).
+  std::function<std::unique_ptr<ExternalDynamics>(double Ts)> make;
+};
 
 struct PlantConfig {
   PlantKind kind = PlantKind::Physics;
@@ -42,6 +66,8 @@ struct PlantConfig {
   double u_min = -5.0, u_max = 5.0;   // valve command range [V] (valve voltage = 5 V + u)
   double pressure_max_bar = 8.0;      // regulator output at the top of the range
   std::uint64_t seed = 1;
+  // Kind external (the command range above applies to it too):
+  ExternalPlant external;
 
   // The default plant: the physics plant with its defaults.
   static PlantConfig defaults();
@@ -66,14 +92,19 @@ class Plant {
   double step(double u, double force_N = 0.0) noexcept;
   // What the position sensor reads now (noise, quantisation) [mm].
   double measure() noexcept;
-  double position() const noexcept { return physics_ ? physics_->position() : y_; }
+  double position() const noexcept {
+    return physics_ ? physics_->position() : external_ ? external_->position() : y_;
+  }
   // Muscle pressure: the physics plant's; the model's effective command after the input effects, scaled
   // to the regulator.
   double pressure_bar() const noexcept;
 
  private:
+  double validCommand(double u) const noexcept;  // finite, within the valve's range
+
   PlantConfig cfg_;
   std::unique_ptr<physics::PhysicsPlant> physics_;  // kind physics
+  std::unique_ptr<ExternalDynamics> external_;      // kind external
   model::Model::State st_;
   double y_ = 0.0;
   std::mt19937_64 rng_;

@@ -49,6 +49,7 @@ std::string plantText(const plant::PlantConfig& p) {
   if (p.kind == plant::PlantKind::Physics)
     return std::string("physics plant (mode ") + (p.physics.mode == physics::Mode::Rig ? "rig" : "reference") +
            "), sensor noise " + fmt("%g", p.physics.noise_std_mm) + " mm";
+  if (p.kind == plant::PlantKind::External) return "external plant: " + p.external.name;
   const nlohmann::json j = p.toJson();
   std::string t = "model plant";
   for (const auto& [name, e] : j.at("effects").items()) {
@@ -194,7 +195,10 @@ Trajectory identInput(double amplitude) { return Trajectory::sine(0.1, amplitude
 Record recordOpenLoop(const plant::PlantConfig& plant, const Trajectory& u, double duration_s, const std::string& csv) {
   plant::Plant p(plant);
   Record r = runOpenLoopInput(p, u, duration_s);
-  io::writeCsvAtomic(csv, {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
+  if (!r.p.empty() && std::isfinite(r.p.front()))
+    io::writeCsvAtomic(csv, {"t", "u", "y", "p"}, {&r.t, &r.u, &r.y, &r.p});
+  else  // a plant without a pressure reading (kind external)
+    io::writeCsvAtomic(csv, {"t", "u", "y"}, {&r.t, &r.u, &r.y});
   return r;
 }
 
