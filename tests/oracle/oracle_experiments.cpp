@@ -29,6 +29,7 @@ oracle::Case findCase(const std::string& path, const std::string& name) {
 struct Options {
   std::string cases, case_name, model, only, out_dir = "results-oracle";
   bool no_figures = false;
+  int mbc_horizon = 0;
 };
 
 int run(const Options& o) {
@@ -39,6 +40,7 @@ int run(const Options& o) {
   s.out_dir = o.out_dir;
   s.model_file = o.model;
   s.figures = !o.no_figures;
+  s.ctrl.mbc_horizon = o.mbc_horizon;
   for (size_t a = 0; a < o.only.size();) {
     const size_t b = std::min(o.only.find(',', a), o.only.size());
     s.only.push_back(o.only.substr(a, b - a));
@@ -70,6 +72,9 @@ int main(int argc, char** argv) {
   app.add_option("--only", o.only, "comma list of: table1, table2, triangle, discontinuous, payload (as pamc experiments)");
   app.add_option("--out-dir", o.out_dir, "output folder (CSVs, summary.txt, summary.json)")->capture_default_str();
   app.add_flag("--no-figures", o.no_figures, "skip the PNG figures");
+  app.add_option("--mbc-horizon", o.mbc_horizon, "MBC: samples ahead its inverse aims at; 0 = automatic (as pamc's)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 2000));
   CLI11_PARSE(app, argc, argv);
   try {
     return run(o);
