@@ -66,6 +66,14 @@ void ControllerOptions::addStructure(CLI::App* a) {
                 "MBC: time constant [s] of the filter on the UKF's modelling-error estimate the feedforward aims off by")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  a->add_option("--mbc-rate", cc.mbc_rate_mm_s,
+                "MBC: the setpoint governor's rate [mm/s]: a setpoint step reaches the inverse and the PI at most this "
+                "fast (0: no governor)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  a->add_option("--mbc-accel", cc.mbc_accel_mm_s2, "MBC: the setpoint governor's acceleration [mm/s^2]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   a->add_option("--model", model_file, "identified model (JSON) for the AMC's and MBC's UKF and the open loop");
 }
 

@@ -130,6 +130,8 @@ void validate(const ControllerConfig& c) {
   if (!(c.amc_inverse >= 0.0 && c.amc_inverse <= 1.0)) bad("amc_inverse must be in [0, 1]");
   if (c.mbc_horizon < 0 || c.mbc_horizon > 2000) bad("mbc_horizon must be 0 (automatic) .. 2000 samples");
   if (!(c.mbc_error_tau_s > 0.0) || !std::isfinite(c.mbc_error_tau_s)) bad("mbc_error_tau_s must be positive");
+  if (!(c.mbc_rate_mm_s >= 0.0) || !std::isfinite(c.mbc_rate_mm_s)) bad("mbc_rate_mm_s must be 0 (off) or positive");
+  if (!(c.mbc_accel_mm_s2 > 0.0) || !std::isfinite(c.mbc_accel_mm_s2)) bad("mbc_accel_mm_s2 must be positive");
   if (c.mbc_horizon > 0 && c.mbc_horizon <= c.delay_cycles)
     bad("mbc_horizon must be above delay_cycles (the command must act within the horizon)");
   if (c.amc_inverse > 0.0 && c.amc_horizon > 0 && c.amc_horizon <= c.delay_cycles)

@@ -78,6 +78,13 @@ struct ControllerConfig {
   // off by. Chosen from 0.5, 2, 10 and 1000 s on Table 2's triangle along a diagnose ladder (docs/CONTROL.md,
   // "Model-based control"): faster filters track better with the final model but worse with a middle rung.
   double mbc_error_tau_s = 10.0;
+  // MBC: the setpoint governor. The inverse and the PI follow the setpoint ahead through a follower limited
+  // to this rate [mm/s] and acceleration [mm/s^2], braking so as to arrive without overshoot; a setpoint
+  // slope below the rate passes (Table 2's fastest is 9.4 mm/s). 0: no governor, the setpoint as it is.
+  // Chosen on the square wave of two plants (docs/CONTROL.md): without it a step is taken by a short-
+  // horizon inverse that overshoots a payload still moving.
+  double mbc_rate_mm_s = 60.0;
+  double mbc_accel_mm_s2 = 600.0;
   // Eq. (17) read as printed (true: Y_{k+1} = H(h_{k+1}, u_n(k)), the compensation feeding back on
   // itself through the direct feedthrough with gain kc k rho) or as an increment on the posterior
   // output (false); see docs/CONTROL.md. Only for the paper's form (amc_inverse = 0, horizon 1).

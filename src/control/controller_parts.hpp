@@ -1,5 +1,5 @@
 // The parts the controllers are built from (controller.cpp, mbc.cpp): the commands in flight, the PI of
-// eq. (16) with its anti-windup, the last usable position. noexcept and allocation-free.
+// eq. (16) with its anti-windup, the last usable position, the MBC's setpoint governor and delay line. noexcept and allocation-free.
 #pragma once
 
 #include <algorithm>
@@ -24,6 +24,61 @@ class CommandHistory {
 
  private:
   std::array<double, 8> buf_{};
+  unsigned head_ = 0;
+};
+
+// A setpoint follower limited in rate and acceleration (a reference governor): each step moves towards the
+// target at the setpoint's own slope plus the speed from which it can still brake to it, within
+// +-rate_mm_s, the speed changing by at most accel_mm_s2 Ts per step. A ramp slower than the rate passes
+// (after a start of slope / accel) without lag; a jump, which is no slope, is taken at the rate and
+// arrived at without overshoot. rate 0: the target passes as it is.
+class SetpointGovernor {
+ public:
+  void configure(double rate_mm_s, double accel_mm_s2, double Ts) noexcept {
+    rate_ = rate_mm_s, accel_ = accel_mm_s2, Ts_ = Ts;
+  }
+  // At y at rest; a non-finite y starts it at the first target.
+  void reset(double y) noexcept {
+    r_ = prev_ = y;
+    v_ = 0.0;
+  }
+  double step(double target) noexcept {
+    if (!std::isfinite(target)) return r_;
+    if (!(rate_ > 0.0) || !std::isfinite(r_)) return r_ = prev_ = target;
+    double slope = (target - prev_) / Ts_;
+    prev_ = target;
+    if (!(std::fabs(slope) <= rate_)) slope = 0.0;  // a jump
+    const double d = target - r_;
+    // The speed from which braking at accel, a step of accel Ts at a time, stops on the target:
+    // v^2 / (2 accel) + v Ts / 2 = |d|.
+    const double half = 0.5 * accel_ * Ts_;
+    const double brake = std::copysign(std::sqrt(half * half + 2.0 * accel_ * std::fabs(d)) - half, d);
+    const double v_want = std::clamp(slope + brake, -rate_, rate_);
+    const double dv = accel_ * Ts_;
+    v_ += std::clamp(v_want - v_, -dv, dv);
+    r_ += v_ * Ts_;
+    return r_;
+  }
+  double value() const noexcept { return r_; }
+
+ private:
+  double rate_ = 0.0, accel_ = 1.0, Ts_ = 1e-3;
+  double r_ = 0.0, v_ = 0.0, prev_ = 0.0;
+};
+
+// The last kCapacity values pushed, to read one from up to kCapacity - 1 pushes ago.
+class DelayLine {
+ public:
+  static constexpr unsigned kCapacity = 2048;  // beyond the longest horizon, 2000 samples
+  void fill(double v) noexcept { buf_.fill(v); }
+  void push(double v) noexcept {
+    head_ = (head_ + 1) & (kCapacity - 1);
+    buf_[head_] = v;
+  }
+  double get(int ago) const noexcept { return buf_[(head_ - static_cast<unsigned>(ago)) & (kCapacity - 1)]; }
+
+ private:
+  std::array<double, kCapacity> buf_{};
   unsigned head_ = 0;
 };
 

@@ -1,11 +1,15 @@
 // Model-based control (Kind::Mbc; not in the paper, docs/CONTROL.md "Model-based control"):
 //
-//   u_k = u_ff + kp e_k + ki sum(e Ts),   e_k = y_d(k) - y_k (the nominal PI, eq. 16, on top)
+//   u_k = u_ff + kp e_k + ki sum(e Ts),   e_k = r(k - H) - y_k (the nominal PI, eq. 16, on top)
 //
-// u_ff is the model's inverse along the setpoint. A reference model - the model driven by the
+// r is the setpoint H samples ahead through a governor of limited rate and acceleration (SetpointGovernor,
+// controller_parts.hpp): a ramp passes, a step is taken at a pace the muscle can follow. The PI acts on the
+// governed setpoint of now, r(k - H) (y_d(k) when the governor is off): on the setpoint of the step itself
+// its integral filled while the plant was on its way, and the payload overshot (docs/CONTROL.md).
+// u_ff is the model's inverse along r. A reference model - the model driven by the
 // feedforward alone, started at rest with the loop - is rolled, as a Smith predictor rolls its model,
 // through the feedforwards already sent and not yet in effect, then u_ff held; u_ff is the command for
-// which it reaches y_d(k + H) - m_k at the horizon H (a few secant steps from the last solution; H the bus
+// which it reaches r(k) - m_k at the horizon H (a few secant steps from the last solution; H the bus
 // delay plus the time the model takes to make 10 % of its response, as the predictive AMC's). m_k is the
 // modelling error the UKF estimates - its posterior output against the reference model's - low-passed
 // (mbc_error_tau_s). Measurements reach the command only through m_k and the PI: an inverse re-solved
@@ -37,6 +41,7 @@ class Mbc final : public Controller {
   explicit Mbc(const ControllerConfig& c) : cfg_(c), horizon_(mbcHorizon(c)) {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
+    governor_.configure(c.mbc_rate_mm_s, c.mbc_accel_mm_s2, c.Ts);
   }
   Kind kind() const override { return Kind::Mbc; }
   int lookahead() const override { return horizon_; }
@@ -55,6 +60,8 @@ class Mbc final : public Controller {
     ff_on_ = false;
     recover_ = 0;
     gain_ = 1.0;
+    governor_.reset(y0);
+    governed_.fill(std::isfinite(y0) ? y0 : NAN);
   }
 
   ControlOutput update(double yd, double yd_ahead, double y, double load) noexcept override {
@@ -67,16 +74,19 @@ class Mbc final : public Controller {
     if (est.status == estimation::UkfStatus::Reset) recover_ = kRecoverCycles;
     ctx_.load = load;
     followMiss(est);
-    const double ff = feedforward(yd_ahead - miss_);
-    const bool use = recover_ == 0 && std::isfinite(ff) && inRange(ff, yd_ahead, y_.get());
+    const double r = governor_.step(yd_ahead);
+    governed_.push(r);
+    const double ff = feedforward(r - miss_);
+    const bool use = recover_ == 0 && std::isfinite(ff) && inRange(ff, r, yd_ahead, y_.get());
     if (recover_ > 0) --recover_;
     if (std::isfinite(ff)) u_solved_ = ff;
     else recover_ = kRecoverCycles;
     switchFeedforward(use, ff);
     advanceReference(u_solved_);
-    // The nominal PI on the setpoint's error (on the reference model's instead, the square wave settled
-    // faster, but a model that cannot reach the setpoint held the loop short of it: docs/CONTROL.md).
-    const double un = pi_.nominal(yd - y_.get(), !o.measurement_rejected);
+    // The nominal PI on the governed setpoint's error (on the reference model's instead, a model that cannot
+    // reach the setpoint held the loop short of it: docs/CONTROL.md).
+    const double r_now = governed_.get(horizon_);
+    const double un = pi_.nominal((std::isfinite(r_now) ? r_now : yd) - y_.get(), !o.measurement_rejected);
     o.u_c = ff_on_ ? u_ff_ : 0.0;
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
     hist_.push(o.u);
@@ -128,13 +138,14 @@ class Mbc final : public Controller {
     y_ref_ = cfg_.model.step(ref_, ff_hist_.get(cfg_.delay_cycles), ctx_);
   }
 
-  // Where the model was identified: the setpoint and the position within its output range, the
+  // Where the model was identified: the setpoint (ahead and governed) and the position within its output range, the
   // feedforward within its input range (the input rate is not asked: a setpoint step is faster than
   // any record). A model without a range is used everywhere (the controller said so at its start).
-  bool inRange(double ff, double yd_ahead, double y) const noexcept {
+  bool inRange(double ff, double governed, double yd_ahead, double y) const noexcept {
     const auto& r = cfg_.model.range();
     if (!r.known) return true;
-    return r.input.contains(ff) && r.output.contains(yd_ahead) && (!std::isfinite(y) || r.output.contains(y));
+    return r.input.contains(ff) && r.output.contains(governed) && r.output.contains(yd_ahead) &&
+           (!std::isfinite(y) || r.output.contains(y));
   }
 
   // Takes the feedforward in or out with the PI's integral moved by it, so the command does not jump.
@@ -152,6 +163,8 @@ class Mbc final : public Controller {
   detail::CommandHistory hist_;
   estimation::ActiveModel am_;
   detail::CommandHistory ff_hist_;  // the feedforwards sent, the reference model's input
+  detail::SetpointGovernor governor_;
+  detail::DelayLine governed_;      // the governed setpoint ahead, r(k), of the last cycles
   model::Model::State ref_;         // the reference model: the model driven by the feedforward alone
   double y_ref_ = 0.0;              // its output now
   model::StepContext ctx_;
