@@ -30,6 +30,7 @@ struct Options {
   std::string cases, case_name, model, only, out_dir = "results-oracle";
   bool no_figures = false;
   int mbc_horizon = 0;
+  double mbc_rate = control::ControllerConfig{}.mbc_rate_mm_s;
 };
 
 int run(const Options& o) {
@@ -41,6 +42,7 @@ int run(const Options& o) {
   s.model_file = o.model;
   s.figures = !o.no_figures;
   s.ctrl.mbc_horizon = o.mbc_horizon;
+  s.ctrl.mbc_rate_mm_s = o.mbc_rate;
   for (size_t a = 0; a < o.only.size();) {
     const size_t b = std::min(o.only.find(',', a), o.only.size());
     s.only.push_back(o.only.substr(a, b - a));
@@ -75,6 +77,9 @@ int main(int argc, char** argv) {
   app.add_option("--mbc-horizon", o.mbc_horizon, "MBC: samples ahead its inverse aims at; 0 = automatic (as pamc's)")
       ->capture_default_str()
       ->check(CLI::Range(0, 2000));
+  app.add_option("--mbc-rate", o.mbc_rate, "MBC: the setpoint governor's rate [mm/s]; 0: none (as pamc's)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   CLI11_PARSE(app, argc, argv);
   try {
     return run(o);
