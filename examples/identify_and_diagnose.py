@@ -4,7 +4,7 @@
     PYTHONPATH=build/python python3 examples/identify_and_diagnose.py OUT_DIR [--data rec.csv] [--short]
 
 Without --data it records the plant emulator (the physics plant) in open loop first. Writes PNG figures
-(matplotlib, Agg) and the final model into OUT_DIR. --short: a short record and a small diagnosis."""
+(matplotlib, Agg: fit.png, ladder.png, final.png) and the final model (model.json) into OUT_DIR. --short: a short record and a small diagnosis."""
 import argparse
 import os
 
@@ -16,17 +16,17 @@ import numpy as np  # noqa: E402
 
 import pamc  # noqa: E402
 
-# %% The record: read one, or excite the emulator open loop (as `pamc emulate` does) with a sine.
+# %% The record: read one, or excite the emulator open loop (as `pamc emulate` does) with Table 1's input u0.
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("out_dir")
 parser.add_argument("--data", help="measurement CSV (t,u,y[,load,...]); default: record the emulator")
-parser.add_argument("--short", action="store_true", help="8 s record, one diagnosis round on two candidates")
+parser.add_argument("--short", action="store_true", help="12 s record, one diagnosis round on two candidates")
 args = parser.parse_args()
 os.makedirs(args.out_dir, exist_ok=True)
 
 
 def emulate(seconds):
-    plant, u_of = pamc.Plant(), pamc.Trajectory("sine:0.2:0.2:2.9")
+    plant, u_of = pamc.Plant(), pamc.Trajectory("sine:0.1:0.2:2.9")
     t = np.arange(round(seconds / plant.Ts)) * plant.Ts
     u = u_of(t)
     plant.reset(u[0])
@@ -34,7 +34,7 @@ def emulate(seconds):
     return pamc.Measurement(t, u, y, source="emulator")
 
 
-data = pamc.read_csv(args.data) if args.data else emulate(8.0 if args.short else 40.0)
+data = pamc.read_csv(args.data) if args.data else emulate(12.0 if args.short else 40.0)
 print(f"{data.source}: {len(data)} samples, Ts = {data.Ts:g} s")
 
 # %% Identify the Bouc-Wen reference model and see where it fails.
@@ -60,7 +60,7 @@ fig.tight_layout()
 fig.savefig(os.path.join(args.out_dir, "fit.png"), dpi=90)
 
 # %% Diagnose: which physical effect is missing, added one at a time while the validated error falls.
-settings = dict(max_effects=1, candidates=["pressure_lag", "creep"], probes=False) if args.short else {}
+settings = dict(max_effects=1, candidates=["saturation", "pressure_lag"], probes=False) if args.short else {}
 result = pamc.diagnose(data, **settings)
 print(f"diagnose ({result['validation']}): {result['verdict']}")
 ladder = result["ladder"]
@@ -75,6 +75,16 @@ ax.legend()
 fig.tight_layout()
 fig.savefig(os.path.join(args.out_dir, "ladder.png"), dpi=90)
 
+# %% The final model against the reference model on the whole record.
 final = result["final_model"]
+final_cmp = pamc.compare(final, data)
+print(f"final model {final.describe()}: RMSE {final_cmp['rmse']:.4g} on the whole record")
+fig, ax = plt.subplots(figsize=(8, 4))
+ax.plot(data.t, cmp["residual"], label=f"reference model ({cmp['rmse']:.3g} mm rms)")
+ax.plot(data.t, final_cmp["residual"], label=f"{final.describe()} ({final_cmp['rmse']:.3g} mm rms)")
+ax.set(xlabel="t [s]", ylabel="y - model [mm]", title="residual before and after the diagnosis")
+ax.legend()
+fig.tight_layout()
+fig.savefig(os.path.join(args.out_dir, "final.png"), dpi=90)
 final.save(os.path.join(args.out_dir, "model.json"))
-print(f"final model {final.describe()}; figures fit.png, ladder.png and model.json in {args.out_dir}/")
+print(f"fit.png, ladder.png, final.png and model.json in {args.out_dir}/")

@@ -3,18 +3,24 @@
 
     PYTHONPATH=build/python python3 python/bench_python.py [--samples 1000000] [--repeats 15]
 
-- Model.simulate on SAMPLES samples from Python (a new numpy array returned) against the same
-  Model::simulate called from C++ into a buffer allocated once (pamc._simulate_seconds): best of REPEATS each,
-  for the paper's Bouc-Wen model and for the model with pressure_lag + creep;
+- Model.simulate on SAMPLES samples from Python against the same Model::simulate called from C++
+  (pamc._pamc._simulate_seconds, no Python in the timed loop), best of REPEATS each: returning a new array
+  against C++ writing into a new vector, and into a reused array (out=) against C++ into a buffer allocated
+  once; for the paper's Bouc-Wen model and for the model with pressure_lag + creep;
 - Controller.update's round trip from Python (PI, and AMC on the Bouc-Wen model): the mean over 200000 calls,
   and the same loop calling a Python function that returns at once (the loop's own share)."""
 import argparse
+import os
 import platform
+import sys
 import time
 
 import numpy as np
 
-import pamc
+# This script's folder holds the sources of pamc/ (without the built extension): import the built module
+# from PYTHONPATH instead.
+sys.path = [p for p in sys.path if os.path.abspath(p or ".") != os.path.dirname(os.path.abspath(__file__))]
+import pamc  # noqa: E402
 
 
 def best_of(repeats, fn):
@@ -27,10 +33,14 @@ def best_of(repeats, fn):
 
 
 def bench_simulate(model, u, repeats):
-    py = best_of(repeats, lambda: model.simulate(u))
-    cpp = pamc._simulate_seconds(model, u, 1e-3, repeats)
-    print(f"simulate {model.describe():40s} {len(u):8d} samples: Python {py * 1e3:8.2f} ms, C++ {cpp * 1e3:8.2f} ms, "
-          f"ratio {py / cpp:.3f}")
+    y = np.empty_like(u)
+    new = best_of(repeats, lambda: model.simulate(u))
+    into = best_of(repeats, lambda: model.simulate(u, out=y))
+    cpp_new = pamc._pamc._simulate_seconds(model, u, 1e-3, repeats, True)
+    cpp_into = pamc._pamc._simulate_seconds(model, u, 1e-3, repeats, False)
+    print(f"simulate {model.describe()}, {len(u)} samples:\n"
+          f"  a new array:  Python {new * 1e3:7.2f} ms, C++ {cpp_new * 1e3:7.2f} ms, ratio {new / cpp_new:.3f}\n"
+          f"  into out=:    Python {into * 1e3:7.2f} ms, C++ {cpp_into * 1e3:7.2f} ms, ratio {into / cpp_into:.3f}")
 
 
 def bench_update(ctrl, n=200_000):

@@ -120,29 +120,41 @@ model::OutputForm outputForm(const std::string& name) {
   return f;
 }
 
-py::array_t<double> simulate(const Model& m, const Array& u, double Ts, const std::optional<Array>& load) {
+// y into `out` when given (a float64 C-contiguous array as long as u, reused), else into a new array.
+using Output = py::array_t<double, py::array::c_style>;  // written to: no forcecast (no copy to write into)
+Output simulate(const Model& m, const Array& u, double Ts, const std::optional<Array>& load,
+                std::optional<Output> out) {
   if (u.ndim() != 1) throw std::invalid_argument("u: a 1-D array is needed");
   if (load && load->size() != u.size()) throw std::invalid_argument("load: not as long as u");
   if (!(Ts > 0)) throw std::invalid_argument("Ts: must be positive");
-  py::array_t<double> y(u.size());
+  if (out && (out->ndim() != 1 || out->size() != u.size() || !out->writeable()))
+    throw std::invalid_argument("out: a writable 1-D float64 array as long as u is needed");
+  Output y = out ? *out : Output(u.size());
   if (u.size() == 0) return y;
   const double* l = load ? load->data() : nullptr;
-  double* out = y.mutable_data();
+  double* dst = y.mutable_data();
   {
     py::gil_scoped_release free;
-    m.simulate(u.data(), l, static_cast<size_t>(u.size()), Ts, out);
+    m.simulate(u.data(), l, static_cast<size_t>(u.size()), Ts, dst);
   }
   return y;
 }
 
-// The best wall time of `repeats` calls of Model::simulate on u, from C++ (python/bench_python.py).
-double simulateSeconds(const Model& m, const Array& u, double Ts, int repeats) {
-  std::vector<double> y(static_cast<size_t>(u.size()));
+// The best wall time of `repeats` calls of Model::simulate on u from C++ (python/bench_python.py): into
+// a buffer allocated once, or (allocate) into a new vector each call, as a call returning y would.
+double simulateSeconds(const Model& m, const Array& u, double Ts, int repeats, bool allocate) {
+  const auto n = static_cast<size_t>(u.size());
+  std::vector<double> y(n);
   double best = INFINITY;
   py::gil_scoped_release free;
   for (int i = 0; i < repeats; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
-    m.simulate(u.data(), nullptr, y.size(), Ts, y.data());
+    if (allocate) {
+      std::vector<double> fresh(n);
+      m.simulate(u.data(), nullptr, n, Ts, fresh.data());
+    } else {
+      m.simulate(u.data(), nullptr, n, Ts, y.data());
+    }
     best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
   return best;
@@ -172,13 +184,15 @@ void bindModel(py::module_& mod) {
       .def_property("parameters", &parameters, &setParameters)
       .def_property_readonly("effects", &Model::effectNames)
       .def_property_readonly("output_form", [](const Model& m) { return model::outputFormName(m.outputForm()); })
-      .def("simulate", &simulate, py::arg("u"), py::arg("Ts") = 1e-3, py::arg("load") = py::none())
+      .def("simulate", &simulate, py::arg("u"), py::arg("Ts") = 1e-3, py::arg("load") = py::none(),
+           py::arg("out") = py::none())
       .def("describe", &Model::describe)
       .def("copy", [](const Model& m) { return Model(m); })
       .def("__copy__", [](const Model& m) { return Model(m); })
       .def("__deepcopy__", [](const Model& m, const py::dict&) { return Model(m); })
       .def("__repr__", [](const Model& m) { return "<pamc.Model " + m.describe() + ">"; });
-  mod.def("_simulate_seconds", &simulateSeconds, py::arg("model"), py::arg("u"), py::arg("Ts"), py::arg("repeats"));
+  mod.def("_simulate_seconds", &simulateSeconds, py::arg("model"), py::arg("u"), py::arg("Ts"), py::arg("repeats"),
+          py::arg("allocate"));
 }
 
 }  // namespace pamc::python

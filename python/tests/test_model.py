@@ -66,6 +66,11 @@ def test_simulate_takes_strided_and_list_input_alike():
     np.testing.assert_array_equal(model.simulate(np.repeat(u, 2)[::2]), y)
     np.testing.assert_array_equal(model.simulate(list(u)), y)
     assert model.simulate(np.array([])).shape == (0,)
+    out = np.zeros_like(u)
+    assert model.simulate(u, out=out) is out
+    np.testing.assert_array_equal(out, y)
+    with pytest.raises(ValueError, match="out"):
+        model.simulate(u, out=np.zeros(3))
 
 
 def test_parameters_dict_round_trip_and_save(tmp_path):
