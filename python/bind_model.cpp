@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 #include <pybind11/stl.h>
 
@@ -16,37 +17,38 @@ namespace {
 
 using model::Model;
 
-// "arrays: u has 5 samples, t has 6" and the like: the checks a measurement CSV gets that arrays need.
-void checkColumn(const io::Measurement& m, const std::string& name, const std::vector<double>& v) {
-  if (v.size() != m.t.size())
-    throw std::invalid_argument(m.source + ": " + name + " has " + std::to_string(v.size()) + " samples, t has " +
-                                std::to_string(m.t.size()));
-  for (size_t i = 0; i < v.size(); ++i)
-    if (!std::isfinite(v[i]))
-      throw std::invalid_argument(m.source + ": " + name + "[" + std::to_string(i) + "] is not a finite number");
+// The arrays as the CSV text they would be in a file (17 digits: the same doubles when read back).
+std::string csvText(const std::vector<std::string>& header, const std::vector<std::vector<double>>& cols) {
+  std::string text;
+  for (size_t c = 0; c < header.size(); ++c) text += (c ? "," : "") + header[c];
+  text += '\n';
+  char buf[32];
+  for (size_t i = 0; i < cols[0].size(); ++i) {
+    for (size_t c = 0; c < cols.size(); ++c) {
+      std::snprintf(buf, sizeof buf, c ? ",%.17g" : "%.17g", cols[c][i]);
+      text += buf;
+    }
+    text += '\n';
+  }
+  return text;
 }
 
+// A measurement of arrays, checked by the reader of measurement files (its limits and one-line errors,
+// which name sample i as line i + 2 of `source`).
 io::Measurement measurementOf(const Array& t, const Array& u, const Array& y, const py::dict& extra,
                               const std::string& source) {
-  io::Measurement m;
-  m.source = source;
-  m.t = toVector(t, "t");
-  if (m.t.size() < 2) throw std::invalid_argument(source + ": at least 2 samples are needed");
-  checkColumn(m, "t", m.t);
-  for (size_t i = 1; i < m.t.size(); ++i)
-    if (!(m.t[i] > m.t[i - 1])) throw std::invalid_argument(source + ": t[" + std::to_string(i) + "] does not increase");
-  m.u = toVector(u, "u");
-  checkColumn(m, "u", m.u);
-  m.y = toVector(y, "y");
-  checkColumn(m, "y", m.y);
+  std::vector<std::string> header{"t", "u", "y"};
+  std::vector<std::vector<double>> cols{toVector(t, "t"), toVector(u, "u"), toVector(y, "y")};
   for (const auto& [k, v] : extra) {
     if (v.is_none()) continue;
-    const std::string name = py::str(k);
-    m.extra[name] = toVector(v.cast<Array>(), name.c_str());
-    checkColumn(m, name, m.extra[name]);
+    header.push_back(py::str(k));
+    cols.push_back(toVector(v.cast<Array>(), header.back().c_str()));
   }
-  m.Ts = (m.t.back() - m.t.front()) / static_cast<double>(m.t.size() - 1);
-  return m;
+  for (size_t c = 1; c < cols.size(); ++c)
+    if (cols[c].size() != cols[0].size())
+      throw io::InputError(source + ": " + header[c] + " has " + std::to_string(cols[c].size()) + " samples, t has " +
+                           std::to_string(cols[0].size()));
+  return io::parseMeasurementCsv(csvText(header, cols), source);
 }
 
 py::object column(const io::Measurement& m, const std::string& name, const py::handle& self) {

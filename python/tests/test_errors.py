@@ -63,8 +63,12 @@ def test_bad_arguments():
         pamc.Model(effects=["no_effect"])
     with pytest.raises(ValueError, match="u has 2 samples, t has 3"):
         pamc.Measurement([0, 1, 2], [0, 1], [0, 1, 2])
-    with pytest.raises(ValueError, match="does not increase"):
+    with pytest.raises(ValueError, match=r"^arrays:4: column 't': time does not increase"):
         pamc.Measurement([0, 1, 1], [0, 1, 2], [0, 1, 2])
+    with pytest.raises(ValueError, match=r"^arrays:3: column 'y': value .* is too large"):
+        pamc.Measurement([0, 1, 2], [0, 1, 2], [0, 1e300, 2])
+    with pytest.raises(ValueError, match=r"^arrays:3: column 'u': value is not finite"):
+        pamc.fit([0, 1, 2], [0, float("nan"), 2], [0, 1, 2])
     with pytest.raises(ValueError, match="trajectory"):
         pamc.Trajectory("zigzag:1")
     with pytest.raises(ValueError):
