@@ -39,11 +39,6 @@ class FitCommand final : public Command {
     const std::string& data = data_;
     const std::string& out = out_;
     const std::string& effects = effects_;
-    // auto: the multi-start search reaches the GA's error on the Bouc-Wen core at a tenth of the time;
-    // an effect's parameters can have several basins (a saturation's knee) that the GA finds more surely.
-    const std::string method = method_ != "auto" ? method_ : splitList(effects).empty() ? "lm" : "ga";
-    ident::FitSettings fs = ident::FitSettings::forMethod(ident::fitMethodFromString(method));
-    fs.ga = fs_.ga;
     const bool quiet = quiet_;
   std::vector<std::string> warnings;
   io::Measurement m = io::readMeasurementCsv(data, &warnings);
@@ -51,6 +46,9 @@ class FitCommand final : public Command {
   model::Model structure;
   structure.setOutputForm(outputFormOf(form_));
   for (const auto& e : splitList(effects)) structure.addEffect(e);
+  ident::FitSettings fs = ident::FitSettings::forMethod(
+      method_ == "auto" ? ident::autoFitMethod(structure) : ident::fitMethodFromString(method_));
+  fs.ga = fs_.ga;
   if (!quiet)
     std::fprintf(stderr, "fitting %s (%d parameters) to %zu samples of %s, Ts = %g s\n", structure.describe().c_str(),
                  structure.numParams() - 1, m.size(), data.c_str(), m.Ts);
@@ -78,10 +76,7 @@ class FitCommand final : public Command {
   else
     std::printf("method lm, %d evaluations, %.2f s wall time\n", r.evaluations, r.seconds);
   if (!out.empty()) {
-    io::writeModelFile(out, r.model,
-                             {{"data", data}, {"samples", m.size()}, {"Ts", m.Ts}, {"rmse", r.rmse},
-                              {"generations", r.generations}, {"evaluations", r.evaluations},
-                              {"seconds", r.seconds}, {"seed", fs.ga.seed}, {"method", ident::toString(fs.method)}});
+    io::writeModelFile(out, r.model, ident::fitReport(r, fs, m, data));
     std::printf("wrote %s\n", out.c_str());
   }
   return 0;

@@ -108,6 +108,17 @@ FitMethod fitMethodFromString(const std::string& s) {
 
 const char* toString(FitMethod m) { return m == FitMethod::Ga ? "ga" : "lm"; }
 
+FitMethod autoFitMethod(const model::Model& structure) {
+  return structure.numEffects() == 0 ? FitMethod::MultiStart : FitMethod::Ga;
+}
+
+nlohmann::json fitReport(const FitResult& r, const FitSettings& s, const io::Measurement& data,
+                         const std::string& source) {
+  return {{"data", source},          {"samples", data.size()},         {"Ts", data.Ts},
+          {"rmse", r.rmse},          {"generations", r.generations},   {"evaluations", r.evaluations},
+          {"seconds", r.seconds},    {"seed", s.ga.seed},              {"method", toString(s.method)}};
+}
+
 namespace {
 
 // A scale that spans decades above zero: a travel from 0.01 to 20 mm, a time constant, a frequency.

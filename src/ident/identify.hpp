@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "ident/optimize.hpp"
 #include "io/measurement.hpp"
 #include "model/model.hpp"
@@ -22,6 +24,10 @@ enum class FitMethod {
 // "ga" / "lm" (throws std::invalid_argument on anything else).
 FitMethod fitMethodFromString(const std::string& s);
 const char* toString(FitMethod m);
+// What `pamc fit --method auto` runs: the multi-start search for the plain Bouc-Wen model (the GA's error
+// at a tenth of the time), the GA when effects are added (an effect's parameters can have several
+// basins, a saturation's knee, that the GA finds more surely).
+FitMethod autoFitMethod(const model::Model& structure);
 
 struct FitSettings {
   FitMethod method = FitMethod::Ga;
@@ -90,6 +96,11 @@ std::vector<double> modelToSearch(const std::vector<double>& p);
 FitResult fit(const model::Model& structure, const io::Measurement& data, const FitSettings& s,
               const std::function<void(const char*, int, double)>& progress = {},
               const model::Model* start = nullptr);
+
+// The record of a fit that a model file keeps under "fit" (`pamc fit --out`): the data's name, its
+// samples and sampling step, the RMSE, the search's effort, its seed and method.
+nlohmann::json fitReport(const FitResult& r, const FitSettings& s, const io::Measurement& data,
+                         const std::string& source);
 
 // RMSE of the model simulated on the whole record, scored over samples [from, n).
 double rmseFrom(const model::Model& m, const io::Measurement& data, size_t from = 0);

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs pamc from the build tree into a temporary prefix, builds tests/consumer against it with
 # find_package(pamc), runs it, and checks the Debian package cpack makes holds the same files.
-# Arguments: BUILD_DIR SOURCE_DIR.
+# With the Python module (PAMC_BUILD_PYTHON and PAMC_PYTHON in the build's cache), checks it is installed with its stubs and that the
+# installed copy imports and runs. Arguments: BUILD_DIR SOURCE_DIR.
 set -eu
 BUILD=$1; SRC=$2
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
@@ -11,6 +12,19 @@ for f in bin/pamc share/pamc/od/controller.eds share/pamc/od/rigs/default.ini in
          share/bash-completion/completions/pamc; do
   [ -e "$T/prefix/$f" ] || { echo "FAIL: not installed: $f"; exit 1; }
 done
+# The installed Python module: its files, and the copy in the prefix imports and simulates.
+PY=$(sed -n 's/^PAMC_PYTHON:FILEPATH=//p' "$BUILD/CMakeCache.txt")
+grep -q '^PAMC_BUILD_PYTHON:BOOL=ON$' "$BUILD/CMakeCache.txt" || PY=""
+if [ -n "$PY" ]; then
+  site="$T/prefix/lib/python3/dist-packages"
+  for f in pamc/__init__.py pamc/__init__.pyi pamc/py.typed; do
+    [ -e "$site/$f" ] || { echo "FAIL: not installed: lib/python3/dist-packages/$f"; exit 1; }
+  done
+  ls "$site"/pamc/_pamc*.so > /dev/null || { echo "FAIL: the module's extension is not installed"; exit 1; }
+  (cd "$T" && PYTHONPATH="$site" "$PY" -c "import pamc, sys
+assert pamc.__file__.startswith(sys.argv[1]), pamc.__file__
+assert len(pamc.Model().simulate([0.0, 1.0, 2.0])) == 3" "$site") || { echo "FAIL: the installed module"; exit 1; }
+fi
 # The installed completion completes: `pamc rig <TAB>` offers the four jobs, `--controller <TAB>` its kinds.
 complete_words() {
   bash -c 'source "$1"; shift; COMP_WORDS=("$@"); COMP_CWORD=$(($# - 1)); _pamc; echo "${COMPREPLY[*]}"' \
@@ -33,6 +47,13 @@ if command -v cpack > /dev/null && command -v dpkg-deb > /dev/null; then
            ./usr/share/bash-completion/completions/pamc; do
     grep -q " $f\$" "$T/deb.txt" || { echo "FAIL: $f not in $(basename "$deb")"; exit 1; }
   done
-  echo "ok: $(basename "$deb") holds pamc, the rig files, the service unit and the bash completion"
+  if [ -n "$PY" ]; then
+    for f in ./usr/lib/python3/dist-packages/pamc/__init__.py ./usr/lib/python3/dist-packages/pamc/__init__.pyi; do
+      grep -q " $f\$" "$T/deb.txt" || { echo "FAIL: $f not in $(basename "$deb")"; exit 1; }
+    done
+    grep -q " ./usr/lib/python3/dist-packages/pamc/_pamc.*\.so\$" "$T/deb.txt" || { echo "FAIL: the module's extension not in $(basename "$deb")"; exit 1; }
+    dpkg-deb -f "$deb" Depends | grep -q python3-numpy || { echo "FAIL: $(basename "$deb") does not depend on python3-numpy"; exit 1; }
+  fi
+  echo "ok: $(basename "$deb") holds pamc, the rig files, the service unit, the bash completion${PY:+ and the Python module}"
 fi
 echo "ok: installed, found by find_package(pamc), consumer built and ran"

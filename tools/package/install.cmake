@@ -6,6 +6,7 @@
 #   lib/libpamc_*.a, lib/cmake/pamc/   the libraries and find_package(pamc) with namespaced targets
 #   lib/systemd/system/pamc-controller@.service   the controller as a real-time service per interface
 #   share/bash-completion/completions/pamc        the bash completion, generated from pamc's option tables
+#   lib/python3/dist-packages/pamc/               the Python module with its type stubs (python/CMakeLists.txt)
 # and `cpack -G DEB` (in the build folder) makes a Debian package of the same.
 include(CMakePackageConfigHelpers)
 
@@ -45,6 +46,15 @@ set(CPACK_PACKAGE_VENDOR "pamc")
 set(CPACK_PACKAGE_CONTACT "pamc maintainers <pamc@localhost>")
 set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "Pneumatic artificial muscle controller as a CANopen node (UKF + active model control)")
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "libinih1, libc6, libstdc++6, can-utils, iproute2")
+if(PAMC_WITH_PYTHON)
+  # The module is built for one Python minor version (its ABI) and returns numpy arrays.
+  execute_process(COMMAND ${PAMC_PYTHON} -c "import sys; v = sys.version_info; print(f'{v[0]}.{v[1]};{v[0]}.{v[1] + 1}')"
+                  OUTPUT_VARIABLE PAMC_PY_VERSIONS OUTPUT_STRIP_TRAILING_WHITESPACE)
+  list(GET PAMC_PY_VERSIONS 0 PAMC_PY_THIS)
+  list(GET PAMC_PY_VERSIONS 1 PAMC_PY_NEXT)
+  set(CPACK_DEBIAN_PACKAGE_DEPENDS
+      "${CPACK_DEBIAN_PACKAGE_DEPENDS}, python3 (>= ${PAMC_PY_THIS}), python3 (<< ${PAMC_PY_NEXT}), python3-numpy")
+endif()
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
