@@ -31,6 +31,7 @@ constexpr Setting<double> kDoubles[] = {
     {"u_max", &ControllerConfig::u_max},     {"kp", &ControllerConfig::kp},
     {"ki", &ControllerConfig::ki},           {"kc", &ControllerConfig::kc},
     {"amc_inverse", &ControllerConfig::amc_inverse}, {"mbc_error_tau_s", &ControllerConfig::mbc_error_tau_s},
+    {"mbc_rate_mm_s", &ControllerConfig::mbc_rate_mm_s}, {"mbc_accel_mm_s2", &ControllerConfig::mbc_accel_mm_s2},
     {"beta1", &ControllerConfig::beta1},     {"beta2", &ControllerConfig::beta2},
     {"beta3", &ControllerConfig::beta3},     {"delta", &ControllerConfig::delta},
     {"b0", &ControllerConfig::b0},           {"eso_gain", &ControllerConfig::eso_gain},
