@@ -121,7 +121,7 @@ class ControllerNode {
   void takeCauses(canopen::TimeUs now) noexcept;
   void recover(double y, canopen::TimeUs now) noexcept;
   void onSlaveEvent(std::uint8_t id, canopen::SlaveEvent ev);
-  void valveBooted();  // the valve's boot checked its identity: its error value may go out
+  void valveKeptAlive();  // kept alive and running: not configured by this boot, its error value goes out
 
   std::function<canopen::TimeUs()> clock_;
   std::unique_ptr<canopen::Node> node_;
