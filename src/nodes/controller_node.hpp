@@ -62,7 +62,7 @@ struct FaultCounters {
   std::uint32_t last_collision_cob = 0;
   std::uint64_t sets_applied = 0;     // parameter sets taken into use (NMT start or commit)
   std::uint64_t sets_refused = 0;
-  std::uint64_t valve_sdo_errors = 0;  // writing the safe value into the valve's 0x6444:01 failed
+  std::uint64_t valve_sdo_errors = 0;  // writing a changed safe value into the valve's 0x6444:01 failed (in its boot: a boot failure)
 };
 
 class ControllerNode {
