@@ -97,6 +97,7 @@ void NmtMaster::setBoot(std::uint8_t id, SlaveBoot boot) {
   if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
   bootToDictionary(node_.od(), id, boot);
   s->reads = std::move(boot.reads);
+  s->config = std::move(boot.config);
   s->state = Boot::Idle;
 }
 

@@ -154,8 +154,8 @@ class NmtMaster {
 
   // Supervise this node-ID (its heartbeat must be consumed: 0x1016 of the master's dictionary).
   void addSlave(std::uint8_t id);
-  // What to check and write at its boot, into the master's dictionary (bootToDictionary), its reads
-  // kept (throws for an unknown slave or a dictionary without the master's objects).
+  // What to check and write at its boot, into the master's dictionary (bootToDictionary), its reads and
+  // the application's writes kept (throws for an unknown slave or a dictionary without the master's objects).
   void setBoot(std::uint8_t id, SlaveBoot boot);
   // The application's reads at the slave's boot, after its identity, before its configuration.
   void setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads);

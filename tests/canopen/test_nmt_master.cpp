@@ -532,9 +532,11 @@ TEST(NmtMasterBoot, TheApplicationsWritesFollowTheConfigurationAndPrecedeTheStar
     b.assignment = kAssignSlave | kAssignBoot;
     if (c == WrongIdentity) b.product_code = 0x1234;
     b.writes = {dcfValue(0x1017, 0, 50, 2)};
-    BootRig r(b);
     std::uint32_t preset = 0;
-    r.master.setConfig(2, {SlaveBoot::Write{0x6003, 0, 4, [&preset] { return preset; }}});
+    const SlaveBoot::Write write{0x6003, 0, 4, [&preset] { return preset; }};
+    if (c == Refused) b.config = {write};  // through setBoot, which keeps it
+    BootRig r(b);
+    if (c != Refused) r.master.setConfig(2, {write});
     if (c == Refused)
       r.sensor.od().addValidator(0x6003, 0, [](const Entry&, const std::uint8_t*, std::size_t) { return kAbortValueRange; });
     preset = 0x01020304;  // after setConfig: taken as the write goes out
