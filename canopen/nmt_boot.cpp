@@ -1,6 +1,7 @@
 // NmtMaster's "boot slave" process (CiA 302-2; the steps are listed in nmt_master.hpp): reset
-// communication or the keep-alive check, the boot-up, identity, reads, configuration and its read-back,
-// the first heartbeat; retries of unanswered steps, the boot time, one error per failure.
+// communication and the boot-up, identity, reads, the keep-alive check, configuration and its read-back,
+// the application's configuration, the first heartbeat; retries of unanswered steps, the boot time, one
+// error per failure.
 #include <algorithm>
 #include <cstdio>
 
@@ -45,6 +46,7 @@ BootStep NmtMaster::stepOf(OpKind k) noexcept {
     case OpKind::KeepRtr:
     case OpKind::Write: return BootStep::Configuration;
     case OpKind::Verify: return BootStep::ReadBack;
+    case OpKind::Config: return BootStep::Application;
   }
   return BootStep::Configuration;
 }
@@ -56,27 +58,25 @@ const char* bootStepName(BootStep s) {
     case BootStep::Read: return "read";
     case BootStep::Configuration: return "configuration";
     case BootStep::ReadBack: return "read-back";
+    case BootStep::Application: return "application configuration";
     case BootStep::Heartbeat: return "first heartbeat";
     case BootStep::BootTime: return "boot time";
   }
   return "?";
 }
 
-void NmtMaster::beginBoot(Slave& s, TimeUs now) noexcept {
+// At the master's start (the reset of those not kept alive went out with reset_sent). Kept alive: its
+// identity first, then its state decides (checkNode), as Lely's master has it.
+void NmtMaster::beginBoot(Slave& s, TimeUs now, bool reset_sent) noexcept {
   s.error = BootError{};
   s.tries_left = retriesOf(s.boot.assignment);
-  const auto& hb = node_.heartbeatConsumer();
-  if ((s.boot.assignment & kAssignKeepAlive) == 0) return reset(s, now);
-  // Kept alive: one that runs is left as it is (its identity checked); wait a consumer time for a
-  // heartbeat to tell.
-  if (running(s)) return steps(s, true);
-  if (hb.timeoutUs(s.id) == 0 || hb.timedOut(s.id)) return reset(s, now);
-  s.state = Boot::Checking;
-  s.deadline = now + hb.timeoutUs(s.id);
+  s.identified = false;
+  if ((s.boot.assignment & kAssignKeepAlive) != 0) return steps(s, 0, true);
+  reset(s, now, !reset_sent);
 }
 
-void NmtMaster::reset(Slave& s, TimeUs now) noexcept {
-  node_.sendNmt(NmtCommand::ResetCommunication, s.id);
+void NmtMaster::reset(Slave& s, TimeUs now, bool send) noexcept {
+  if (send) node_.sendNmt(NmtCommand::ResetCommunication, s.id);
   ++counters_.resets;
   s.state = Boot::Resetting;
   s.deadline = now + kBootUpTimeoutUs;
@@ -85,22 +85,47 @@ void NmtMaster::reset(Slave& s, TimeUs now) noexcept {
   arm();
 }
 
-void NmtMaster::steps(Slave& s, bool kept) noexcept {
-  s.kept = kept;
+void NmtMaster::steps(Slave& s, std::size_t from, bool checking) noexcept {
+  s.checking = checking;
+  s.kept = false;
   s.start_due = false;
-  s.next_op = 0;
-  s.end_op = kept ? s.config_op : s.ops.size();
+  s.next_op = from;
+  s.end_op = checking ? s.config_op : s.ops.size();
   s.tries_left = retriesOf(s.boot.assignment);
   s.deadline = kNever;
   // Decided here, not in poll() - which the SYNC callback runs and which must not format a failure.
-  if (!kept && !s.plan_error.empty()) return bootFailed(s, BootStep::Configuration, 0, s.plan_error);
-  if (s.end_op == 0) return awaitHeartbeat(s, node_.now());  // no SDO step
+  if (!checking && !s.plan_error.empty()) return bootFailed(s, BootStep::Configuration, 0, s.plan_error);
+  if (s.next_op >= s.end_op) return checking ? checkNode(s, node_.now()) : awaitHeartbeat(s, node_.now());
   s.state = Boot::Waiting;
   poll(node_.now());
 }
 
+// Kept alive, its identity checked (CiA 302-2 "check node state"): Operational, it is left as it is;
+// otherwise a consumer time for a heartbeat to tell, then reset communication.
+void NmtMaster::checkNode(Slave& s, TimeUs now) noexcept {
+  const auto& hb = node_.heartbeatConsumer();
+  if (running(s)) return keptRunning(s, now);
+  if (hb.timeoutUs(s.id) == 0 || hb.timedOut(s.id)) return resetAfterCheck(s, now);
+  s.state = Boot::Checking;
+  s.deadline = now + hb.timeoutUs(s.id);
+  arm();
+  poll(now);  // the next slave waiting for the SDO client
+}
+
+void NmtMaster::keptRunning(Slave& s, TimeUs now) noexcept {
+  s.kept = true;
+  done(s, now);
+}
+
+// Not running: reset as any other; its identity was checked, so its boot-up goes on at the configuration.
+void NmtMaster::resetAfterCheck(Slave& s, TimeUs now) noexcept {
+  reset(s, now);
+  s.identified = true;
+  poll(now);
+}
+
 void NmtMaster::runBoot(Slave& s) noexcept {
-  if (s.next_op >= s.end_op) return awaitHeartbeat(s, node_.now());
+  if (s.next_op >= s.end_op) return s.checking ? checkNode(s, node_.now()) : awaitHeartbeat(s, node_.now());
   const Op& op = s.ops[s.next_op];
   const std::uint8_t id = s.id;
   auto reply = [this, id](std::uint32_t code, const std::uint8_t* d, std::size_t len) {
@@ -111,6 +136,12 @@ void NmtMaster::runBoot(Slave& s) noexcept {
   if (op.kind == OpKind::Write) {
     const auto& w = s.boot.writes[op.item];
     sent = sdo.download(id, op.index, op.sub, w.data.data(), w.data.size(), reply);
+  } else if (op.kind == OpKind::Config) {
+    const auto& c = s.boot.config[op.item];
+    const std::uint32_t v = c.value ? c.value() : 0u;
+    const std::uint8_t b[4] = {static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8),
+                               static_cast<std::uint8_t>(v >> 16), static_cast<std::uint8_t>(v >> 24)};
+    sent = sdo.download(id, op.index, op.sub, b, std::clamp<std::size_t>(c.size, 1, 4), reply);
   } else {
     sent = sdo.upload(id, op.index, op.sub, reply);
   }
@@ -128,7 +159,8 @@ void NmtMaster::onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* da
     return runBoot(s);
   }
   if (code != kSdoOk) {
-    const char* what = op.kind == OpKind::Write ? " write refused: " : " read failed: ";
+    const bool write = op.kind == OpKind::Write || op.kind == OpKind::Config;
+    const char* what = write ? " write refused: " : " read failed: ";
     return bootFailed(s, step, code, entryName(op.index, op.sub) + what + sdoAbortText(code));
   }
   if (!checkReply(s, op, data, len)) return;
@@ -157,7 +189,8 @@ bool NmtMaster::checkReply(Slave& s, const Op& op, const std::uint8_t* data, std
       bootFailed(s, BootStep::Read, 0, at + ": " + why);
       return false;
     }
-    case OpKind::Write: return true;
+    case OpKind::Write:
+    case OpKind::Config: return true;
     case OpKind::Verify: {
       const auto& w = s.boot.writes[op.item];
       if (len == w.data.size() && std::equal(w.data.begin(), w.data.end(), data)) return true;
@@ -171,8 +204,8 @@ bool NmtMaster::checkReply(Slave& s, const Op& op, const std::uint8_t* data, std
   return true;
 }
 
-// The device's bit 30 of a TPDO COB-ID (no RTR) into every write of the entry - the disable, the
-// enable - and so into its read-back; bit 31 stays as the configuration has it.
+// The device's bit 30 of a PDO COB-ID (a TPDO's "no RTR", reserved in an RPDO's) into every write of the
+// entry - the disable, the enable - and so into its read-back; bit 31 stays as the configuration has it.
 void NmtMaster::keepRtr(Slave& s, const Op& op, std::uint32_t device_cob) noexcept {
   const std::uint8_t bit = static_cast<std::uint8_t>(kPdoNoRtrBit >> 24);
   for (auto& w : s.boot.writes) {
@@ -223,9 +256,11 @@ void NmtMaster::onBootEvent(Slave& s, HeartbeatEvent ev, NmtState st, TimeUs now
   if (!begun_ || (startup_ & kStartupMaster) == 0) return;
   if (ev == HeartbeatEvent::BootUp) {
     s.error = BootError{};
-    return steps(s, false);
+    const std::size_t from = s.identified ? s.config_op : 0;  // reset by the keep-alive check
+    s.identified = false;
+    return steps(s, from, false);
   }
-  if (s.state == Boot::Checking) return st == NmtState::Operational ? steps(s, true) : reset(s, now);
+  if (s.state == Boot::Checking) return st == NmtState::Operational ? keptRunning(s, now) : resetAfterCheck(s, now);
   if (s.state == Boot::Heartbeat) done(s, now);
 }
 
@@ -237,7 +272,7 @@ void NmtMaster::onTimer(TimeUs now) noexcept {
     const bool again = s.tries_left > 0;
     if (again && s.state != Boot::Checking) --s.tries_left, ++counters_.boot_retries;
     if (s.state == Boot::Checking) {
-      reset(s, now);  // no heartbeat within its consumer time: not running
+      resetAfterCheck(s, now);  // no heartbeat within its consumer time: not running
     } else if (s.state == Boot::Resetting) {
       if (again) reset(s, now);
       else bootFailed(s, BootStep::Reset, 0, "no boot-up within " + std::to_string(kBootUpTimeoutUs / 1000) + " ms of NMT reset communication");

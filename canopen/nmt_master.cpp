@@ -97,6 +97,7 @@ void NmtMaster::setBoot(std::uint8_t id, SlaveBoot boot) {
   if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
   bootToDictionary(node_.od(), id, boot);
   s->reads = std::move(boot.reads);
+  s->config = std::move(boot.config);
   s->state = Boot::Idle;
 }
 
@@ -106,10 +107,17 @@ void NmtMaster::setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads) {
   s->reads = std::move(reads);
 }
 
+void NmtMaster::setConfig(std::uint8_t id, std::vector<SlaveBoot::Write> writes) {
+  Slave* s = find(id);
+  if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
+  s->config = std::move(writes);
+}
+
 void NmtMaster::loadPlan(Slave& s) {
   s.plan_error.clear();
   if (!bootFromDictionary(node_.od(), s.id, s.boot, &s.plan_error)) s.boot.writes.clear();
   s.boot.reads = s.reads;
+  s.boot.config = s.config;
   const SlaveBoot& boot = s.boot;
   s.ops.clear();
   // CiA 302-2: the boot's first step reads 0x1000 whether a device type is expected or not - it also
@@ -122,6 +130,9 @@ void NmtMaster::loadPlan(Slave& s) {
     s.ops.push_back(Op{OpKind::Read, boot.reads[i].index, boot.reads[i].sub, 0, i});
   s.config_op = s.ops.size();
   configOps(s);
+  // The application's configuration follows the dictionary's (Lely: 0x1F22, then Driver::OnConfig).
+  for (std::size_t i = 0; i < boot.config.size(); ++i)
+    s.ops.push_back(Op{OpKind::Config, boot.config[i].index, boot.config[i].sub, 0, i});
   // The start grace: its heartbeat period as the configuration sets it, else its consumer time.
   TimeUs period_us = node_.heartbeatConsumer().timeoutUs(s.id);
   for (const auto& w : boot.writes)
@@ -138,9 +149,9 @@ void NmtMaster::configOps(Slave& s) {
   const ConciseDcf& w = s.boot.writes;
   const auto at = [&w](std::size_t i) { return w.begin() + static_cast<std::ptrdiff_t>(i); };
   for (std::size_t i = 0; i < w.size(); ++i) {
-    // A TPDO COB-ID keeps the device's bit 30 (no RTR): a device without RTR may refuse it cleared.
+    // A PDO COB-ID keeps the device's bit 30 (no RTR): a device without RTR may refuse it cleared.
     const bool first = std::none_of(w.begin(), at(i), [&](const DcfEntry& e) { return sameEntry(e, w[i]); });
-    if (first && isTpdoCobId(w[i].index, w[i].sub)) s.ops.push_back(Op{OpKind::KeepRtr, w[i].index, w[i].sub, 0, i});
+    if (first && isPdoCobId(w[i].index, w[i].sub)) s.ops.push_back(Op{OpKind::KeepRtr, w[i].index, w[i].sub, 0, i});
     s.ops.push_back(Op{OpKind::Write, w[i].index, w[i].sub, 0, i});
   }
   // Read back what each entry holds in the end: its last write.
@@ -169,11 +180,15 @@ bool NmtMaster::running(const Slave& s) const noexcept {
   return hb.alive(s.id) && hb.remoteState(s.id) == NmtState::Operational;
 }
 
-bool NmtMaster::mayStart(const Slave& s) const noexcept {
+bool NmtMaster::mayStartAny() const noexcept {
   if (!begun_ || (startup_ & kStartupMaster) == 0 || (startup_ & kStartupNoSlaveStart) != 0) return false;
+  return mandatoryReady();
+}
+
+bool NmtMaster::mayStart(const Slave& s) const noexcept {
   if (s.hold != 0) return false;
   if (bootable(s) && s.state != Boot::Done) return false;
-  return mandatoryReady();
+  return mayStartAny();
 }
 
 void NmtMaster::startSlave(Slave& s, TimeUs now) noexcept {
@@ -184,14 +199,17 @@ void NmtMaster::startSlave(Slave& s, TimeUs now) noexcept {
 }
 
 void NmtMaster::startReady(TimeUs now) noexcept {
-  if ((startup_ & kStartupBroadcastStart) != 0 && !broadcast_sent_) {
-    // One NMT start for all, once every slave may run.
-    if (!std::all_of(slaves_.begin(), slaves_.end(), [this](const Slave& s) { return mayStart(s); })) return;
-    node_.sendNmt(NmtCommand::Start, 0);
-    broadcast_sent_ = true;
-    for (auto& s : slaves_) s.start_sent = now, s.start_due = false;
-    ++counters_.starts;
-    return;
+  if ((startup_ & kStartupBroadcastStart) != 0 && !network_started_) {
+    // 0x1F80 bit 1 (CiA 302-2 "start all nodes"): once the mandatory slaves are booted, one NMT start for
+    // all if every slave may run; otherwise each that may by itself, now and as the others boot.
+    if (!mayStartAny()) return;
+    network_started_ = true;
+    if (std::all_of(slaves_.begin(), slaves_.end(), [this](const Slave& s) { return mayStart(s); })) {
+      node_.sendNmt(NmtCommand::Start, 0);
+      for (auto& s : slaves_) s.start_sent = now, s.start_due = false;
+      ++counters_.starts;
+      return;
+    }
   }
   // CiA 302-2 (as Lely's master): every booted slave is started, also one whose heartbeat already says
   // Operational (kept alive, or left running by another master).
@@ -209,15 +227,28 @@ void NmtMaster::begin(TimeUs now) {
     s.start_due = !bootable(s);  // a boot slave is owed its start when its boot is done
   }
   begun_ = true;
-  broadcast_sent_ = false;
+  network_started_ = false;
   if ((startup_ & kStartupMaster) == 0) return;
   boot_deadline_ = boot_time_ms_ != 0 ? now + static_cast<TimeUs>(boot_time_ms_) * 1000 : kNever;
   // Every boot slave is booted at the master's start (CiA 302-2), whatever another master left in it.
+  const bool all = resetAllAtOnce();
+  if (all) node_.sendNmt(NmtCommand::ResetCommunication, 0);
   for (auto& s : slaves_)
-    if (bootable(s) && s.state != Boot::Running) beginBoot(s, now);
+    if (bootable(s) && s.state != Boot::Running) beginBoot(s, now, all);
   arm();
   poll(now);
   startReady(now);
+}
+
+// CiA 302-2 (and Lely's master): one NMT reset communication for all nodes unless a slave is kept alive
+// (then each one not kept alive by itself). Not while a boot's SDO transfer is under way: that slave
+// goes on where it is.
+bool NmtMaster::resetAllAtOnce() const noexcept {
+  const auto kept = [](const Slave& s) { return (s.boot.assignment & kAssignKeepAlive) != 0; };
+  const auto mid = [](const Slave& s) { return s.state == Boot::Running; };
+  const auto boot = [](const Slave& s) { return bootable(s); };
+  return std::any_of(slaves_.begin(), slaves_.end(), boot) && std::none_of(slaves_.begin(), slaves_.end(), kept) &&
+         std::none_of(slaves_.begin(), slaves_.end(), mid);
 }
 
 void NmtMaster::end() noexcept {
@@ -296,6 +327,11 @@ bool NmtMaster::configured(std::uint8_t id) const noexcept {
   return s != nullptr && (!bootable(*s) || s->state == Boot::Done);
 }
 
+bool NmtMaster::boots(std::uint8_t id) const noexcept {
+  const Slave* s = find(id);
+  return s != nullptr && bootable(*s);
+}
+
 bool NmtMaster::booting(std::uint8_t id) const noexcept {
   const Slave* s = find(id);
   return s != nullptr && s->state != Boot::Idle && s->state != Boot::Done && s->state != Boot::Failed;
@@ -340,6 +376,7 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
         } else {
           ++counters_.reboots;
           if (bootable(*s)) {
+            s->identified = false;
             reset(*s, now);
           } else {
             node_.sendNmt(NmtCommand::ResetCommunication, id);

@@ -1,25 +1,32 @@
 #pragma once
-// NMT master of a set of slaves (CiA 301 7.2.8, the start-up of CiA 302-2). At the master's start every
-// slave it is to boot (0x1F81 bit 2) goes through the "boot slave" process:
-//   1. NMT reset communication, unless it is kept alive (0x1F81 bit 4) and its heartbeat shows it
-//      Operational - then only its identity is checked and it is left as it is;
-//   2. its boot-up awaited (kBootUpTimeoutUs);
-//   3. identity: 0x1000 read always (it also proves the slave is there), then 0x1000 and 0x1018:01..04
-//      against 0x1F84-0x1F88 (0: not checked);
-//   4. the application's reads (setReads(): values a driver needs before the slave starts);
-//   5. configuration: the concise DCF 0x1F22 (CiA 302-3) written, then every entry read back; a TPDO
-//      COB-ID (0x1800+n:01) is read before its first write and keeps the device's bit 30 (no RTR);
-//   6. its first heartbeat awaited, if 0x1016 supervises it (within its consumer time);
-//   7. NMT start - also to a slave that already runs - once it is not held and every mandatory slave
-//      (bit 3) is configured; none with 0x1F80 bit 3, one broadcast for all with bit 1.
+// NMT master of a set of slaves (CiA 301 7.2.8, the start-up of CiA 302-2, in the order Lely's master
+// has it). At the master's start the slaves it is to boot (0x1F81 bit 2) are reset communication: all
+// at once (000#8200) when no slave is kept alive (0x1F81 bit 4), otherwise each not kept alive by
+// itself. Then every boot slave goes through the "boot slave" process:
+//   1. (after a reset) its boot-up awaited (kBootUpTimeoutUs);
+//   2. identity: 0x1000 read always (it also proves the slave is there), compared only where 0x1F84
+//      expects a device type, then 0x1018:01..04 against 0x1F85-0x1F88 (0: not read);
+//   3. the application's reads (setReads(): values a driver needs before the slave starts);
+//   4. kept alive only: its heartbeat tells whether it runs - Operational, it is left as it is (no
+//      configuration) and goes on at 7; otherwise it is reset communication, and after its boot-up
+//      goes on at 5 (its identity is not read again);
+//   5. configuration: the concise DCF 0x1F22 (CiA 302-3) written, then every entry read back; a PDO
+//      COB-ID (0x1400/0x1800+n:01) is read before its first write and keeps the device's bit 30;
+//   6. the application's configuration (setConfig(): a driver's own writes, its values taken when they
+//      go out);
+//   7. its first heartbeat awaited, if 0x1016 supervises it (within its consumer time);
+//   8. NMT start - also to a slave that already runs - once it is not held and every mandatory slave
+//      (bit 3) is configured: none with 0x1F80 bit 3; with bit 1 one start for all (000#0100) when
+//      every slave may run once the mandatory ones are booted, else each by itself.
 // A step the slave does not answer (SDO timeout, no boot-up, no heartbeat) is tried again up to its
 // retry factor (0x1F81 bits 8-15); a boot that fails names the step, the entry and the SDO abort code
 // (bootError()), and the slave is sent NMT stop. Every mandatory slave must be booted within the boot
-// time 0x1F89 (0: no limit). A slave that boots up again later goes through steps 3-7; one that comes
+// time 0x1F89 (0: no limit). A slave that boots up again later goes through steps 2-8; one that comes
 // back after a heartbeat loss is reset communication first (unless kept alive and Operational); one that
 // stays in Pre-operational longer than its start grace after a start gets another start. Slaves without
-// bit 2 are only started. The application may hold a slave in Pre-operational for reasons of its own
-// (a bit per reason); it is started when the last reason is released.
+// bit 2 are neither reset nor booted, only started. The application may hold a slave in
+// Pre-operational for reasons of its own (a bit per reason); it is started when the last reason is
+// released.
 //
 // Everything comes from the master's own dictionary, read at begin(): 0x1F80 NMT start-up (bit 0
 // master, bit 1 start the slaves with one broadcast, bit 2 do not enter Operational by itself - read by
@@ -46,8 +53,8 @@ enum class SlaveEvent : std::uint8_t {
   BootUp,           // it sent a boot-up: it lost its state (the master boots and starts it unless held)
   LeftOperational,  // it reported Pre-operational while not held (the master starts it again)
   Stopped,          // it reported Stopped while not held
-  Configured,       // the boot finished: identity checked, configuration written and read back
-  KeptAlive,        // kept alive and Operational at the master's start: identity checked, left as it is
+  Configured,       // the boot finished: identity checked, configuration written and read back, the application's written
+  KeptAlive,        // kept alive and Operational at the master's start: identity checked, left as it is (not configured)
   BootFailed,       // the boot failed (bootError()); the slave is sent NMT stop
 };
 const char* slaveEventName(SlaveEvent e);
@@ -88,6 +95,15 @@ struct SlaveBoot {
   };
   std::vector<Read> reads;
   ConciseDcf writes;  // in order; then the last value of every entry is read back and compared
+  // The application's configuration (a driver's own writes, Lely's Driver::OnConfig): after the concise
+  // DCF and its read-back, before the first heartbeat and the start. value() is taken as it goes out.
+  struct Write {
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    std::uint8_t size = 4;  // bytes, 1..4, little-endian
+    std::function<std::uint32_t()> value;
+  };
+  std::vector<Write> config;
 };
 
 // The slave's boot as the master's dictionary holds it (0x1F81, 0x1F84-0x1F88, 0x1F22; reads stay
@@ -102,8 +118,8 @@ void bootToDictionary(ObjectDictionary& od, std::uint8_t id, const SlaveBoot& bo
 std::string checkMasterEntry(const DcfEntry& e);
 
 // The steps of a slave's boot, as a failure names them.
-enum class BootStep : std::uint8_t { Reset, Identity, Read, Configuration, ReadBack, Heartbeat, BootTime };
-const char* bootStepName(BootStep s);  // "reset communication", "identity check", ...
+enum class BootStep : std::uint8_t { Reset, Identity, Read, Configuration, ReadBack, Application, Heartbeat, BootTime };
+const char* bootStepName(BootStep s);  // "reset communication", "identity check", ..., "application configuration"
 
 struct BootError {
   BootStep step = BootStep::Identity;
@@ -123,7 +139,7 @@ class NmtMaster {
 
   struct Counters {
     std::uint64_t starts = 0;   // NMT start sent to a slave
-    std::uint64_t resets = 0;   // NMT reset communication to begin a slave's boot
+    std::uint64_t resets = 0;   // slaves reset communication to begin their boot (one broadcast resets several)
     std::uint64_t reboots = 0;  // NMT reset communication to a slave back after a heartbeat loss
     std::uint64_t holds = 0;    // slave sent to Pre-operational by hold()
     std::uint64_t boots = 0;    // boots finished (configured)
@@ -138,11 +154,13 @@ class NmtMaster {
 
   // Supervise this node-ID (its heartbeat must be consumed: 0x1016 of the master's dictionary).
   void addSlave(std::uint8_t id);
-  // What to check and write at its boot, into the master's dictionary (bootToDictionary), its reads
-  // kept (throws for an unknown slave or a dictionary without the master's objects).
+  // What to check and write at its boot, into the master's dictionary (bootToDictionary), its reads and
+  // the application's writes kept (throws for an unknown slave or a dictionary without the master's objects).
   void setBoot(std::uint8_t id, SlaveBoot boot);
   // The application's reads at the slave's boot, after its identity, before its configuration.
   void setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads);
+  // The application's writes at the slave's boot, after the concise DCF and its read-back.
+  void setConfig(std::uint8_t id, std::vector<SlaveBoot::Write> writes);
   void setStartup(std::uint32_t bits) { startup_ = bits; }
   std::uint32_t startup() const noexcept { return startup_; }
   void onEvent(EventHook hook) { hook_ = std::move(hook); }
@@ -175,6 +193,8 @@ class NmtMaster {
   // Boot state: configured (or nothing to configure), in progress, failed.
   bool configured(std::uint8_t id) const noexcept;
   bool booting(std::uint8_t id) const noexcept;
+  // The master boots it (0x1F81 bit 2, as read at begin()).
+  bool boots(std::uint8_t id) const noexcept;
   const BootError* bootError(std::uint8_t id) const noexcept;  // nullptr unless the last boot failed
 
   const Counters& counters() const noexcept { return counters_; }
@@ -183,7 +203,7 @@ class NmtMaster {
   // Where a slave's boot stands.
   enum class Boot : std::uint8_t {
     Idle,       // nothing under way (not begun, or not a boot slave)
-    Checking,   // kept alive: waiting for a heartbeat to tell whether it runs
+    Checking,   // kept alive, identity checked: waiting for a heartbeat to tell whether it runs
     Resetting,  // NMT reset communication sent: waiting for its boot-up
     Waiting,    // the next SDO step waits for the node's SDO client
     Running,    // an SDO step is under way
@@ -195,16 +215,17 @@ class NmtMaster {
     Present,  // 0x1000 read, any value: the slave is there
     Expect,   // an identity entry read and compared
     Read,     // the application's read
-    KeepRtr,  // a TPDO COB-ID read: its bit 30 into the writes of the entry
+    KeepRtr,  // a PDO COB-ID read: its bit 30 into the writes of the entry
     Write,
-    Verify
+    Verify,
+    Config    // the application's write
   };
   struct Op {
     OpKind kind;
     std::uint16_t index;
     std::uint8_t sub;
     std::uint32_t expected;  // Expect
-    std::size_t item;        // Read: reads[item]; KeepRtr / Write / Verify: writes[item]
+    std::size_t item;        // Read: reads[item]; KeepRtr / Write / Verify: writes[item]; Config: config[item]
   };
   struct Slave {
     std::uint8_t id = 0;
@@ -214,12 +235,15 @@ class NmtMaster {
     TimeUs grace_us = kStartGraceFloorUs;  // for a start to show Operational
     std::uint8_t hold = 0;         // reasons to keep it in Pre-operational
     SlaveBoot boot;                // from the dictionary at begin(), with reads
-    std::vector<SlaveBoot::Read> reads;  // the application's (setReads)
-    std::vector<Op> ops;           // the boot, flattened: identity, reads, writes, read-backs
-    std::size_t config_op = 0;     // the first write (a kept-alive slave stops before it)
+    std::vector<SlaveBoot::Read> reads;    // the application's (setReads)
+    std::vector<SlaveBoot::Write> config;  // the application's (setConfig)
+    std::vector<Op> ops;           // the boot, flattened: identity, reads, writes, read-backs, the application's writes
+    std::size_t config_op = 0;     // the first write (a kept-alive slave's state is checked before it)
     std::string plan_error;        // 0x1F22:id did not decode: the boot fails with this
     Boot state = Boot::Idle;
-    bool kept = false;             // this boot checks the identity of a running kept-alive slave only
+    bool checking = false;         // kept alive: the ops up to config_op, then its state decides (step 4)
+    bool identified = false;       // reset by the keep-alive check: its boot-up goes on at the configuration
+    bool kept = false;             // kept alive and Operational: left as it is
     std::size_t next_op = 0, end_op = 0;
     unsigned tries_left = 0;       // of the present step
     TimeUs deadline = kNever;      // Checking, Resetting, Heartbeat
@@ -230,6 +254,7 @@ class NmtMaster {
   void loadPlan(Slave& s);  // boot, ops and start grace from the dictionary (allocates)
   static void configOps(Slave& s);  // the writes, each TPDO COB-ID read first, then the read-backs
   static bool bootable(const Slave& s) noexcept { return (s.boot.assignment & kAssignBoot) != 0; }
+  bool mayStartAny() const noexcept;  // begun as master, 0x1F80 bit 3 clear, the mandatory slaves booted
   bool mayStart(const Slave& s) const noexcept;
   bool mandatoryReady() const noexcept;
   bool running(const Slave& s) const noexcept;  // its heartbeat shows it Operational, not timed out
@@ -237,9 +262,13 @@ class NmtMaster {
   void startReady(TimeUs now) noexcept;
 
   // The boot process (nmt_boot.cpp), one step after the other.
-  void beginBoot(Slave& s, TimeUs now) noexcept;   // at the master's start: keep-alive check or reset
-  void reset(Slave& s, TimeUs now) noexcept;       // NMT reset communication, then wait for the boot-up
-  void steps(Slave& s, bool kept) noexcept;        // the SDO steps, after a boot-up (or for a kept slave)
+  bool resetAllAtOnce() const noexcept;            // at the master's start: no slave kept alive, none mid-transfer
+  void beginBoot(Slave& s, TimeUs now, bool reset_sent) noexcept;  // at the master's start: identity (kept alive) or reset
+  void reset(Slave& s, TimeUs now, bool send = true) noexcept;  // NMT reset communication, then wait for the boot-up
+  void steps(Slave& s, std::size_t from, bool checking) noexcept;  // the SDO steps from ops[from]
+  void checkNode(Slave& s, TimeUs now) noexcept;   // kept alive, identity checked: does it run?
+  void keptRunning(Slave& s, TimeUs now) noexcept;
+  void resetAfterCheck(Slave& s, TimeUs now) noexcept;
   void runBoot(Slave& s) noexcept;                 // issues the next SDO step
   void onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept;
   bool checkReply(Slave& s, const Op& op, const std::uint8_t* data, std::size_t len) noexcept;
@@ -263,7 +292,7 @@ class NmtMaster {
   Counters counters_;
   std::uint32_t startup_ = kStartupMaster;
   bool begun_ = false;
-  bool broadcast_sent_ = false;
+  bool network_started_ = false;  // 0x1F80 bit 1: the start for all decided (sent, or each by itself)
   TimeUs boot_deadline_ = kNever;  // 0x1F89 after begin()
   std::uint32_t boot_time_ms_ = 0;
 };

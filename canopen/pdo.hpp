@@ -26,6 +26,10 @@ inline constexpr unsigned kMaxPdos = 512;
 constexpr bool isTpdoCobId(std::uint16_t index, std::uint8_t sub) {
   return sub == 1 && index >= kTpdoCommBase && index < kTpdoCommBase + kMaxPdos;
 }
+// The COB-ID entry of any PDO (0x1400-0x15FF or 0x1800-0x19FF sub-index 1).
+constexpr bool isPdoCobId(std::uint16_t index, std::uint8_t sub) {
+  return isTpdoCobId(index, sub) || (sub == 1 && index >= kRpdoCommBase && index < kRpdoCommBase + kMaxPdos);
+}
 
 // A PDO's parameters as the dictionary stores them, read but not judged: the node's own PDOs (PdoMap,
 // Rpdo, Tpdo) and tools reading other nodes' EDS files (the candump decoder) parse them here alike.

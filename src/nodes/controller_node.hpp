@@ -62,7 +62,7 @@ struct FaultCounters {
   std::uint32_t last_collision_cob = 0;
   std::uint64_t sets_applied = 0;     // parameter sets taken into use (NMT start or commit)
   std::uint64_t sets_refused = 0;
-  std::uint64_t valve_sdo_errors = 0;  // writing the safe value into the valve's 0x6444:01 failed
+  std::uint64_t valve_sdo_errors = 0;  // writing a changed safe value into the valve's 0x6444:01 failed (in its boot: a boot failure)
 };
 
 class ControllerNode {
@@ -121,7 +121,7 @@ class ControllerNode {
   void takeCauses(canopen::TimeUs now) noexcept;
   void recover(double y, canopen::TimeUs now) noexcept;
   void onSlaveEvent(std::uint8_t id, canopen::SlaveEvent ev);
-  void valveBooted();  // the valve's boot checked its identity: its error value may go out
+  void valveKeptAlive();  // kept alive and running: not configured by this boot, its error value goes out
 
   std::function<canopen::TimeUs()> clock_;
   std::unique_ptr<canopen::Node> node_;

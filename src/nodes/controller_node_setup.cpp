@@ -28,6 +28,7 @@ ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transpo
                                          lay.error_value_index, lay.error_value_sub);
   if (lay.position_step_from_device) sensor_->readStepAtBoot();
   params_ = std::make_unique<ControllerParameters>(*node_, cfg.ctrl, cfg.build_off_cycle);
+  valve_->errorValueAtBoot([this] { return params_->safeCommand(); });
   overrides_ = std::make_unique<OdOverrides>(cfg);
   overrides_->apply(node_->od(), *params_);
   faults_ = std::make_unique<FaultSupervisor>(*node_, cfg.recover_cycles);
@@ -151,8 +152,9 @@ void ControllerNode::onOperational(TimeUs now) {
   sensor_->onOperational(now);
   master_->begin(now);
   valve_->release(ValveDriver::kHoldSelf, now);
-  valve_->errorValueDue();  // goes out once the valve's boot has checked its identity (valveBooted)
-  valve_->pushErrorValue(params_->safeCommand());
+  // The valve's boot writes its error value (its configuration); one the master does not boot gets it
+  // from the cycle.
+  if (!master_->boots(valve_->id())) valve_->errorValueDue();
 }
 
 void ControllerNode::takeCommitted(double y) noexcept {
@@ -163,9 +165,10 @@ void ControllerNode::takeCommitted(double y) noexcept {
 
 void ControllerNode::start(TimeUs now) { node_->start(now); }  // the state hook goes on to Operational
 
-// Its identity checked: the error value goes out now - before the NMT start that follows this event -
-// unless the SDO client is busy (then from the cycle).
-void ControllerNode::valveBooted() {
+// Kept alive and running, the valve was not configured by this boot: its error value goes out now -
+// the safe value may have changed since it was configured - unless the SDO client is busy (then from
+// the cycle).
+void ControllerNode::valveKeptAlive() {
   valve_->errorValueDue();
   valve_->pushErrorValue(params_->safeCommand());
 }
@@ -175,12 +178,11 @@ void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
   const char* role = is_valve ? "valve" : "sensor";
   switch (ev) {
     case SlaveEvent::Configured:
-      if (is_valve) valveBooted();
-      else sensor_->onBooted(node_->now());
+      if (!is_valve) sensor_->onBooted(node_->now());
       if (log_) log_(std::string(role) + " (node " + std::to_string(id) + "): identity checked, configuration written and read back");
       break;
     case SlaveEvent::KeptAlive:
-      if (is_valve) valveBooted();
+      if (is_valve) valveKeptAlive();
       else sensor_->onBooted(node_->now());
       if (log_)
         log_(std::string(role) + " (node " + std::to_string(id) +
@@ -202,8 +204,9 @@ void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
       faults_->raise(is_valve ? Fault::ValveHeartbeat : Fault::SensorHeartbeat, id);
       break;
     case SlaveEvent::BootUp:
-      // It lost its state (the master starts it again); the valve needs its error value again.
-      if (is_valve) valve_->errorValueDue();
+      // It lost its state (the master boots and starts it again; the boot writes the valve's error
+      // value, the cycle for a valve the master does not boot).
+      if (is_valve && !master_->boots(id)) valve_->errorValueDue();
       if (loop_->active()) faults_->raise(is_valve ? Fault::ValveState : Fault::SensorState, id);
       break;
     case SlaveEvent::LeftOperational:

@@ -16,6 +16,14 @@ ValveDriver::ValveDriver(canopen::Node& node, canopen::NmtMaster& master, std::u
   master_.addSlave(id_);
 }
 
+void ValveDriver::errorValueAtBoot(std::function<double()> safe_u) {
+  if (error_value_index_ == 0) return;
+  // CiA 401: the valve outputs 0x6444:n (INTEGER32) on a communication error.
+  master_.setConfig(id_, {canopen::SlaveBoot::Write{error_value_index_, error_value_sub_, 4, [this, safe_u = std::move(safe_u)] {
+                      return static_cast<std::uint32_t>(static_cast<std::int32_t>(scaling_.commandCounts(safe_u())));
+                    }}});
+}
+
 void ValveDriver::pushErrorValue(double safe_u) noexcept {
   // CiA 401: the valve outputs 0x6444:n on a communication error; make it the controller's safe value.
   const std::int32_t v = scaling_.commandCounts(safe_u);

@@ -1,11 +1,13 @@
 // The valve as the controller node sees it - a driver in the sense of Lely's coapp Driver: its boot
 // steps, the command it gets in the TPDO after each cycle (0x3002, in the valve's counts), its error
-// value (CiA 401 0x6444:n, the controller's safe value, written at start-up and whenever it boots), the
+// value (CiA 401 0x6444:n, the controller's safe value: its configuration in every boot of the valve,
+// after the identity check and the concise DCF, and written again when the safe value changes), the
 // supervision of its feedback PDO, heartbeat and state, and the reasons to hold it in Pre-operational.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <optional>
 
 #include "canopen/nmt_master.hpp"
@@ -30,8 +32,12 @@ class ValveDriver {
 
   void command(double u) noexcept { cmd_.set(scaling_.commandCounts(u)); }  // relative volts
   void zero() noexcept { cmd_.set(0); }
-  // The error value follows the safe value: written when the SDO client is free and the valve's boot
-  // has checked its identity (NmtMaster::configured), never before.
+  // The driver's configuration in the valve's boot (NmtMaster::setConfig): the error value, safe_u()
+  // in relative volts as the write goes out - after the identity check and the concise DCF, before
+  // the start.
+  void errorValueAtBoot(std::function<double()> safe_u);
+  // Between boots the error value follows the safe value: written when the SDO client is free and the
+  // valve is configured (NmtMaster::configured), never before.
   void errorValueDue() noexcept { push_ = true; }
   bool errorValuePending() const noexcept { return push_; }
   void pushErrorValue(double safe_u) noexcept;

@@ -329,10 +329,13 @@ TEST(RigBoot, AWrongIdentityIsReportedAndTheSlaveLeftStopped) {
 }
 
 // Nothing is written to a slave before its boot has checked its identity (0x1018 against 0x1F85-0x1F88):
-// no SDO download to the valve (its configuration, its error value 0x6444) before the answer to the
-// upload of its vendor-ID 0x1018:01; a valve with the wrong vendor-ID gets no write at all.
+// no SDO download to the valve before the answer to the upload of its vendor-ID 0x1018:01. The error
+// value 0x6444:01 is the valve driver's configuration in that boot (CiA 302-2, Lely's OnConfig): once,
+// after the identity and after the concise DCF's read-back (the boot's last upload), before the valve's
+// NMT start. A valve with the wrong vendor-ID gets no write at all.
 TEST(RigBoot, NothingIsWrittenToTheValveBeforeItsIdentityIsChecked) {
   for (bool wrong : {false, true}) {
+    SCOPED_TRACE(wrong ? "wrong vendor-ID" : "right vendor-ID");
     const std::string vendor = wrong ? "vendor_id = 0x00001234" : "vendor_id = 0x0000ABCD";
     const auto path = writeTemp("rig.ini", rigText({{"vendor_id = 0x00000000\nproduct_code = 0x00000003",
                                                      vendor + "\nproduct_code = 0x00000003"}}));
@@ -344,16 +347,25 @@ TEST(RigBoot, NothingIsWrittenToTheValveBeforeItsIdentityIsChecked) {
     rig.start();
     rig.runFor(2.0);
     auto first = [&frames](auto pred) { return static_cast<std::size_t>(std::find_if(frames.begin(), frames.end(), pred) - frames.begin()); };
+    auto errorValue = [](const std::string& f) { return f.rfind("603#2", 0) == 0 && f.compare(6, 6, "446401") == 0; };
     const std::size_t identity = first([](const std::string& f) { return f.rfind("583#43181001", 0) == 0; });
     const std::size_t write = first([](const std::string& f) { return f.rfind("603#2", 0) == 0; });
-    const std::size_t error_value = first([](const std::string& f) { return f.rfind("603#2", 0) == 0 && f.compare(6, 4, "4464") == 0; });
-    ASSERT_LT(identity, frames.size()) << "the vendor-ID was read; wrong=" << wrong;
+    const std::size_t error_value = first(errorValue);
+    const std::size_t start = first([](const std::string& f) { return f == "000#0103"; });
+    std::size_t last_upload = 0;
+    for (std::size_t i = 0; i < frames.size(); ++i)
+      if (frames[i].rfind("603#40", 0) == 0) last_upload = i;
+    ASSERT_LT(identity, frames.size()) << "the vendor-ID was read";
     EXPECT_EQ(rig.controller().faultCounters().slave_boot_failures, wrong ? 1u : 0u);
     if (wrong) {
       EXPECT_EQ(write, frames.size()) << "nothing written to a valve of another vendor, no 0x6444 either";
+      EXPECT_EQ(start, frames.size()) << "nor started";
     } else {
       EXPECT_GT(write, identity) << frames[write];
-      EXPECT_LT(error_value, frames.size()) << "the error value is written once the identity is checked";
+      ASSERT_LT(error_value, frames.size()) << "the error value is written in the valve's boot";
+      EXPECT_GT(error_value, last_upload) << "after the identity and the read-back";
+      EXPECT_LT(error_value, start) << "before the valve's start";
+      EXPECT_EQ(std::count_if(frames.begin(), frames.end(), errorValue), 1) << "once";
     }
   }
 }

@@ -250,7 +250,7 @@ TEST(SdoGuards, ACommittedSafeValueBecomesTheValvesErrorValue) {
   Rig r;
   r.runTo(1.0);
   auto& err = r.emu->valve().od().entry(0x6444, 1);
-  EXPECT_EQ(err.get<std::int32_t>(), 0);  // 0 V, written at start-up
+  EXPECT_EQ(err.get<std::int32_t>(), 0);  // 0 V, written in the valve's boot
   EXPECT_EQ(r.writeDouble(0x2020, 0, 2.0), 0u);
   EXPECT_EQ(r.writeU8(0x2003, 1, 1), 0u);
   for (int k = 0; k < 5; ++k) r.cycle();
