@@ -1,6 +1,8 @@
 """pamc.diagnose and pamc.experiments: the dicts of `pamc diagnose --json` and summary.json."""
 import json
 
+import pytest
+
 import pamc
 from conftest import run_pamc
 
@@ -30,6 +32,12 @@ def test_diagnose_with_a_validation_record(records):
     got = pamc.diagnose(train, validate=(val.t, val.u, val.y), max_effects=0, probes=False)
     assert got["ladder"][0]["effects"] == [] and isinstance(got["final_model"], pamc.Model)
     assert got["validation"] != pamc.diagnose(train, max_effects=0, probes=False)["validation"]
+
+
+def test_an_unknown_experiment_is_refused_with_the_clis_message(tmp_path):
+    with pytest.raises(ValueError, match="--only: unknown experiment 'nonsense'"):
+        pamc.experiments(out_dir=str(tmp_path / "x"), only=["nonsense"])
+    assert not (tmp_path / "x").exists()
 
 
 def test_experiments_equal_the_cli(fitted, pamc_exe, tmp_path):

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 #include "estimation/active_model.hpp"
 #include "io/measurement.hpp"
@@ -263,6 +264,10 @@ ModelAccuracy modelAccuracy(const model::Model& m, const estimation::ActiveModel
 }
 
 ExperimentReport runExperiments(const ExperimentSettings& s) {
+  for (const auto& o : s.only)
+    if (o != "table1" && o != "table2" && o != "triangle" && o != "discontinuous" && o != "payload")
+      throw std::invalid_argument("--only: unknown experiment '" + o +
+                                  "' (known: table1, table2, triangle, discontinuous, payload)");
   io::makeDirectory(s.out_dir);
   detail::Context x(s);
   x.dir = s.out_dir + "/";

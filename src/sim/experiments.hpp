@@ -54,6 +54,7 @@ struct ExperimentReport {
   std::string text;  // the tables, beside the paper's figures
 };
 
+// Throws std::invalid_argument on an unknown name in `only`, before anything is written.
 ExperimentReport runExperiments(const ExperimentSettings& s);
 
 // A closed-loop run of the experiments under its name (the tag of its files and rows).
