@@ -1,5 +1,6 @@
 // The parts the controllers are built from (controller.cpp, mbc.cpp): the commands in flight, the PI of
-// eq. (16) with its anti-windup, the last usable position, the MBC's setpoint governor and delay line. noexcept and allocation-free.
+// eq. (16) with its anti-windup, the last usable position, the MBC's setpoint governor and its delay line.
+// noexcept and allocation-free.
 #pragma once
 
 #include <algorithm>
@@ -10,22 +11,30 @@
 
 namespace pamc::control::detail {
 
-// The commands of the last few cycles, to tell the estimators which one was in effect when a
-// measurement was taken.
-class CommandHistory {
+// The last N values pushed (N a power of two), to read one from up to N - 1 pushes ago.
+template <unsigned N>
+class History {
+  static_assert(N >= 2 && (N & (N - 1)) == 0, "N must be a power of two");
+
  public:
-  void fill(double u) noexcept { buf_.fill(u); }
-  void push(double u) noexcept {
-    head_ = (head_ + 1) & 7u;
-    buf_[head_] = u;
+  void fill(double v) noexcept { buf_.fill(v); }
+  void push(double v) noexcept {
+    head_ = (head_ + 1) & (N - 1);
+    buf_[head_] = v;
   }
-  // ago = 0: the latest command.
-  double get(int ago) const noexcept { return buf_[(head_ - static_cast<unsigned>(ago)) & 7u]; }
+  // ago = 0: the latest value.
+  double get(int ago) const noexcept { return buf_[(head_ - static_cast<unsigned>(ago)) & (N - 1)]; }
 
  private:
-  std::array<double, 8> buf_{};
+  std::array<double, N> buf_{};
   unsigned head_ = 0;
 };
+
+// The commands of the last few cycles, to tell the estimators which one was in effect when a
+// measurement was taken.
+using CommandHistory = History<8>;
+// The MBC's governed setpoint of the last cycles: beyond the longest horizon, 2000 samples.
+using DelayLine = History<2048>;
 
 // A setpoint follower limited in rate and acceleration (a reference governor): each step moves towards the
 // target at the setpoint's own slope plus the speed from which it can still brake to it, within
@@ -59,27 +68,10 @@ class SetpointGovernor {
     r_ += v_ * Ts_;
     return r_;
   }
-  double value() const noexcept { return r_; }
 
  private:
   double rate_ = 0.0, accel_ = 1.0, Ts_ = 1e-3;
   double r_ = 0.0, v_ = 0.0, prev_ = 0.0;
-};
-
-// The last kCapacity values pushed, to read one from up to kCapacity - 1 pushes ago.
-class DelayLine {
- public:
-  static constexpr unsigned kCapacity = 2048;  // beyond the longest horizon, 2000 samples
-  void fill(double v) noexcept { buf_.fill(v); }
-  void push(double v) noexcept {
-    head_ = (head_ + 1) & (kCapacity - 1);
-    buf_[head_] = v;
-  }
-  double get(int ago) const noexcept { return buf_[(head_ - static_cast<unsigned>(ago)) & (kCapacity - 1)]; }
-
- private:
-  std::array<double, kCapacity> buf_{};
-  unsigned head_ = 0;
 };
 
 // PI of eq. (16) with conditional integration as anti-windup.

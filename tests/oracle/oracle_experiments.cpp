@@ -6,10 +6,10 @@
 // (oracle_plant.hpp), to sim::runExperiments.
 #include <CLI/CLI.hpp>
 
-#include <algorithm>
 #include <cstdio>
 #include <exception>
 #include <string>
+#include <vector>
 
 #include "oracle_plant.hpp"
 #include "sim/experiments.hpp"
@@ -27,7 +27,8 @@ oracle::Case findCase(const std::string& path, const std::string& name) {
 }
 
 struct Options {
-  std::string cases, case_name, model, only, out_dir = "results-oracle";
+  std::string cases, case_name, model, out_dir = "results-oracle";
+  std::vector<std::string> only;
   bool no_figures = false;
   int mbc_horizon = 0;
   double mbc_rate = control::ControllerConfig{}.mbc_rate_mm_s;
@@ -43,11 +44,7 @@ int run(const Options& o) {
   s.figures = !o.no_figures;
   s.ctrl.mbc_horizon = o.mbc_horizon;
   s.ctrl.mbc_rate_mm_s = o.mbc_rate;
-  for (size_t a = 0; a < o.only.size();) {
-    const size_t b = std::min(o.only.find(',', a), o.only.size());
-    s.only.push_back(o.only.substr(a, b - a));
-    a = b + 1;
-  }
+  s.only = o.only;
   s.log = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
   const auto rep = sim::runExperiments(s);
   std::printf("%s", rep.text.c_str());
@@ -67,7 +64,8 @@ int main(int argc, char** argv) {
   app.add_option("--case", o.case_name, "the case that is the plant (default: the file's only case)");
   app.add_option("--model", o.model, "model file the controllers use instead of identifying one on u0")
       ->check(CLI::ExistingFile);
-  app.add_option("--only", o.only, "comma list of: table1, table2, triangle, discontinuous, payload (as pamc experiments)");
+  app.add_option("--only", o.only, "comma list of: table1, table2, triangle, discontinuous, payload (as pamc experiments)")
+      ->delimiter(',');
   app.add_option("--out-dir", o.out_dir, "output folder (CSVs, summary.txt, summary.json)")->capture_default_str();
   app.add_flag("--no-figures", o.no_figures, "skip the PNG figures");
   app.add_option("--mbc-horizon", o.mbc_horizon, "MBC: samples ahead its inverse aims at; 0 = automatic (as pamc's)")
