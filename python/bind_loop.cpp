@@ -5,6 +5,7 @@
 #include "bind.hpp"
 #include "control/trajectory.hpp"
 #include "convert.hpp"
+#include "io/controller_settings.hpp"
 #include "io/model_file.hpp"
 #include "sim/lockstep.hpp"
 
@@ -17,43 +18,7 @@ plant::PlantConfig plantConfigOf(const py::handle& p) {
   return readingFile(path, [&] { return plant::PlantConfig::fromFile(path); });
 }
 
-namespace {
-
 using control::ControllerConfig;
-
-template <class T>
-struct Setting {
-  const char* name;
-  T ControllerConfig::*field;
-};
-constexpr Setting<double> kDoubles[] = {
-    {"Ts", &ControllerConfig::Ts},           {"u_min", &ControllerConfig::u_min},
-    {"u_max", &ControllerConfig::u_max},     {"kp", &ControllerConfig::kp},
-    {"ki", &ControllerConfig::ki},           {"kc", &ControllerConfig::kc},
-    {"amc_inverse", &ControllerConfig::amc_inverse}, {"mbc_error_tau_s", &ControllerConfig::mbc_error_tau_s},
-    {"mbc_rate_mm_s", &ControllerConfig::mbc_rate_mm_s}, {"mbc_accel_mm_s2", &ControllerConfig::mbc_accel_mm_s2},
-    {"beta1", &ControllerConfig::beta1},     {"beta2", &ControllerConfig::beta2},
-    {"beta3", &ControllerConfig::beta3},     {"delta", &ControllerConfig::delta},
-    {"b0", &ControllerConfig::b0},           {"eso_gain", &ControllerConfig::eso_gain},
-    {"eso_tau", &ControllerConfig::eso_tau}, {"eso_wo", &ControllerConfig::eso_wo}};
-constexpr Setting<int> kInts[] = {{"amc_horizon", &ControllerConfig::amc_horizon},
-                                  {"mbc_horizon", &ControllerConfig::mbc_horizon},
-                                  {"eso_order", &ControllerConfig::eso_order},
-                                  {"delay_cycles", &ControllerConfig::delay_cycles}};
-constexpr Setting<bool> kBools[] = {{"amc_as_printed", &ControllerConfig::amc_as_printed},
-                                    {"open_loop_linear", &ControllerConfig::open_loop_linear}};
-
-template <class T, size_t N>
-bool setField(ControllerConfig& c, const Setting<T> (&table)[N], const std::string& name, const py::handle& v) {
-  for (const auto& s : table)
-    if (name == s.name) {
-      c.*s.field = v.cast<T>();
-      return true;
-    }
-  return false;
-}
-
-}  // namespace
 
 void applyControllerSettings(ControllerConfig& c, const py::dict& settings) {
   for (const auto& [k, v] : settings) {
@@ -63,7 +28,7 @@ void applyControllerSettings(ControllerConfig& c, const py::dict& settings) {
         const std::string path = pathOf(v);
         return readingFile(path, [&] { return io::readModelFile(path); });
       }();
-    else if (!setField(c, kDoubles, name, v) && !setField(c, kInts, name, v) && !setField(c, kBools, name, v))
+    else if (!io::setControllerSetting(c, name, fromPython(v)))
       throw py::type_error("unknown controller setting '" + name + "'");
   }
 }

@@ -134,22 +134,22 @@ model::Model modelFromJson(const nlohmann::json& j, const std::string& where) {
   return m;
 }
 
-model::Model readModelFile(const std::string& path) {
+nlohmann::json readJsonFile(const std::string& path, const std::string& what) {
   std::ifstream f(path);
-  if (!f) throw InputError(path + ": cannot open model file");
-  nlohmann::json j;
+  if (!f) throw InputError(path + ": cannot open " + what);
   try {
-    j = nlohmann::json::parse(f);
+    return nlohmann::json::parse(f);
   } catch (const nlohmann::json::parse_error& e) {
     throw InputError(path + ": byte " + std::to_string(e.byte) + ": not valid JSON");
   } catch (const nlohmann::json::exception& e) {
     // The parser reports a number it cannot hold ("1e999") as out_of_range, not parse_error.
-    const std::string what = e.what();
-    const auto tag = what.find("] ");
-    throw InputError(path + ": not valid JSON: " + (tag == std::string::npos ? what : what.substr(tag + 2)));
+    const std::string text = e.what();
+    const auto tag = text.find("] ");
+    throw InputError(path + ": not valid JSON: " + (tag == std::string::npos ? text : text.substr(tag + 2)));
   }
-  return modelFromJson(j, path);
 }
+
+model::Model readModelFile(const std::string& path) { return modelFromJson(readJsonFile(path, "model file"), path); }
 
 void writeModelFile(const std::string& path, const model::Model& m, const nlohmann::json& fit) {
   nlohmann::json j = modelToJson(m);

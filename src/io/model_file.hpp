@@ -19,6 +19,8 @@ nlohmann::json modelToJson(const model::Model& m);
 // Throws InputError naming `where` and the bad key.
 model::Model modelFromJson(const nlohmann::json& j, const std::string& where);
 model::Model readModelFile(const std::string& path);
+// A JSON file; throws InputError naming the path ("cannot open <what>", the byte of a syntax error).
+nlohmann::json readJsonFile(const std::string& path, const std::string& what);
 // Atomic write; `fit` is stored under "fit".
 void writeModelFile(const std::string& path, const model::Model& m, const nlohmann::json& fit = {});
 

@@ -14,11 +14,12 @@
 #include <stdexcept>
 #include <thread>
 
+#include "io/controller_settings.hpp"
 #include "io/measurement.hpp"
 #include "io/model_file.hpp"
 #include "io/text.hpp"
-#include "report/figures.hpp"
 #include "sim/lockstep.hpp"
+#include "sim/robustness_cells.hpp"
 
 namespace pamc::sim {
 
@@ -107,6 +108,9 @@ namespace {
 
 // ---------------------------------------------------------------- controllers and models
 
+using detail::Cells;
+using detail::Variant;
+
 // In the order of RobustnessScore's fields.
 const control::Kind kKinds[] = {control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc, control::Kind::Mbc};
 
@@ -124,58 +128,7 @@ ControllerSet controllerSet(const RobustnessSettings& s, const model::Model& m) 
   return c;
 }
 
-std::string amplitudeTag(double a) { return fmt("%.2f", a); }
-
-// u0's record at another amplitude from the nominal plant, and the model fitted on it (files in dir).
-model::Model identifyAt(const RobustnessSettings& s, const std::string& dir, double amplitude) {
-  const auto log = s.log;
-  const std::string tag = amplitudeTag(amplitude);
-  if (log) log("identifying the model on u = " + tag + " sin(0.2 pi t) + 0.2 V (" + fmt("%.0f", kIdentDuration) + " s)");
-  recordOpenLoop(s.plant, identInput(amplitude), kIdentDuration, dir + "ident_A" + tag + ".csv");
-  const ident::FitResult fr = identifyOnRecord(dir + "ident_A" + tag + ".csv", s.fit, log);
-  io::writeModelFile(dir + "model_A" + tag + ".json", fr.model,
-                     {{"data", "ident_A" + tag + ".csv"}, {"rmse", fr.rmse}, {"seconds", fr.seconds}});
-  if (log) log("  fitted in " + fmt("%.1f", fr.seconds) + " s, RMSE " + fmt("%.4f", fr.rmse) + " mm");
-  return fr.model;
-}
-
-// The controllers by model amplitude: the nominal one (identified or read) and, when the model axis is
-// among the axes, one per amplitude it lists.
-std::map<double, ControllerSet> prepareControllers(const RobustnessSettings& s, const std::string& dir,
-                                                   const std::vector<RobustnessAxis>& axes) {
-  std::map<double, ControllerSet> sets;
-  const model::Model nominal =
-      s.model_file.empty() ? identifyAt(s, dir, kIdentAmplitude) : io::readModelFile(s.model_file);
-  sets.emplace(kIdentAmplitude, controllerSet(s, nominal));
-  for (const auto& a : axes)
-    if (a.changesModel())
-      for (double v : a.values)
-        if (!sets.count(v)) sets.emplace(v, controllerSet(s, identifyAt(s, dir, v)));
-  return sets;
-}
-
 // ---------------------------------------------------------------- variants and their runs
-
-// A plant (and model) variant: the axes it moves away from the nominal, in the table's order.
-struct Variant {
-  std::vector<std::pair<const RobustnessAxis*, double>> moved;
-  std::string key() const {
-    std::string k;
-    for (const auto& [a, v] : moved) k += a->name + "=" + fmt("%.9g", v) + ";";
-    return k;
-  }
-  std::string label() const {
-    std::string l;
-    for (const auto& [a, v] : moved) l += (l.empty() ? "" : ", ") + a->name + " " + fmt("%g", v) + " " + a->unit;
-    return l.empty() ? "nominal" : l;
-  }
-};
-
-// Adds (axis, value) to a variant unless the value is the axis's nominal.
-Variant moveTo(Variant v, const RobustnessAxis& a, double value) {
-  if (value != a.nominal) v.moved.emplace_back(&a, value);
-  return v;
-}
 
 struct Job {
   Variant variant;
@@ -184,12 +137,17 @@ struct Job {
   std::vector<RobustnessScore> scores;  // per trajectory, filled by the run
 };
 
+// The identification amplitude of the variant's model (kIdentAmplitude: the nominal model).
+double modelAmplitude(const Variant& v) {
+  for (const auto& [a, value] : v.moved)
+    if (a->changesModel()) return value;
+  return kIdentAmplitude;
+}
+
 Job makeJob(const Variant& v, const RobustnessSettings& s, const std::map<double, ControllerSet>& sets) {
-  Job j{v, s.plant, &sets.at(kIdentAmplitude), {}};
-  for (const auto& [a, value] : v.moved) {
-    if (a->changesModel()) j.ctrl = &sets.at(value);
-    else a->apply(j.plant, value);
-  }
+  Job j{v, s.plant, &sets.at(modelAmplitude(v)), {}};
+  for (const auto& [a, value] : v.moved)
+    if (!a->changesModel()) a->apply(j.plant, value);
   return j;
 }
 
@@ -262,259 +220,30 @@ void runJobs(std::vector<Job>& jobs, const std::vector<TrackingCase>& cases, con
   if (q.error) std::rethrow_exception(q.error);
 }
 
-// Scores by variant key: every variant runs once however many sweeps list it.
-using ScoreCache = std::map<std::string, std::vector<RobustnessScore>>;
-
-struct RunContext {
-  const RobustnessSettings& s;
-  const std::vector<TrackingCase>& cases;
-  const std::map<double, ControllerSet>& sets;
-  Clock::time_point t0;
-  ScoreCache cache;
-  int variants = 0;
-};
-
-// Runs the variants not yet in the cache (two workers) and stores their scores.
-void runVariants(RunContext& ctx, const std::vector<Variant>& variants, const std::string& phase) {
+// Runs the variants (s.threads workers) and stores their scores in `cells`.
+void runVariants(const RobustnessSettings& s, const std::vector<TrackingCase>& cases,
+                 const std::map<double, ControllerSet>& sets, const std::vector<Variant>& variants,
+                 const std::string& phase, Clock::time_point t0, Cells& cells) {
   std::vector<Job> jobs;
-  std::map<std::string, bool> queued;
-  for (const auto& v : variants)
-    if (!ctx.cache.count(v.key()) && !queued[v.key()]) {
-      queued[v.key()] = true;
-      jobs.push_back(makeJob(v, ctx.s, ctx.sets));
-    }
-  runJobs(jobs, ctx.cases, ctx.s, phase, ctx.t0);
-  for (auto& j : jobs) ctx.cache[j.variant.key()] = std::move(j.scores);
-  ctx.variants += static_cast<int>(jobs.size());
+  for (const auto& v : variants) jobs.push_back(makeJob(v, s, sets));
+  runJobs(jobs, cases, s, phase, t0);
+  for (auto& j : jobs) cells[j.variant.key()] = std::move(j.scores);
 }
 
-// ---------------------------------------------------------------- one axis at a time, the grid
+// ---------------------------------------------------------------- the settings of a set of cells
 
-double meanAmcOverPi(const std::vector<RobustnessScore>& scores) {
-  double sum = 0.0;
-  for (const auto& sc : scores) sum += sc.amcOverPi();
-  return scores.empty() ? NAN : sum / static_cast<double>(scores.size());
+nlohmann::json axisToJson(const RobustnessAxis& a) {
+  return {{"name", a.name}, {"label", a.label}, {"unit", a.unit}, {"field", a.field}, {"nominal", a.nominal},
+          {"values", a.values}, {"physics_only", a.physics_only}};
 }
 
-std::vector<AxisResult> sweepAxes(RunContext& ctx, const std::vector<RobustnessAxis>& axes) {
-  std::vector<Variant> variants;
-  for (const auto& a : axes)
-    for (double v : a.values) variants.push_back(moveTo({}, a, v));
-  runVariants(ctx, variants, "one axis at a time, variant");
-  std::vector<AxisResult> out;
-  for (const auto& a : axes) {
-    AxisResult r{a, {}, {}, 0.0};
-    for (double v : a.values) {
-      r.scores.push_back(ctx.cache.at(moveTo({}, a, v).key()));
-      r.mean_amc_over_pi.push_back(meanAmcOverPi(r.scores.back()));
-    }
-    const auto [lo, hi] = std::minmax_element(r.mean_amc_over_pi.begin(), r.mean_amc_over_pi.end());
-    r.spread = *hi - *lo;
-    out.push_back(std::move(r));
-  }
-  return out;
-}
-
-// The two axes along which the mean AMC/PI ratio spreads most, strongest first.
-std::vector<const AxisResult*> strongestTwo(const std::vector<AxisResult>& axes) {
-  std::vector<const AxisResult*> order;
-  for (const auto& a : axes) order.push_back(&a);
-  std::stable_sort(order.begin(), order.end(), [](const AxisResult* x, const AxisResult* y) { return x->spread > y->spread; });
-  if (order.size() > 2) order.resize(2);
-  return order;
-}
-
-GridResult sweepGrid(RunContext& ctx, const RobustnessAxis& rows, const RobustnessAxis& cols) {
-  std::vector<Variant> variants;
-  for (double r : rows.values)
-    for (double c : cols.values) variants.push_back(moveTo(moveTo({}, rows, r), cols, c));
-  runVariants(ctx, variants, "grid " + rows.name + " x " + cols.name + ", variant");
-  GridResult g{rows.name, cols.name, rows.values, cols.values, {}};
-  for (double r : rows.values) {
-    g.scores.emplace_back();
-    for (double c : cols.values) g.scores.back().push_back(ctx.cache.at(moveTo(moveTo({}, rows, r), cols, c).key()));
-  }
-  return g;
-}
-
-// ---------------------------------------------------------------- files
-
-std::string scoreCells(const RobustnessScore& sc) {
-  return sc.trajectory + "," + fmt("%.6g", sc.pi) + "," + fmt("%.6g", sc.eso) + "," + fmt("%.6g", sc.amc) + "," +
-         fmt("%.6g", sc.amcOverPi()) + "," + fmt("%.6g", sc.esoOverPi()) + "," + fmt("%.6g", sc.mbc) + "," +
-         fmt("%.6g", sc.mbcOverPi());
-}
-
-void writeAxisCsv(const std::string& dir, const AxisResult& r) {
-  std::string out = "value,trajectory,pi_rmse,eso_rmse,amc_rmse,amc_over_pi,eso_over_pi,mbc_rmse,mbc_over_pi\n";
-  for (size_t i = 0; i < r.axis.values.size(); ++i)
-    for (const auto& sc : r.scores[i]) out += fmt("%.9g", r.axis.values[i]) + "," + scoreCells(sc) + "\n";
-  io::writeFileAtomic(dir + "axis_" + r.axis.name + ".csv", out);
-}
-
-void writeGridCsv(const std::string& dir, const GridResult& g) {
-  std::string out = g.row_axis + "," + g.col_axis + ",trajectory,pi_rmse,eso_rmse,amc_rmse,amc_over_pi,eso_over_pi,mbc_rmse,mbc_over_pi\n";
-  for (size_t r = 0; r < g.row_values.size(); ++r)
-    for (size_t c = 0; c < g.col_values.size(); ++c)
-      for (const auto& sc : g.scores[r][c])
-        out += fmt("%.9g", g.row_values[r]) + "," + fmt("%.9g", g.col_values[c]) + "," + scoreCells(sc) + "\n";
-  io::writeFileAtomic(dir + "grid.csv", out);
-}
-
-// ---------------------------------------------------------------- figures
-
-using Ratio = double (RobustnessScore::*)() const;
-
-std::vector<std::string> valueLabels(const RobustnessAxis& a) {
-  std::vector<std::string> l;
-  for (double v : a.values) l.push_back(fmt("%g", v) + (v == a.nominal ? " (nominal)" : ""));
-  return l;
-}
-
-// Rows = the axis's values, columns = the trajectories.
-report::Heatmap axisMap(const AxisResult& r, Ratio ratio, const std::string& what) {
-  report::Heatmap m;
-  m.title = what;
-  m.xlabel = "trajectory";
-  m.ylabel = r.axis.name + " [" + r.axis.unit + "]";
-  m.yticks = valueLabels(r.axis);
-  for (const auto& sc : r.scores.front()) m.xticks.push_back(sc.trajectory);
-  for (const auto& row : r.scores) {
-    m.z.emplace_back();
-    for (const auto& sc : row) m.z.back().push_back((sc.*ratio)());
-  }
-  return m;
-}
-
-// One trajectory of the grid (index t), or the mean over the trajectories (t = npos).
-report::Heatmap gridMap(const GridResult& g, const RobustnessAxis& rows, const RobustnessAxis& cols, Ratio ratio,
-                        size_t t) {
-  report::Heatmap m;
-  m.title = t == std::string::npos ? "mean over the trajectories" : g.scores[0][0][t].trajectory;
-  m.xlabel = cols.name + " [" + cols.unit + "]";
-  m.ylabel = rows.name + " [" + rows.unit + "]";
-  m.xticks = valueLabels(cols);
-  m.yticks = valueLabels(rows);
-  for (const auto& row : g.scores) {
-    m.z.emplace_back();
-    for (const auto& cell : row) {
-      double sum = 0.0;
-      for (const auto& sc : cell) sum += (sc.*ratio)();
-      m.z.back().push_back(t == std::string::npos ? sum / static_cast<double>(cell.size()) : (cell[t].*ratio)());
-    }
-  }
-  return m;
-}
-
-const char* kColourKey = "RMSE ratio (blue < 1: beats PI, red > 1: worse than PI)";
-
-void renderAxis(const std::string& dir, const AxisResult& r, std::string& error) {
-  const std::vector<report::Heatmap> maps = {axisMap(r, &RobustnessScore::amcOverPi, "PI+AMC / PI"),
-                                             axisMap(r, &RobustnessScore::esoOverPi, "PID+ESO / PI")};
-  const std::string title = "RMSE against PI over " + r.axis.label + " (nominal " + fmt("%g", r.axis.nominal) + " " +
-                            r.axis.unit + ")" + (r.axis.changesModel() ? "; the plant is nominal" : "; the model is nominal");
-  if (!report::renderHeatmaps(dir + "axis_" + r.axis.name + ".png", title, maps, 1.0, kColourKey, error))
-    throw std::runtime_error(error);
-}
-
-void renderGrid(const std::string& dir, const GridResult& g, const RobustnessAxis& rows, const RobustnessAxis& cols,
-                Ratio ratio, const std::string& name, const std::string& what) {
-  std::vector<report::Heatmap> maps;
-  for (size_t t = 0; t < g.scores[0][0].size(); ++t) maps.push_back(gridMap(g, rows, cols, ratio, t));
-  maps.push_back(gridMap(g, rows, cols, ratio, std::string::npos));
-  std::string error;
-  if (!report::renderHeatmaps(dir + name + ".png", what + " RMSE ratio over " + rows.name + " x " + cols.name, maps, 1.0,
-                              kColourKey, error, 3))
-    throw std::runtime_error(error);
-}
-
-// ---------------------------------------------------------------- summary
-
-nlohmann::json scoresJson(const std::vector<RobustnessScore>& scores) {
-  nlohmann::json j = nlohmann::json::object();
-  for (const auto& sc : scores)
-    j[sc.trajectory] = {{"pi_rmse", sc.pi}, {"eso_rmse", sc.eso}, {"amc_rmse", sc.amc},
-                        {"amc_over_pi", sc.amcOverPi()}, {"eso_over_pi", sc.esoOverPi()},
-                        {"mbc_rmse", sc.mbc}, {"mbc_over_pi", sc.mbcOverPi()},
-                        {"scored_from_s", sc.scored_from_s}};  // null: each run from its own first reach
-  return j;
-}
-
-nlohmann::json axisJson(const AxisResult& r) {
-  nlohmann::json rows = nlohmann::json::array();
-  for (size_t i = 0; i < r.axis.values.size(); ++i)
-    rows.push_back({{"value", r.axis.values[i]}, {"mean_amc_over_pi", r.mean_amc_over_pi[i]},
-                    {"trajectories", scoresJson(r.scores[i])}});
-  return {{"label", r.axis.label}, {"unit", r.axis.unit}, {"field", r.axis.field}, {"nominal", r.axis.nominal},
-          {"values", r.axis.values}, {"spread_of_mean_amc_over_pi", r.spread}, {"rows", rows}};
-}
-
-nlohmann::json gridJson(const GridResult& g) {
-  nlohmann::json cells = nlohmann::json::array();
-  for (size_t r = 0; r < g.row_values.size(); ++r)
-    for (size_t c = 0; c < g.col_values.size(); ++c)
-      cells.push_back({{g.row_axis, g.row_values[r]}, {g.col_axis, g.col_values[c]}, {"trajectories", scoresJson(g.scores[r][c])}});
-  return {{"rows", g.row_axis}, {"columns", g.col_axis}, {"row_values", g.row_values}, {"column_values", g.col_values},
-          {"cells", cells}};
-}
-
-// "triangle_0.05Hz" -> "tri.05Hz", "sine_0.1Hz" -> "sin.1Hz": a column head of the text tables.
-std::string shortTag(std::string tag) {
-  for (const char* long_form : {"triangle_0", "sine_0"}) {
-    const std::string lf = long_form;
-    if (tag.compare(0, lf.size(), lf) == 0) tag = lf.substr(0, 3) + tag.substr(lf.size());
-  }
-  return tag;
-}
-
-std::string ratioRow(const std::vector<RobustnessScore>& scores) {
-  std::string amc, eso;
-  for (const auto& sc : scores) {
-    amc += fmt("%9.3f", sc.amcOverPi());
-    eso += fmt("%9.3f", sc.esoOverPi());
-  }
-  return amc + " |" + eso;
-}
-
-std::string axisText(const AxisResult& r) {
-  std::ostringstream t;
-  t << "Axis " << r.axis.name << ": " << r.axis.label << " [" << r.axis.unit << "], nominal " << fmt("%g", r.axis.nominal)
-    << "; spread of the mean AMC/PI " << fmt("%.3f", r.spread) << "\n";
-  std::string head;
-  for (const auto& sc : r.scores.front()) {
-    char b[16];
-    std::snprintf(b, sizeof b, "%9s", shortTag(sc.trajectory).c_str());
-    head += b;
-  }
-  t << "  AMC/PI, ESO/PI and PI's RMSE [mm] by trajectory\n  value        " << head << " |" << head << " |" << head << "\n";
-  for (size_t i = 0; i < r.axis.values.size(); ++i) {
-    std::string pi;
-    for (const auto& sc : r.scores[i]) pi += fmt("%9.3f", sc.pi);
-    t << "  " << fmt("%-10g", r.axis.values[i]) << (r.axis.values[i] == r.axis.nominal ? "*" : " ") << "  "
-      << ratioRow(r.scores[i]) << " |" << pi << "\n";
-  }
-  return t.str() + "\n";
-}
-
-std::string gridText(const GridResult& g) {
-  std::ostringstream t;
-  t << "Grid " << g.row_axis << " (rows) x " << g.col_axis << " (columns): AMC/PI RMSE ratio, mean over the trajectories\n";
-  t << std::string(12, ' ');
-  for (double c : g.col_values) t << fmt("%10g", c);
-  t << "\n";
-  for (size_t r = 0; r < g.row_values.size(); ++r) {
-    t << "  " << fmt("%10g", g.row_values[r]);
-    for (const auto& cell : g.scores[r]) t << fmt("%10.3f", meanAmcOverPi(cell));
-    t << "\n";
-  }
-  return t.str() + "\n";
-}
-
-// ---------------------------------------------------------------- the command's steps
-
-std::string makeOutDir(const std::string& out_dir) {
-  io::makeDirectory(out_dir);
-  return out_dir + "/";
+// The table's axis of that name (for what it sets) with the values and nominal of the record.
+RobustnessAxis axisFromJson(const nlohmann::json& j, const std::vector<RobustnessAxis>& table) {
+  const std::string name = j.at("name").get<std::string>();
+  RobustnessAxis a = selectAxes(table, {name}).front();
+  a.nominal = j.at("nominal").get<double>();
+  a.values = j.at("values").get<std::vector<double>>();
+  return a;
 }
 
 // The axes of the run, checked against the plant's kind.
@@ -528,75 +257,174 @@ std::vector<RobustnessAxis> axesOf(const RobustnessSettings& s) {
   return axes;
 }
 
-void renderFigures(const std::string& dir, const RobustnessReport& rep, const std::vector<RobustnessAxis>& axes,
-                   const RobustnessSettings& s) {
-  if (!s.figures) return;
-  if (!report::haveGnuplot()) {
-    if (s.log) s.log("warning: gnuplot not found (apt-get install gnuplot-nox); heat maps skipped, CSVs written");
-    return;
-  }
-  try {
-    std::string error;
-    for (const auto& r : rep.axes) renderAxis(dir, r, error);
-    if (rep.grid.scores.empty()) return;
-    const RobustnessAxis rows = selectAxes(axes, {rep.grid.row_axis}).front();
-    const RobustnessAxis cols = selectAxes(axes, {rep.grid.col_axis}).front();
-    renderGrid(dir, rep.grid, rows, cols, &RobustnessScore::amcOverPi, "grid_amc_over_pi", "PI+AMC / PI");
-    renderGrid(dir, rep.grid, rows, cols, &RobustnessScore::esoOverPi, "grid_eso_over_pi", "PID+ESO / PI");
-  } catch (const std::runtime_error& e) {
-    if (s.log) s.log(std::string("warning: ") + e.what());
-  }
+// ---------------------------------------------------------------- models
+
+// u0's record at another amplitude from the nominal plant (ident_A<tag>.csv in dir), the model fitted
+// on it, and what its file records of the fit.
+nlohmann::json identifyAt(const RobustnessSettings& s, const std::string& dir, double amplitude) {
+  const auto log = s.log;
+  const std::string tag = detail::amplitudeTag(amplitude), csv = "ident_A" + tag + ".csv";
+  if (log) log("identifying the model on u = " + tag + " sin(0.2 pi t) + 0.2 V (" + fmt("%.0f", kIdentDuration) + " s)");
+  recordOpenLoop(s.plant, identInput(amplitude), kIdentDuration, dir + csv);
+  const ident::FitResult fr = identifyOnRecord(dir + csv, s.fit, log);
+  if (log) log("  fitted in " + fmt("%.1f", fr.seconds) + " s, RMSE " + fmt("%.4f", fr.rmse) + " mm");
+  return {{"amplitude", amplitude},
+          {"model", io::modelToJson(fr.model)},
+          {"fit", {{"data", csv}, {"rmse", fr.rmse}, {"seconds", fr.seconds}}}};
 }
 
-void writeSummary(const std::string& dir, RobustnessReport& rep, const RobustnessSettings& s) {
-  std::ostringstream t;
-  t << "RMSE of PID+ESO and PI+AMC against PI (ratio < 1: better than PI) on the triangle, the two sines and the\n"
-       "square wave, over plant changes the controllers were not tuned for ('*': nominal).\n"
-    << (s.common_window ? "The sines (started away from home) are scored over one window for all four controllers, from the\n"
-                          "latest of their first reaches.\n\n"
-                        : "Every run is scored from its own first reach (Table 2's rule).\n\n");
-  nlohmann::json axes = nlohmann::json::object();
-  for (const auto& r : rep.axes) {
-    t << axisText(r);
-    axes[r.axis.name] = axisJson(r);
-  }
-  t << "Strongest axes (largest spread of the mean AMC/PI ratio):";
-  for (const auto& n : rep.strongest) t << " " << n;
-  t << "\n\n";
-  if (!rep.grid.scores.empty()) t << gridText(rep.grid);
-  t << rep.variants << " variants x " << rep.axes.front().scores.front().size() << " trajectories x 4 controllers in "
-    << fmt("%.1f", rep.seconds) << " s on " << s.threads << " worker threads\n";
-  rep.text = t.str();
-  rep.json = {{"axes", axes}, {"strongest", rep.strongest}, {"variants", rep.variants}, {"seconds", rep.seconds},
-              {"threads", s.threads}, {"score_from", s.common_window ? "common" : "own"}, {"plant", s.plant.toJson()}};
-  if (!rep.grid.scores.empty()) rep.json["grid"] = gridJson(rep.grid);
-  io::writeFileAtomic(dir + "summary.txt", rep.text);
-  io::writeFileAtomic(dir + "summary.json", rep.json.dump(2) + "\n");
+// The model of an amplitude from the document's "models", identified first when it is not there.
+model::Model modelAt(const RobustnessSettings& s, const std::string& dir, double amplitude, nlohmann::json& models) {
+  const std::string tag = detail::amplitudeTag(amplitude);
+  if (!models.contains(tag)) models[tag] = identifyAt(s, dir, amplitude);
+  return io::modelFromJson(models[tag]["model"], "cells: model " + tag);
 }
+
+// The nominal model: the document's, the file's, or the one identified on u0.
+model::Model nominalModel(const RobustnessSettings& s, const std::string& dir, nlohmann::json& doc) {
+  if (!doc.contains("nominal_model"))
+    doc["nominal_model"] = s.model_file.empty() ? io::modelToJson(modelAt(s, dir, kIdentAmplitude, doc["models"]))
+                                                : io::modelToJson(io::readModelFile(s.model_file));
+  return io::modelFromJson(doc["nominal_model"], "cells: nominal_model");
+}
+
+// The controllers by model amplitude that the variants need (the nominal one under kIdentAmplitude).
+std::map<double, ControllerSet> prepareControllers(const RobustnessSettings& s, const std::string& dir,
+                                                   const std::vector<Variant>& variants, nlohmann::json& doc) {
+  std::map<double, ControllerSet> sets;
+  for (const auto& v : variants) {
+    const double amplitude = modelAmplitude(v);
+    if (sets.count(amplitude)) continue;
+    const model::Model m = amplitude == kIdentAmplitude ? nominalModel(s, dir, doc) : modelAt(s, dir, amplitude, doc["models"]);
+    sets.emplace(amplitude, controllerSet(s, m));
+  }
+  return sets;
+}
+
+// ---------------------------------------------------------------- a part of a phase
+
+std::string makeOutDir(const std::string& out_dir) {
+  io::makeDirectory(out_dir);
+  return out_dir + "/";
+}
+
+// The phase's variants not yet among the cells, each once, in the table's order.
+std::vector<Variant> missingVariants(const std::vector<Variant>& all, const Cells& cells) {
+  std::vector<Variant> out;
+  std::map<std::string, bool> seen;
+  for (const auto& v : all)
+    if (!cells.count(v.key()) && !seen[v.key()]) {
+      seen[v.key()] = true;
+      out.push_back(v);
+    }
+  return out;
+}
+
+// The shard's part: every count-th from the index-th (1-based).
+std::vector<Variant> partOf(const std::vector<Variant>& all, const Shard& shard) {
+  std::vector<Variant> out;
+  for (size_t i = static_cast<size_t>(shard.index - 1); i < all.size(); i += static_cast<size_t>(shard.count))
+    out.push_back(all[i]);
+  return out;
+}
+
+// The pairs grid's variants, chosen from the axes' cells (all of which must be there).
+std::vector<Variant> pairVariants(const RobustnessSettings& s, const std::vector<RobustnessAxis>& axes, const Cells& cells,
+                                  std::string& phase) {
+  if (!detail::allIn(detail::axisVariants(axes), cells))
+    throw std::invalid_argument("the axes' cells are not all there: merge every part of the axes first");
+  const auto results = detail::axisResults(cells, axes);
+  const auto strong = detail::strongestTwo(results);
+  if (!s.grid || strong.size() < 2) return {};
+  const RobustnessAxis& rows = *std::find_if(axes.begin(), axes.end(), [&](auto& a) { return a.name == strong[0]->axis.name; });
+  const RobustnessAxis& cols = *std::find_if(axes.begin(), axes.end(), [&](auto& a) { return a.name == strong[1]->axis.name; });
+  phase = "grid " + rows.name + " x " + cols.name + ", variant";
+  return detail::gridVariants(rows, cols);
+}
+
+std::string shardText(const Shard& p) { return std::to_string(p.index) + "/" + std::to_string(p.count); }
 
 }  // namespace
 
-RobustnessReport runRobustness(const RobustnessSettings& s) {
-  const auto t0 = Clock::now();
-  const std::vector<RobustnessAxis> axes = axesOf(s);
-  const std::string dir = makeOutDir(s.out_dir);
-  const auto cases = robustnessCases(s.duration_scale);
-  const auto sets = prepareControllers(s, dir, axes);
-  RunContext ctx{s, cases, sets, t0, {}, 0};  // progress times from the start, identification included
-  RobustnessReport rep;
-  rep.axes = sweepAxes(ctx, axes);
-  for (const auto& r : rep.axes) writeAxisCsv(dir, r);
-  const auto strong = strongestTwo(rep.axes);
-  for (const auto* a : strong) rep.strongest.push_back(a->axis.name);
-  if (s.grid && strong.size() == 2) {
-    rep.grid = sweepGrid(ctx, strong[0]->axis, strong[1]->axis);
-    writeGridCsv(dir, rep.grid);
+Shard parseShard(const std::string& text) {
+  const auto slash = text.find('/');
+  Shard p;
+  try {
+    size_t used = 0;
+    if (slash == std::string::npos) throw std::invalid_argument("");
+    p.index = std::stoi(text.substr(0, slash), &used);
+    if (used != slash) throw std::invalid_argument("");
+    p.count = std::stoi(text.substr(slash + 1), &used);
+    if (used != text.size() - slash - 1) throw std::invalid_argument("");
+  } catch (const std::exception&) {
+    throw std::invalid_argument("shard '" + text + "': expected I/N, e.g. 2/4");
   }
-  rep.variants = ctx.variants;
-  rep.seconds = secondsSince(t0);
-  renderFigures(dir, rep, axes, s);
-  writeSummary(dir, rep, s);
-  return rep;
+  if (p.count < 1 || p.index < 1 || p.index > p.count)
+    throw std::invalid_argument("shard '" + text + "': I must be from 1 to N");
+  return p;
+}
+
+nlohmann::json robustnessSettingsJson(const RobustnessSettings& s) {
+  nlohmann::json axes = nlohmann::json::array();
+  for (const auto& a : axesOf(s)) axes.push_back(axisToJson(a));
+  return {{"plant", s.plant.toJson()},
+          {"controller", io::controllerSettingsToJson(s.ctrl)},
+          {"model_file", s.model_file},
+          {"fit", {{"method", ident::toString(s.fit.method)}, {"seed", s.fit.ga.seed}}},
+          {"axes", axes},
+          {"duration_scale", s.duration_scale},
+          {"score_from", s.common_window ? "common" : "own"},
+          {"pairs", s.grid}};
+}
+
+RobustnessSettings robustnessSettingsFromJson(const nlohmann::json& j) {
+  RobustnessSettings s;
+  s.plant = plant::PlantConfig::fromJson(j.at("plant"), "cells: settings: plant");
+  io::applyControllerSettings(s.ctrl, j.at("controller"));
+  s.model_file = j.at("model_file").get<std::string>();
+  s.fit = ident::FitSettings::forMethod(ident::fitMethodFromString(j.at("fit").at("method").get<std::string>()));
+  s.fit.ga.seed = j.at("fit").at("seed").get<std::uint64_t>();
+  const auto table = robustnessAxes(s.plant);
+  for (const auto& a : j.at("axes")) s.axes.push_back(axisFromJson(a, table));
+  s.duration_scale = j.at("duration_scale").get<double>();
+  s.common_window = j.at("score_from").get<std::string>() == "common";
+  s.grid = j.at("pairs").get<bool>();
+  return s;
+}
+
+nlohmann::json runRobustnessCells(const RobustnessSettings& given, const nlohmann::json* axes_cells) {
+  const auto t0 = Clock::now();
+  RobustnessSettings s = given;
+  nlohmann::json doc = {{"format", detail::kCellsFormat}, {"models", nlohmann::json::object()}, {"inherited_seconds", 0.0}};
+  if (axes_cells) {
+    s = robustnessSettingsFromJson(axes_cells->at("settings"));
+    s.out_dir = given.out_dir, s.shard = given.shard, s.threads = given.threads, s.log = given.log;
+    doc = *axes_cells;
+    doc["inherited_seconds"] = axes_cells->value("inherited_seconds", 0.0) + axes_cells->value("seconds", 0.0);
+  }
+  const auto axes = axesOf(s);
+  doc["settings"] = robustnessSettingsJson(s);
+  doc["phase"] = axes_cells ? "pairs" : "axes";
+  doc["shard"] = {{"index", s.shard.index}, {"count", s.shard.count}};
+  doc["threads"] = s.threads;
+  Cells cells = detail::cellsFromJson(doc.value("cells", nlohmann::json::object()), "cells");
+  std::string phase = "one axis at a time, variant";
+  const auto all = axes_cells ? pairVariants(s, axes, cells, phase) : detail::axisVariants(axes);
+  const auto todo = partOf(missingVariants(all, cells), s.shard);
+  if (s.shard.count > 1) phase = "part " + shardText(s.shard) + ": " + phase;
+  const std::string dir = makeOutDir(s.out_dir);
+  const auto sets = prepareControllers(s, dir, todo, doc);
+  runVariants(s, robustnessCases(s.duration_scale), sets, todo, phase, t0, cells);
+  doc["cells"] = detail::cellsToJson(cells);
+  doc["seconds"] = secondsSince(t0);
+  io::writeFileAtomic(dir + "cells.json", doc.dump(1) + "\n");
+  return doc;
+}
+
+RobustnessReport runRobustness(const RobustnessSettings& s) {
+  nlohmann::json doc = runRobustnessCells(s);
+  if (s.grid) doc = runRobustnessCells(s, &doc);
+  return mergeRobustness({doc}, s);
 }
 
 }  // namespace pamc::sim
