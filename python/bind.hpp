@@ -8,6 +8,7 @@ namespace pamc::python {
 void bindModel(pybind11::module_& m);     // Model, Measurement, read_csv, write_csv (bind_model.cpp)
 void bindAnalysis(pybind11::module_& m);  // fit, compare, diagnose, experiments (bind_analysis.cpp)
 void bindLoop(pybind11::module_& m);      // Trajectory, Plant, Controller, closed_loop (bind_loop.cpp)
+void bindSweep(pybind11::module_& m);     // the robustness sweep's cells and merge (bind_sweep.cpp)
 
 }  // namespace pamc::python
 

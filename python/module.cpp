@@ -8,4 +8,5 @@ PYBIND11_MODULE(_pamc, m) {
   pamc::python::bindModel(m);
   pamc::python::bindAnalysis(m);
   pamc::python::bindLoop(m);
+  pamc::python::bindSweep(m);
 }

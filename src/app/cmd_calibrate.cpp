@@ -54,6 +54,8 @@ class CalibrateCommand final : public Command {
     cmd_->add_option("--passes", passes_, "passes of the coordinate search over the free parameters")
         ->capture_default_str()
         ->check(CLI::Range(1, 5));
+    cmd_->add_option("--axes", axes_, "comma list of the free parameters to search (default: all; the others stay "
+                                      "at their nominal values)");
     cmd_->add_option("--threads", threads_, "plants evaluated at once")->capture_default_str()->check(CLI::Range(1, 64));
     cmd_->add_option("--out-dir", work_, "directory for every point's runs")->capture_default_str();
     cmd_->add_option("--out", out_, "also write the table (Markdown) to this file");
@@ -64,6 +66,7 @@ class CalibrateCommand final : public Command {
     s.ki_grid = numbers("--ki-grid", ki_);
     s.passes = passes_;
     s.threads = threads_;
+    s.axes = splitList(axes_);
     s.work_dir = work_;
     s.log = [](const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); };
     const auto t0 = std::chrono::steady_clock::now();
@@ -85,7 +88,7 @@ class CalibrateCommand final : public Command {
  private:
   std::string ki_ = "0.15,0.5,1,1.3,1.5,1.7,2,2.5,3,4";
   int passes_ = 2, threads_ = 2;
-  std::string out_, work_ = "calibration";
+  std::string out_, work_ = "calibration", axes_;
 };
 
 }  // namespace

@@ -28,6 +28,13 @@ class RobustnessCommand final : public Command {
     cmd_->add_option("--only-axes", only_axes_, "comma list of the axes to run: flow, mass, supply, noise, model "
                                                 "(default: all; the grid needs two)");
     cmd_->add_option("--seed", seed_, "GA seed of the identifications")->capture_default_str();
+    cmd_->add_option("--method", method_, "the identifications' fit: ga (the paper's GA first) or lm (spread starts, fast)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"lm", "ga"}));
+    cmd_->add_option("--duration-scale", duration_scale_,
+                     "the trajectories' durations times this (a quick look; 1: the experiments' durations)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.01, 1.0));
     cmd_->add_option("--threads", threads_, "worker threads over the independent runs")
         ->capture_default_str()
         ->check(CLI::Range(1, 64));
@@ -128,7 +135,9 @@ class RobustnessCommand final : public Command {
     s.out_dir = out_;
     s.model_file = ctrl_.model_file;
     s.only_axes = splitList(only_axes_);
+    s.fit = ident::FitSettings::forMethod(ident::fitMethodFromString(method_));
     s.fit.ga.seed = seed_;
+    s.duration_scale = duration_scale_;
     s.threads = threads_;
     s.grid = !no_grid_;
     s.common_window = score_from_ == "common";
@@ -138,7 +147,8 @@ class RobustnessCommand final : public Command {
     return s;
   }
 
-  std::string out_ = "robustness", plant_, only_axes_, score_from_ = "common", shard_, pairs_of_;
+  std::string out_ = "robustness", plant_, only_axes_, score_from_ = "common", shard_, pairs_of_, method_ = "ga";
+  double duration_scale_ = 1.0;
   std::vector<std::string> merge_;
   std::uint64_t seed_ = 1;
   int threads_ = 2;

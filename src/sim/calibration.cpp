@@ -50,8 +50,9 @@ std::string key(const CalibratedReading& r) {
   return k;
 }
 
-// Every reading of ki on one plant: Table 1 and the identification once, then the triangle per ki.
-std::vector<CalibrationPoint> evaluatePlant(const CalibrationSettings& s, const std::vector<double>& values) {
+}  // namespace
+
+std::vector<CalibrationPoint> evaluateCalibrationPlant(const CalibrationSettings& s, const std::vector<double>& values) {
   ExperimentSettings es = s.base;
   es.plant = plantWith(values);
   es.figures = false;
@@ -76,27 +77,51 @@ std::vector<CalibrationPoint> evaluatePlant(const CalibrationSettings& s, const 
   return out;
 }
 
+namespace {
+
 double bestDistance(const std::vector<CalibrationPoint>& pts) {
   double best = INFINITY;
   for (const auto& p : pts) best = std::min(best, p.distance);
   return best;
 }
 
-// The plants of `batch` evaluated on s.threads threads; results in the cache.
-void evaluateBatch(const CalibrationSettings& s, const std::vector<std::vector<double>>& batch,
-                   std::map<std::string, std::vector<CalibrationPoint>>& cache, std::mutex& m) {
+// The plants of `batch` on s.threads threads, in the batch's order.
+std::vector<std::vector<CalibrationPoint>> evaluateOnThreads(const CalibrationSettings& s,
+                                                             const std::vector<std::vector<double>>& batch) {
+  std::vector<std::vector<CalibrationPoint>> out(batch.size());
   std::atomic<size_t> next{0};
+  std::mutex m;
   auto worker = [&] {
     for (size_t i = next++; i < batch.size(); i = next++) {
-      auto pts = evaluatePlant(s, batch[i]);
+      out[i] = evaluateCalibrationPlant(s, batch[i]);
       std::lock_guard<std::mutex> lock(m);
-      if (s.log) s.log("calibrate: plant " + key({batch[i], 0}) + " best distance " + fmt("%.3f", bestDistance(pts)));
-      cache[key({batch[i], 0})] = std::move(pts);
+      if (s.log) s.log("calibrate: plant " + key({batch[i], 0}) + " best distance " + fmt("%.3f", bestDistance(out[i])));
     }
   };
   std::vector<std::thread> pool;
   for (int t = 0; t < std::max(1, s.threads); ++t) pool.emplace_back(worker);
   for (auto& t : pool) t.join();
+  return out;
+}
+
+// The plants of `batch` evaluated by s.evaluate (or on threads); results in the cache.
+void evaluateBatch(const CalibrationSettings& s, const std::vector<std::vector<double>>& batch,
+                   std::map<std::string, std::vector<CalibrationPoint>>& cache) {
+  auto points = s.evaluate ? s.evaluate(batch) : evaluateOnThreads(s, batch);
+  if (points.size() != batch.size()) throw std::runtime_error("calibrate: the evaluator returned another number of plants");
+  for (size_t i = 0; i < batch.size(); ++i) cache[key({batch[i], 0})] = std::move(points[i]);
+}
+
+// The indices of the axes searched: s.axes by name (all when empty).
+std::vector<size_t> searchedAxes(const CalibrationSettings& s) {
+  const auto& axes = calibrationAxes();
+  std::vector<size_t> out;
+  for (size_t i = 0; i < axes.size(); ++i)
+    if (s.axes.empty() || std::find(s.axes.begin(), s.axes.end(), axes[i].name) != s.axes.end()) out.push_back(i);
+  for (const auto& n : s.axes)
+    if (std::none_of(axes.begin(), axes.end(), [&](const CalibrationAxis& a) { return a.name == n; }))
+      throw std::invalid_argument("unknown free parameter '" + n + "' (pamc calibrate --help lists them)");
+  return out;
 }
 
 }  // namespace
@@ -114,14 +139,14 @@ plant::PlantConfig plantWith(const std::vector<double>& values) {
 }
 
 CalibrationResult runCalibration(const CalibrationSettings& s) {
+  const auto searched = searchedAxes(s);
   io::makeDirectory(s.work_dir);
   const auto& axes = calibrationAxes();
   std::vector<double> current;
   for (const auto& a : axes) current.push_back(a.nominal);
   std::map<std::string, std::vector<CalibrationPoint>> cache;
-  std::mutex m;
   for (int pass = 0; pass < s.passes; ++pass)
-    for (size_t ai = 0; ai < axes.size(); ++ai) {
+    for (size_t ai : searched) {
       std::vector<std::vector<double>> batch;
       for (double v : axes[ai].values) {
         auto c = current;
@@ -130,7 +155,7 @@ CalibrationResult runCalibration(const CalibrationSettings& s) {
       }
       if (s.log) s.log("calibrate: pass " + std::to_string(pass + 1) + ", " + axes[ai].name + ": " +
                        std::to_string(batch.size()) + " new plants");
-      evaluateBatch(s, batch, cache, m);
+      evaluateBatch(s, batch, cache);
       double best = INFINITY;
       for (double v : axes[ai].values) {
         auto c = current;
@@ -144,6 +169,15 @@ CalibrationResult runCalibration(const CalibrationSettings& s) {
     for (auto& p : pts) r.tried.push_back(std::move(p));
   r.best = chooseCalibration(r.tried, s.claims);
   return r;
+}
+
+nlohmann::json calibrationPointToJson(const CalibrationPoint& p) {
+  return {{"plant_values", p.reading.plant_values}, {"ki", p.reading.ki}, {"summary", p.summary}, {"distance", p.distance}};
+}
+
+CalibrationPoint calibrationPointFromJson(const nlohmann::json& j) {
+  return {{j.at("plant_values").get<std::vector<double>>(), j.at("ki").get<double>()}, j.at("summary"),
+          j.at("distance").get<double>()};
 }
 
 size_t chooseCalibration(const std::vector<CalibrationPoint>& points, const std::vector<Claim>& claims) {

@@ -32,11 +32,19 @@ struct CalibratedReading {
 // The physics plant's defaults with the axes set to `values`.
 plant::PlantConfig plantWith(const std::vector<double>& values);
 
+struct CalibrationPoint;
+// Evaluates a step's candidate plants (each a vector of the axes' values), in the batch's order: the
+// points of each (evaluateCalibrationPlant). A cluster's workers can stand in for the threads.
+using CalibrationEvaluator =
+    std::function<std::vector<std::vector<CalibrationPoint>>(const std::vector<std::vector<double>>& batch)>;
+
 struct CalibrationSettings {
   ExperimentSettings base{};  // its plant's free parameters are overwritten per point
   std::vector<double> ki_grid = {0.15, 0.5, 1.0, 1.3, 1.5, 1.7, 2.0, 2.5, 3.0, 4.0};
   int passes = 2;
   int threads = 2;
+  CalibrationEvaluator evaluate;  // empty: the batch on `threads` threads here
+  std::vector<std::string> axes;  // the free parameters searched (names; empty: all); the others stay nominal
   std::string work_dir = "calibration";
   std::vector<Claim> claims = paperClaims();  // only the calibrated rows are read
   std::function<void(const std::string&)> log;
@@ -54,6 +62,13 @@ struct CalibrationResult {
 };
 
 CalibrationResult runCalibration(const CalibrationSettings& s);
+
+// Every reading of ki on one plant: Table 1 and the identification once, then the triangle per ki (the
+// runs in s.work_dir/<values>/).
+std::vector<CalibrationPoint> evaluateCalibrationPlant(const CalibrationSettings& s, const std::vector<double>& values);
+
+nlohmann::json calibrationPointToJson(const CalibrationPoint& p);
+CalibrationPoint calibrationPointFromJson(const nlohmann::json& j);
 
 // The index of the point with the smallest calibration distance under `claims`.
 size_t chooseCalibration(const std::vector<CalibrationPoint>& points, const std::vector<Claim>& claims);

@@ -400,6 +400,7 @@ nlohmann::json runRobustnessCells(const RobustnessSettings& given, const nlohman
     s = robustnessSettingsFromJson(axes_cells->at("settings"));
     s.out_dir = given.out_dir, s.shard = given.shard, s.threads = given.threads, s.log = given.log;
     doc = *axes_cells;
+    doc.erase("source");
     doc["inherited_seconds"] = axes_cells->value("inherited_seconds", 0.0) + axes_cells->value("seconds", 0.0);
   }
   const auto axes = axesOf(s);
