@@ -94,7 +94,7 @@ void Node::onFrame(const Frame& frame, TimeUs now) {
   ++counters_.rx_frames;
   if (frame.error()) {
     ++counters_.error_frames;
-    if (error_cb_) error_cb_(frame, now);
+    if (app_.error_frame) app_.error_frame(frame, now);
     return;
   }
   if (frame.remote() || frame.extended()) {
@@ -109,7 +109,7 @@ void Node::onFrame(const Frame& frame, TimeUs now) {
   // sender), so one of its own identifiers coming in was sent by somebody else.
   if (transmitsOn(frame.id)) {
     ++counters_.cob_id_collisions;
-    if (collision_cb_) collision_cb_(frame, now);
+    if (app_.collision) app_.collision(frame, now);
     return;
   }
   if (!dispatcher_.dispatch(frame, now)) ++counters_.unknown_cob_id;
@@ -139,7 +139,7 @@ void Node::advance(TimeUs now) {
   sdo_client_.advance(now);
   if (timer_at_ != kNever && now >= timer_at_) {
     timer_at_ = kNever;
-    if (timer_cb_) timer_cb_(now);
+    if (app_.timer) app_.timer(now);
   }
 }
 
@@ -157,7 +157,7 @@ void Node::handleSync(std::uint8_t counter, TimeUs now) {
   // Cycle order: SYNC -> latch RPDOs -> application callback -> TPDOs, so the application computes
   // from the inputs of the previous cycle and its outputs leave in this one.
   for (auto& p : rpdos_) p->onSync(now);
-  if (sync_cb_) sync_cb_(counter, now);
+  if (app_.sync) app_.sync(counter, now);
   for (auto& p : tpdos_) p->onSync(counter, now);
 }
 
@@ -171,7 +171,7 @@ void Node::handleStateChange(NmtState from, NmtState to, TimeUs now) {
   // A Stopped node has no SDO (CiA 301): a transfer in progress ends there, silently (no frame may
   // go out), and is not resumed by a later NMT start.
   if (to == NmtState::Stopped) sdo_server_.reset();
-  if (state_cb_) state_cb_(from, to, now);
+  if (app_.state) app_.state(from, to, now);
 }
 
 void Node::handleReset(NmtCommand cmd, TimeUs now) {
@@ -180,7 +180,7 @@ void Node::handleReset(NmtCommand cmd, TimeUs now) {
   if (cmd == NmtCommand::ResetNode) od_.restoreDefaults(0x2000, 0xFFFF);
   od_.restoreDefaults(0x1000, 0x1FFF);
   emcy_.clearAll();
-  if (reset_cb_) reset_cb_(cmd, now);
+  if (app_.reset) app_.reset(cmd, now);
   reconfigure(now);
   nmt_.bootUp(now);
 }

@@ -41,6 +41,7 @@ class Node : public BusClient {
   // A frame arrived on a COB-ID this node transmits itself (heartbeat/boot-up, EMCY, SDO response,
   // TPDO, SYNC when producing): another node uses this node's ID or identifiers. Not dispatched.
   using CollisionCallback = std::function<void(const Frame& frame, TimeUs now)>;
+  using TimerCallback = std::function<void(TimeUs now)>;
 
   // Configures every service from od; throws OdError for an inconsistent dictionary (e.g. a bad PDO mapping).
   Node(ObjectDictionary od, std::uint8_t node_id, Transport& transport, NodeOptions options = {});
@@ -61,20 +62,20 @@ class Node : public BusClient {
   // Application hook run on every SYNC. Cycle order (CiA 301 synchronous window):
   //   SYNC -> latch synchronous RPDOs into the OD -> onSync(counter, now) -> send synchronous TPDOs.
   // It runs in Pre-operational and Operational; PDOs only move in Operational.
-  void onSync(SyncCallback cb) { sync_cb_ = std::move(cb); }
-  void onStateChange(StateCallback cb) { state_cb_ = std::move(cb); }
+  void onSync(SyncCallback cb) { app_.sync = std::move(cb); }
+  void onStateChange(StateCallback cb) { app_.state = std::move(cb); }
   // After reset node / reset communication restored the defaults, before the boot-up frame.
-  void onReset(ResetCallback cb) { reset_cb_ = std::move(cb); }
+  void onReset(ResetCallback cb) { app_.reset = std::move(cb); }
   void onHeartbeat(HeartbeatConsumer::EventHook cb) { heartbeat_consumer_.setHook(std::move(cb)); }
   void onEmcy(Emcy::ConsumerHook cb) { emcy_.setConsumerHook(std::move(cb)); }
   void onRpdoTimeout(Rpdo::TimeoutHook cb);
-  void onErrorFrame(ErrorFrameCallback cb) { error_cb_ = std::move(cb); }
-  void onCollision(CollisionCallback cb) { collision_cb_ = std::move(cb); }
+  void onErrorFrame(ErrorFrameCallback cb) { app_.error_frame = std::move(cb); }
+  void onCollision(CollisionCallback cb) { app_.collision = std::move(cb); }
   // SYNC consumer: no SYNC within 1.5 periods of 0x1006 (see Sync).
   void onSyncTimeout(Sync::TimeoutHook cb) { sync_.setTimeoutHook(std::move(cb)); }
   // One application timer (an NMT master's boot timeouts): cb runs from advance() once the time set with
   // setTimer() has come, then the timer is off until set again; kNever turns it off.
-  void onTimer(std::function<void(TimeUs now)> cb) { timer_cb_ = std::move(cb); }
+  void onTimer(TimerCallback cb) { app_.timer = std::move(cb); }
   void setTimer(TimeUs at) { timer_at_ = at; }
   // True if this node itself transmits on cob_id (what the collision check uses).
   bool transmitsOn(std::uint32_t cob_id) const;
@@ -127,12 +128,16 @@ class Node : public BusClient {
   SdoClient sdo_client_;
   std::vector<std::unique_ptr<Rpdo>> rpdos_;
   std::vector<std::unique_ptr<Tpdo>> tpdos_;
-  SyncCallback sync_cb_;
-  StateCallback state_cb_;
-  ResetCallback reset_cb_;
-  ErrorFrameCallback error_cb_;
-  CollisionCallback collision_cb_;
-  std::function<void(TimeUs)> timer_cb_;
+  // What the application registered (onSync, onStateChange, ...); each may be empty.
+  struct AppCallbacks {
+    SyncCallback sync;
+    StateCallback state;
+    ResetCallback reset;
+    ErrorFrameCallback error_frame;
+    CollisionCallback collision;
+    TimerCallback timer;
+  };
+  AppCallbacks app_;
   TimeUs timer_at_ = kNever;
 };
 

@@ -183,6 +183,32 @@ void PdoMap::decode(const std::uint8_t* in) const {
   }
 }
 
+// ---- PdoBase ----
+
+std::uint32_t PdoBase::readCommParameters() {
+  const std::uint32_t v = readPdoCobId(ctx_.od, comm_);
+  cob_id_ = v & kStandardIdMask;
+  type_ = static_cast<std::uint8_t>(readOr(ctx_.od, comm_, kTypeSub, kPdoEventManufacturer));
+  event_timer_us_ = static_cast<TimeUs>(readOr(ctx_.od, comm_, kEventTimerSub, 0)) * 1000;
+  valid_ = false;
+  return v;
+}
+
+std::uint32_t PdoBase::buildMap(bool receive) {
+  std::uint32_t code = map_.build(ctx_.od, map_index_, receive, nullptr);
+  if (code != kSdoOk) return code;
+  return typeAllowed(type_) ? kSdoOk : kAbortValueRange;
+}
+
+void PdoBase::throwUnlessOk(std::uint32_t code, bool receive) const {
+  if (code == kSdoOk) return;
+  std::uint32_t bad = 0;
+  PdoMap probe;
+  probe.build(ctx_.od, map_index_, receive, &bad);
+  throw OdError(pdoName(receive ? "RPDO" : "TPDO", number_, map_index_) + ": " + sdoAbortText(code) +
+                (bad != 0 ? " (entry " + mappingText(bad) + ")" : std::string()));
+}
+
 // ---- Rpdo ----
 
 void Rpdo::registerHooks() { installHooks(ctx_, this, comm_, map_index_, true); }
@@ -190,41 +216,42 @@ void Rpdo::registerHooks() { installHooks(ctx_, this, comm_, map_index_, true); 
 std::uint32_t Rpdo::reconfigure() {
   if (subscribed_) ctx_.dispatcher.unsubscribe(cob_id_, this);
   subscribed_ = false;
-  const std::uint32_t v = readPdoCobId(ctx_.od, comm_);
-  cob_id_ = v & kStandardIdMask;
-  type_ = static_cast<std::uint8_t>(readOr(ctx_.od, comm_, kTypeSub, kPdoEventManufacturer));
-  event_timer_us_ = static_cast<TimeUs>(readOr(ctx_.od, comm_, kEventTimerSub, 0)) * 1000;
-  valid_ = false;
+  const std::uint32_t v = readCommParameters();
   reset();
-  std::uint32_t code = map_.build(ctx_.od, map_index_, true, nullptr);
+  std::uint32_t code = buildMap(true);
   if (code != kSdoOk) return code;
-  if (!typeAllowed(type_)) return kAbortValueRange;
-  if ((v & (kPdoInvalidBit | kPdoExtendedBit)) != 0) return kSdoOk;
+  if (!enabledBy(v)) return kSdoOk;
   subscribed_ = ctx_.dispatcher.subscribe<&Rpdo::onFrame>(cob_id_, this);
   if (!subscribed_) return kAbortParameterIncompatible;
   valid_ = true;
   return kSdoOk;
 }
 
-void Rpdo::configure() {
-  std::uint32_t code = reconfigure();
-  if (code == kSdoOk) return;
-  // Only reachable from the EDS: SDO writes are validated before they are stored.
-  std::uint32_t bad = 0;
-  PdoMap probe;
-  probe.build(ctx_.od, map_index_, true, &bad);
-  throw OdError(pdoName("RPDO", number_, map_index_) + ": " + sdoAbortText(code) +
-                (bad != 0 ? " (entry " + mappingText(bad) + ")" : std::string()));
-}
-
-void Rpdo::reset() {
-  has_pending_ = false;
-  rx_since_sync_ = false;
-  conflict_ = false;
-  conflict_latched_ = false;
-  timed_out_ = false;
-  last_rx_us_ = kNever;
-  syncs_since_rx_ = UINT32_MAX;
+bool Rpdo::acceptSynchronous(const Frame& f, TimeUs now) {
+  // CiA 301: synchronous PDOs belong in the synchronous window after the SYNC; later ones are discarded.
+  if (ctx_.sync_window_us > 0 && ctx_.last_sync_us != kNever && now - ctx_.last_sync_us > ctx_.sync_window_us) {
+    ++stats_.late;
+    ++ctx_.counters.rpdo_late;
+    return false;
+  }
+  if (rx_.conflict) {
+    ++stats_.conflicts;
+    ++ctx_.counters.rpdo_conflicts;
+    return false;
+  }
+  if (!rx_.rx_since_sync) return true;
+  if (rx_.has_pending && std::memcmp(rx_.pending, f.data, f.len) == 0) {
+    ++stats_.duplicates;
+    ++ctx_.counters.rpdo_duplicates;
+    return false;
+  }
+  // Two different values for one cycle: neither can be trusted, the cycle counts as missing.
+  ++stats_.conflicts;
+  ++ctx_.counters.rpdo_conflicts;
+  rx_.conflict = true;
+  rx_.has_pending = false;
+  rx_.rx_since_sync = false;
+  return false;
 }
 
 void Rpdo::onFrame(const Frame& f, TimeUs now) {
@@ -234,45 +261,19 @@ void Rpdo::onFrame(const Frame& f, TimeUs now) {
     return;
   }
   if (f.len != map_.size()) {
-    ++wrong_length_;
+    ++stats_.wrong_length;
     ++ctx_.counters.wrong_length;
     return;
   }
-  if (synchronous()) {
-    // CiA 301: synchronous PDOs belong in the synchronous window after the SYNC; later ones are discarded.
-    if (ctx_.sync_window_us > 0 && ctx_.last_sync_us != kNever && now - ctx_.last_sync_us > ctx_.sync_window_us) {
-      ++late_;
-      ++ctx_.counters.rpdo_late;
-      return;
-    }
-    if (conflict_) {
-      ++conflicts_;
-      ++ctx_.counters.rpdo_conflicts;
-      return;
-    }
-    if (rx_since_sync_) {
-      if (has_pending_ && std::memcmp(pending_, f.data, f.len) == 0) {
-        ++duplicates_;
-        ++ctx_.counters.rpdo_duplicates;
-        return;
-      }
-      // Two different values for one cycle: neither can be trusted, the cycle counts as missing.
-      ++conflicts_;
-      ++ctx_.counters.rpdo_conflicts;
-      conflict_ = true;
-      has_pending_ = false;
-      rx_since_sync_ = false;
-      return;
-    }
-  }
-  ++received_;
-  rx_since_sync_ = true;
-  timed_out_ = false;
-  last_rx_us_ = now;
+  if (synchronous() && !acceptSynchronous(f, now)) return;
+  ++stats_.received;
+  rx_.rx_since_sync = true;
+  rx_.timed_out = false;
+  rx_.last_rx_us = now;
   if (synchronous()) {
     // CiA 301: synchronous RPDO data take effect at the next SYNC.
-    std::memcpy(pending_, f.data, f.len);
-    has_pending_ = true;
+    std::memcpy(rx_.pending, f.data, f.len);
+    rx_.has_pending = true;
   } else {
     map_.decode(f.data);
   }
@@ -280,31 +281,33 @@ void Rpdo::onFrame(const Frame& f, TimeUs now) {
 
 void Rpdo::onSync(TimeUs /*now*/) {
   if (!valid_ || !ctx_.operational()) return;
-  if (has_pending_) {
-    map_.decode(pending_);
-    has_pending_ = false;
+  if (rx_.has_pending) {
+    map_.decode(rx_.pending);
+    rx_.has_pending = false;
   }
-  if (rx_since_sync_) {
-    syncs_since_rx_ = 0;
-  } else if (syncs_since_rx_ < UINT32_MAX) {
-    ++syncs_since_rx_;
+  if (rx_.rx_since_sync) {
+    rx_.syncs_since_rx = 0;
+  } else if (rx_.syncs_since_rx < UINT32_MAX) {
+    ++rx_.syncs_since_rx;
   }
-  rx_since_sync_ = false;
-  conflict_latched_ = conflict_;
-  conflict_ = false;
+  rx_.rx_since_sync = false;
+  rx_.conflict_latched = rx_.conflict;
+  rx_.conflict = false;
 }
 
 void Rpdo::advance(TimeUs now) {
   TimeUs d = nextDeadline();
   if (d == kNever || now < d) return;
-  timed_out_ = true;
+  rx_.timed_out = true;
   if (timeout_hook_) timeout_hook_(number_, now);
 }
 
 TimeUs Rpdo::nextDeadline() const {
   // Deadline monitoring starts with the first reception (as CANopenNode does) and fires once.
-  if (!valid_ || event_timer_us_ == 0 || timed_out_ || last_rx_us_ == kNever || !ctx_.operational()) return kNever;
-  return last_rx_us_ + event_timer_us_;
+  if (!valid_ || event_timer_us_ == 0 || rx_.timed_out || rx_.last_rx_us == kNever || !ctx_.operational()) {
+    return kNever;
+  }
+  return rx_.last_rx_us + event_timer_us_;
 }
 
 // ---- Tpdo ----
@@ -312,29 +315,14 @@ TimeUs Rpdo::nextDeadline() const {
 void Tpdo::registerHooks() { installHooks(ctx_, this, comm_, map_index_, false); }
 
 std::uint32_t Tpdo::reconfigure() {
-  const std::uint32_t v = readPdoCobId(ctx_.od, comm_);
-  cob_id_ = v & kStandardIdMask;
-  type_ = static_cast<std::uint8_t>(readOr(ctx_.od, comm_, kTypeSub, kPdoEventManufacturer));
+  const std::uint32_t v = readCommParameters();
   inhibit_us_ = static_cast<TimeUs>(readOr(ctx_.od, comm_, kInhibitSub, 0)) * 100;
-  event_timer_us_ = static_cast<TimeUs>(readOr(ctx_.od, comm_, kEventTimerSub, 0)) * 1000;
   sync_start_ = static_cast<std::uint8_t>(readOr(ctx_.od, comm_, kSyncStartSub, 0));
-  valid_ = false;
-  std::uint32_t code = map_.build(ctx_.od, map_index_, false, nullptr);
+  std::uint32_t code = buildMap(false);
   if (code != kSdoOk) return code;
-  if (!typeAllowed(type_)) return kAbortValueRange;
-  valid_ = (v & (kPdoInvalidBit | kPdoExtendedBit)) == 0 && cob_id_ != 0;
+  valid_ = enabledBy(v) && cob_id_ != 0;
   start(ctx_.now);
   return kSdoOk;
-}
-
-void Tpdo::configure() {
-  std::uint32_t code = reconfigure();
-  if (code == kSdoOk) return;
-  std::uint32_t bad = 0;
-  PdoMap probe;
-  probe.build(ctx_.od, map_index_, false, &bad);
-  throw OdError(pdoName("TPDO", number_, map_index_) + ": " + sdoAbortText(code) +
-                (bad != 0 ? " (entry " + mappingText(bad) + ")" : std::string()));
 }
 
 void Tpdo::start(TimeUs now) {

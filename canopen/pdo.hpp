@@ -80,17 +80,57 @@ class PdoMap {
   std::uint8_t size_ = 0;
 };
 
-class Rpdo {
+// What an RPDO and a TPDO share: where their parameters live (0x14xx/0x16xx or 0x18xx/0x1Axx), the
+// communication parameters both read (COB-ID, transmission type, event timer) and the compiled mapping.
+class PdoBase {
+ public:
+  unsigned number() const { return number_; }
+  bool valid() const { return valid_; }
+  std::uint32_t cobId() const { return cob_id_; }
+  std::uint8_t transmissionType() const { return type_; }
+  bool synchronous() const { return type_ <= kPdoSyncMax; }
+  const PdoMap& map() const { return map_; }
+
+ protected:
+  // number is 1-based (RPDO1 uses 0x1400/0x1600).
+  PdoBase(NodeContext& ctx, unsigned number, std::uint16_t comm_index, std::uint16_t map_index)
+      : ctx_(ctx), number_(number), comm_(comm_index), map_index_(map_index) {}
+  ~PdoBase() = default;  // owned as Rpdo or Tpdo, never deleted through the base
+
+  // Reads COB-ID, transmission type and event timer and leaves the PDO invalid; returns the COB-ID
+  // entry as stored (bits 31 and 29 tell whether it may be enabled, see enabledBy).
+  std::uint32_t readCommParameters();
+  // Compiles the mapping (receive: an RPDO's) and checks the transmission type: kSdoOk or why the PDO
+  // cannot be enabled.
+  std::uint32_t buildMap(bool receive);
+  // A COB-ID entry that enables the PDO: bit 31 clear, an 11-bit identifier.
+  static bool enabledBy(std::uint32_t cob_entry) { return (cob_entry & (kPdoInvalidBit | kPdoExtendedBit)) == 0; }
+  // configure(): throws OdError naming the PDO and its first bad mapping entry unless code is kSdoOk.
+  // Only reachable from the EDS: SDO writes are validated before they are stored.
+  void throwUnlessOk(std::uint32_t code, bool receive) const;
+
+  NodeContext& ctx_;
+  const unsigned number_;
+  const std::uint16_t comm_;
+  const std::uint16_t map_index_;
+  PdoMap map_;
+  bool valid_ = false;
+  std::uint32_t cob_id_ = 0;
+  std::uint8_t type_ = kPdoEventManufacturer;
+  TimeUs event_timer_us_ = 0;
+};
+
+class Rpdo : public PdoBase {
  public:
   using TimeoutHook = std::function<void(unsigned number, TimeUs now)>;
 
   // number is 1-based (RPDO1 uses 0x1400/0x1600).
   Rpdo(NodeContext& ctx, unsigned number, std::uint16_t comm_index, std::uint16_t map_index)
-      : ctx_(ctx), number_(number), comm_(comm_index), map_index_(map_index) {}
+      : PdoBase(ctx, number, comm_index, map_index) {}
   void setTimeoutHook(TimeoutHook h) { timeout_hook_ = std::move(h); }
   void registerHooks();
   // Reads the communication and mapping parameters; throws OdError for an invalid mapping.
-  void configure();
+  void configure() { throwUnlessOk(reconfigure(), true); }
   // Same without throwing (run-time path after an SDO write); returns kSdoOk or why the PDO is off.
   std::uint32_t reconfigure();
 
@@ -100,64 +140,60 @@ class Rpdo {
   void advance(TimeUs now);
   TimeUs nextDeadline() const;
   // Drops buffered data (leaving Operational).
-  void reset();
+  void reset() { rx_ = Reception{}; }
 
-  unsigned number() const { return number_; }
-  bool valid() const { return valid_; }
-  std::uint32_t cobId() const { return cob_id_; }
-  std::uint8_t transmissionType() const { return type_; }
-  bool synchronous() const { return type_ <= kPdoSyncMax; }
-  const PdoMap& map() const { return map_; }
-  std::uint64_t received() const { return received_; }
-  std::uint64_t wrongLength() const { return wrong_length_; }
+  std::uint64_t received() const { return stats_.received; }
+  std::uint64_t wrongLength() const { return stats_.wrong_length; }
   // Synchronous RPDOs: one frame per SYNC cycle is expected. Frames after the synchronous window
   // (0x1007) are discarded (late); a repeat with the same data is ignored (duplicate); a repeat with
   // other data discards the cycle's data (conflict: two producers, or a frame from an earlier cycle).
-  std::uint64_t late() const { return late_; }
-  std::uint64_t duplicates() const { return duplicates_; }
-  std::uint64_t conflicts() const { return conflicts_; }
+  std::uint64_t late() const { return stats_.late; }
+  std::uint64_t duplicates() const { return stats_.duplicates; }
+  std::uint64_t conflicts() const { return stats_.conflicts; }
   // The cycle latched at the last SYNC had a conflict (its data were discarded).
-  bool conflictInLastCycle() const { return conflict_latched_; }
-  // SYNCs since data last arrived (0: fresh this cycle); lets the application count missing PDOs.
+  bool conflictInLastCycle() const { return rx_.conflict_latched; }
   // SYNCs since data last arrived (0: in the cycle before this SYNC); UINT32_MAX before the first.
-  std::uint32_t syncsSinceReception() const { return syncs_since_rx_; }
-  bool timedOut() const { return timed_out_; }  // event timer (deadline monitoring) expired
-  TimeUs lastReceptionUs() const { return last_rx_us_; }
+  // Lets the application count missing PDOs.
+  std::uint32_t syncsSinceReception() const { return rx_.syncs_since_rx; }
+  bool timedOut() const { return rx_.timed_out; }  // event timer (deadline monitoring) expired
+  TimeUs lastReceptionUs() const { return rx_.last_rx_us; }
 
  private:
-  NodeContext& ctx_;
-  unsigned number_;
-  std::uint16_t comm_;
-  std::uint16_t map_index_;
+  // The reception state reset() drops: data waiting for the next SYNC, the cycle's checks, freshness.
+  struct Reception {
+    std::uint8_t pending[8] = {};
+    bool has_pending = false;
+    bool rx_since_sync = false;
+    bool timed_out = false;
+    TimeUs last_rx_us = kNever;
+    bool conflict = false;                      // in the cycle being received
+    bool conflict_latched = false;              // in the cycle latched at the last SYNC
+    std::uint32_t syncs_since_rx = UINT32_MAX;  // UINT32_MAX: nothing received yet
+  };
+  // What the RPDO has counted since it was built (reset() keeps it).
+  struct Stats {
+    std::uint64_t received = 0;
+    std::uint64_t wrong_length = 0;
+    std::uint64_t late = 0;
+    std::uint64_t duplicates = 0;
+    std::uint64_t conflicts = 0;
+  };
+  // Synchronous types: false if f is late, a duplicate or a conflict for this cycle (counted here).
+  bool acceptSynchronous(const Frame& f, TimeUs now);
+
   TimeoutHook timeout_hook_;
-  PdoMap map_;
-  bool valid_ = false;
   bool subscribed_ = false;
-  std::uint32_t cob_id_ = 0;
-  std::uint8_t type_ = kPdoEventManufacturer;
-  TimeUs event_timer_us_ = 0;
-  std::uint8_t pending_[8] = {};
-  bool has_pending_ = false;
-  bool rx_since_sync_ = false;
-  bool timed_out_ = false;
-  TimeUs last_rx_us_ = kNever;
-  std::uint64_t received_ = 0;
-  std::uint64_t wrong_length_ = 0;
-  std::uint64_t late_ = 0;
-  std::uint64_t duplicates_ = 0;
-  std::uint64_t conflicts_ = 0;
-  bool conflict_ = false;          // in the cycle being received
-  bool conflict_latched_ = false;  // in the cycle latched at the last SYNC
-  std::uint32_t syncs_since_rx_ = UINT32_MAX;  // UINT32_MAX: nothing received yet
+  Reception rx_;
+  Stats stats_;
 };
 
-class Tpdo {
+class Tpdo : public PdoBase {
  public:
   // change_of_state: event-driven TPDOs also send when their mapped data changed (checked in advance()).
   Tpdo(NodeContext& ctx, unsigned number, std::uint16_t comm_index, std::uint16_t map_index, bool change_of_state)
-      : ctx_(ctx), number_(number), comm_(comm_index), map_index_(map_index), change_of_state_(change_of_state) {}
+      : PdoBase(ctx, number, comm_index, map_index), change_of_state_(change_of_state) {}
   void registerHooks();
-  void configure();
+  void configure() { throwUnlessOk(reconfigure(), false); }
   std::uint32_t reconfigure();
 
   // SYNC: synchronous types count SYNCs and send (after the application callback has run).
@@ -169,29 +205,14 @@ class Tpdo {
   // Entering Operational: event-driven PDOs send once, synchronous counters restart.
   void start(TimeUs now);
 
-  unsigned number() const { return number_; }
-  bool valid() const { return valid_; }
-  std::uint32_t cobId() const { return cob_id_; }
-  std::uint8_t transmissionType() const { return type_; }
-  bool synchronous() const { return type_ <= kPdoSyncMax; }
-  const PdoMap& map() const { return map_; }
   std::uint64_t sent() const { return sent_; }
 
  private:
   bool eventDriven() const { return type_ >= kPdoEventManufacturer; }
   bool changed() const;
   void transmit(TimeUs now);
-  NodeContext& ctx_;
-  unsigned number_;
-  std::uint16_t comm_;
-  std::uint16_t map_index_;
-  bool change_of_state_;
-  PdoMap map_;
-  bool valid_ = false;
-  std::uint32_t cob_id_ = 0;
-  std::uint8_t type_ = kPdoEventManufacturer;
+  const bool change_of_state_;
   TimeUs inhibit_us_ = 0;
-  TimeUs event_timer_us_ = 0;
   std::uint8_t sync_start_ = 0;
   bool waiting_for_start_ = false;
   std::uint8_t sync_count_ = 0;
