@@ -22,9 +22,10 @@ void ControllerOptions::addGains(CLI::App* a) {
 void ControllerOptions::addStructure(CLI::App* a) {
   a->add_option("--amc-form", amc_form,
                 "eq. (17): 'printed' predicts Y_{k+1} from the nominal command itself (the paper); 'increment' adds "
-                "the model's one-step increment to the posterior output")
+                "the model's one-step increment to the posterior output; 'bus' predicts through the commands still "
+                "on the bus first (a Smith predictor of eq. 17, at the horizon --delay + 1)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"printed", "increment"}));
+      ->check(CLI::IsMember({"printed", "increment", "bus"}));
   a->add_option("--amc-horizon", cc.amc_horizon,
                 "AMC prediction horizon [samples]; 1 = eq. (17), 0 = automatic (bus delay + the model's response time)")
       ->capture_default_str()
@@ -80,6 +81,7 @@ void ControllerOptions::addStructure(CLI::App* a) {
 control::ControllerConfig ControllerOptions::config() const {
   control::ControllerConfig c = cc;
   c.amc_as_printed = amc_form == "printed";
+  c.amc_bus_aware = amc_form == "bus";
   c.eso_order = eso_form == "printed" ? 2 : 1;
   if (!model_file.empty()) c.model = io::readModelFile(model_file);
   return c;

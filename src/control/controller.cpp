@@ -110,6 +110,7 @@ int responseHorizon(const ControllerConfig& c) {
 }
 
 int amcHorizon(const ControllerConfig& c) {
+  if (c.amc_bus_aware) return c.delay_cycles + 1;
   if (c.amc_horizon > 0) return c.amc_horizon;
   if (c.amc_inverse <= 0.0) return 1;
   return responseHorizon(c);
@@ -134,6 +135,8 @@ void validate(const ControllerConfig& c) {
   if (!(c.mbc_accel_mm_s2 > 0.0) || !std::isfinite(c.mbc_accel_mm_s2)) bad("mbc_accel_mm_s2 must be positive");
   if (c.mbc_horizon > 0 && c.mbc_horizon <= c.delay_cycles)
     bad("mbc_horizon must be above delay_cycles (the command must act within the horizon)");
+  if (c.amc_bus_aware && (c.amc_inverse > 0.0 || c.amc_horizon > 1))
+    bad("the bus-aware AMC is the paper's form (amc_inverse 0) at the horizon delay_cycles + 1 (amc_horizon 0 or 1)");
   if (c.amc_inverse > 0.0 && c.amc_horizon > 0 && c.amc_horizon <= c.delay_cycles)
     bad("the predictive AMC needs amc_horizon above delay_cycles (the command must act within the horizon)");
 }
@@ -260,11 +263,11 @@ class PiAmc final : public Controller {
     ctx.Ts = cfg_.Ts;
     ctx.load = load;
     double y_next;
+    std::array<double, 8> in_flight{};  // the commands still on their way, the oldest first
+    const int d = cfg_.delay_cycles;
+    for (int j = 0; j < d; ++j) in_flight[static_cast<size_t>(j)] = hist_.get(d - 1 - j);
     if (cfg_.amc_inverse > 0.0) {
       // Predictive form: the commands already on their way first, then the nominal command held.
-      const int d = cfg_.delay_cycles;
-      std::array<double, 8> in_flight{};
-      for (int j = 0; j < d; ++j) in_flight[static_cast<size_t>(j)] = hist_.get(d - 1 - j);
       y_next = am_.predictAhead(in_flight.data(), d, un, cfg_.amc_horizon, load);
       if (std::isfinite(y_next)) {
         // Slope of the response in the direction the correction will move (hysteresis differs).
@@ -272,6 +275,9 @@ class PiAmc final : public Controller {
         const double g = (am_.predictAhead(in_flight.data(), d, un + du, cfg_.amc_horizon, load) - y_next) / du;
         if (std::isfinite(g) && std::fabs(g) > 1e-3) inverse_gain_ = g;
       }
+    } else if (cfg_.amc_bus_aware) {
+      // Eq. (17) through the bus: the commands on their way, then one step of the nominal command.
+      y_next = am_.predictAhead(in_flight.data(), d, un, d + 1, load);
     } else if (cfg_.amc_horizon <= 1) {
       const double un_eff = cfg_.model.inputStage(nom_, un, ctx);
       y_next = cfg_.amc_as_printed ? am_.predictNextAsPrinted(un_eff_prev_, un_eff, load)

@@ -89,6 +89,12 @@ struct ControllerConfig {
   // itself through the direct feedthrough with gain kc k rho) or as an increment on the posterior
   // output (false); see docs/CONTROL.md. Only for the paper's form (amc_inverse = 0, horizon 1).
   bool amc_as_printed = true;
+  // Eq. (17) bus-aware (the paper's form, amc_inverse = 0): Y_hat is predicted from the posterior rolled
+  // through the commands still on the bus (delay_cycles of them) and then one step of the nominal
+  // command - a Smith predictor of the paper's prediction, at the horizon delay_cycles + 1, where the
+  // setpoint is read too. The compensation then no longer feeds back on itself through the delay
+  // (docs/EXPERIMENTS.md, "The paper's AMC, bus-aware").
+  bool amc_bus_aware = false;
   // ESO, the plant its observer assumes (docs/CONTROL.md). 2 (default): the paper's, eqs. (22)-(24),
   // a double integrator x1'' = b0 u + tau, with fal() of delta in mm and b0 [mm/(s^2 V)] (the paper:
   // beta1 = beta2 = beta3 = 100, delta = 500, b0 = 1). 1: pamc's own first-order observer, the same

@@ -27,6 +27,7 @@ constexpr Setting<int> kInts[] = {{"amc_horizon", &ControllerConfig::amc_horizon
                                   {"eso_order", &ControllerConfig::eso_order},
                                   {"delay_cycles", &ControllerConfig::delay_cycles}};
 constexpr Setting<bool> kBools[] = {{"amc_as_printed", &ControllerConfig::amc_as_printed},
+                                    {"amc_bus_aware", &ControllerConfig::amc_bus_aware},
                                     {"open_loop_linear", &ControllerConfig::open_loop_linear}};
 
 template <class T, size_t N>

@@ -41,7 +41,8 @@ std::string esoText(const control::ControllerConfig& c) {
 
 std::string gainsText(const control::ControllerConfig& c) {
   return "kp " + fmt("%g", c.kp) + " V/mm, ki " + fmt("%g", c.ki) + " V/(mm s), kc " + fmt("%g", c.kc) + " V/mm" +
-         (c.amc_as_printed ? " (eq. 17 as printed)" : " (eq. 17 as increment)") + ", " + esoText(c) + ", delay " +
+         (c.amc_bus_aware ? " (eq. 17 through the commands on the bus)"
+                            : c.amc_as_printed ? " (eq. 17 as printed)" : " (eq. 17 as increment)") + ", " + esoText(c) + ", delay " +
          std::to_string(c.delay_cycles) + " cycles";
 }
 
