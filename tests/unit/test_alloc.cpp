@@ -54,6 +54,29 @@ TEST_P(AllocationFree, TenThousandCyclesOnTheEmulator) {
   EXPECT_EQ(allocs, 0) << control::toString(GetParam());
 }
 
+// The paper's AMC read bus-aware (the posterior rolled through the commands in flight) on the emulator.
+TEST(Allocation, BusAwareAmcCyclesAllocateNothing) {
+  if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  const auto pc = plant::PlantConfig::modelDefaults();
+  control::ControllerConfig cfg;
+  cfg.model = pc.truth;
+  cfg.amc_bus_aware = true;
+  auto ctrl = control::makeController(control::Kind::PiAmc, cfg);
+  plant::Plant plant(pc);
+  plant.reset(0.0);
+  ctrl->activate(0.0, plant.measure());
+  long allocs = 0;
+  {
+    CountAllocations c;
+    for (int k = 0; k < 10000; ++k) {
+      const double yd = 15 + 10 * std::sin(2 * M_PI * 0.5 * k * 1e-3);
+      plant.step(ctrl->update(yd, yd, plant.measure()).u);
+    }
+    allocs = c.count();
+  }
+  EXPECT_EQ(allocs, 0);
+}
+
 // The AMC and the emulator with the payload's friction inside its force balance (force_loop).
 TEST(Allocation, ForceLoopCyclesAllocateNothing) {
   if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
