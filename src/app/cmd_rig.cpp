@@ -208,7 +208,7 @@ class RigCommand final : public Command {
     auto loggerp = std::make_unique<Logger>(candump, kInProcessBusName, run_.csv, run_.period_us);
     auto& logger = *loggerp;
     logger.records = ring.get();
-    MeasurementRecord measurement(c.layout.feedback);
+    MeasurementRecord measurement(c.layout.feedback, c.delay_cycles);
     attachMeasurement(logger, measurement, run_);
     int progress_fd = -1;
     if (!progress.empty()) {
@@ -276,7 +276,7 @@ class RigCommand final : public Command {
     TrackingSummary t;
     t.open_loop_input = run_.openLoopInput();
     std::vector<nodes::CycleRecord> kept;
-    MeasurementRecord measurement(c.layout.feedback);
+    MeasurementRecord measurement(c.layout.feedback, c.delay_cycles);
     hooks.on_record = [&](const nodes::CycleRecord& x) {
       t.add(x);
       if (!run_.csv.empty()) kept.push_back(x);

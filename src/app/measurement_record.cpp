@@ -29,19 +29,24 @@ double MeasurementRecord::period() const {
 }
 
 void MeasurementRecord::write(const std::string& path) const {
-  if (u_.size() < 2)
+  if (u_.size() < lag_ + 2)
     throw std::runtime_error(path + ": not written: " + std::to_string(u_.size()) + " cycles recorded (the run never got going)");
   if (gaps_ > 0)
     throw std::runtime_error(path + ": not written: the cycle records have " + std::to_string(gaps_) + " gap" +
                              (gaps_ == 1 ? "" : "s") + ", the first at t = " + io::fmt("%.3f", gap_at_) +
                              " s (records lost or the loop started over): not an evenly sampled record");
   const double Ts = period();
-  std::vector<double> t(u_.size());
-  for (std::size_t i = 0; i < t.size(); ++i) t[i] = static_cast<double>(i) * Ts;
-  if (with_p_)
-    io::writeCsvAtomic(path, {"t", "u", "y", "p"}, {&t, &u_, &y_, &p_});
-  else
-    io::writeCsvAtomic(path, {"t", "u", "y"}, {&t, &u_, &y_});
+  // Row i: the command of cycle i beside the position (and pressure) of cycle i + lag that reflects it.
+  const std::size_t n = u_.size() - lag_;
+  std::vector<double> t(n), u(u_.begin(), u_.begin() + static_cast<std::ptrdiff_t>(n));
+  std::vector<double> y(y_.begin() + static_cast<std::ptrdiff_t>(lag_), y_.end());
+  for (std::size_t i = 0; i < n; ++i) t[i] = static_cast<double>(i) * Ts;
+  if (with_p_) {
+    std::vector<double> p(p_.begin() + static_cast<std::ptrdiff_t>(lag_), p_.end());
+    io::writeCsvAtomic(path, {"t", "u", "y", "p"}, {&t, &u, &y, &p});
+  } else {
+    io::writeCsvAtomic(path, {"t", "u", "y"}, {&t, &u, &y});
+  }
 }
 
 }  // namespace pamc::app

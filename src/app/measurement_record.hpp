@@ -12,14 +12,22 @@
 
 namespace pamc::app {
 
+//
+// The file is the plant's record, not the bus's: the position latched at cycle k was taken at cycle k-1
+// and reflects the command computed at cycle k - (bus_delay_cycles + 1) (controller_node.hpp), so each
+// y (and p, sampled with it) is written beside that command, and the first bus_delay_cycles + 1 cycles'
+// positions, which no recorded command explains, are left out. A model identified on it holds the
+// plant's lags only, as one identified on `pamc emulate`'s record does; the controllers add the bus's
+// (--delay) themselves.
 class MeasurementRecord {
  public:
   // with_pressure: a p column (the valve's pressure feedback).
-  explicit MeasurementRecord(bool with_pressure) : with_p_(with_pressure) {}
+  MeasurementRecord(bool with_pressure, int bus_delay_cycles)
+      : with_p_(with_pressure), lag_(static_cast<std::size_t>(bus_delay_cycles) + 1) {}
 
   // One cycle: u the command that went to the valve, y the position the sensor gave, p the pressure.
   void add(const nodes::CycleRecord& r);
-  std::size_t size() const noexcept { return u_.size(); }
+  std::size_t size() const noexcept { return u_.size() > lag_ ? u_.size() - lag_ : 0; }  // samples written
   std::uint64_t faultCycles() const noexcept { return fault_cycles_; }
 
   // Writes t,u,y[,p] atomically, t from 0 at the first record with the cycle period as its step. Throws
@@ -31,6 +39,7 @@ class MeasurementRecord {
   double period() const;
 
   bool with_p_;
+  std::size_t lag_;  // cycles from a command to the position that reflects it
   std::vector<double> u_, y_, p_;
   double t_first_ = 0.0, t_last_ = 0.0;
   std::uint32_t k_last_ = 0;

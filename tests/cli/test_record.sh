@@ -30,6 +30,24 @@ check "diagnose reads the record (rc $?)" test -s "$work/rec_dg.json"
 "$PAMC" fit "$work/rec.csv" --generations 10 --quiet --out "$work/rec_model.json" > /dev/null 2>&1
 check "fit reads the record" grep -q '"pamc-model/1"' "$work/rec_model.json"
 
+# The record is the plant's, not the bus's: replayed through the same plant (`emulate --input-from`), the
+# position's steps line up with the record's at no lag - not at the bus's 3 cycles.
+"$PAMC" emulate --input-from "$work/rec.csv" --out "$work/rec_replay.csv" > /dev/null 2>&1
+lag=$(python3 - "$work/rec.csv" "$work/rec_replay.csv" <<'PY'
+import csv, sys
+def col(path):
+    with open(path) as f:
+        y = [float(r["y"]) for r in csv.DictReader(f)]
+    return [b - a for a, b in zip(y, y[1:])]
+a, b = col(sys.argv[1]), col(sys.argv[2])
+def corr(lag):
+    pairs = [(a[i], b[i - lag]) for i in range(max(0, lag), min(len(a), len(b) + lag))]
+    return sum(x * y for x, y in pairs) / len(pairs)
+print(max(range(-5, 6), key=corr))
+PY
+)
+check "the record's y follows its u at the plant's timing (best lag $lag, 0 expected)" test "$lag" = 0
+
 # The same through the logger thread that `pamc controller` uses (rig run --realtime: paced, 1 s).
 "$PAMC" rig run --od "$SRC/od" --realtime --priority 0 --input aprbs:2:0.05:0.3:-2:2 --duration 1 --preroll 0.2 \
   --out "$work/rt.csv" > "$work/rt.txt" 2>&1
