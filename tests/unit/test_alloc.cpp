@@ -54,51 +54,39 @@ TEST_P(AllocationFree, TenThousandCyclesOnTheEmulator) {
   EXPECT_EQ(allocs, 0) << control::toString(GetParam());
 }
 
-// The paper's AMC read bus-aware (the posterior rolled through the commands in flight) on the emulator.
-TEST(Allocation, BusAwareAmcCyclesAllocateNothing) {
-  if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
-  const auto pc = plant::PlantConfig::modelDefaults();
-  control::ControllerConfig cfg;
+namespace {
+// Allocations in 10000 cycles of the AMC configured by cfg (its model: the plant's truth) on the plant
+// pc, a 0.5 Hz sine to track and, with `payload`, 40 N hung on halfway.
+long amcCycleAllocations(control::ControllerConfig cfg, const plant::PlantConfig& pc, bool payload) {
   cfg.model = pc.truth;
-  cfg.amc_bus_aware = true;
   auto ctrl = control::makeController(control::Kind::PiAmc, cfg);
   plant::Plant plant(pc);
   plant.reset(0.0);
   ctrl->activate(0.0, plant.measure());
-  long allocs = 0;
-  {
-    CountAllocations c;
-    for (int k = 0; k < 10000; ++k) {
-      const double yd = 15 + 10 * std::sin(2 * M_PI * 0.5 * k * 1e-3);
-      plant.step(ctrl->update(yd, yd, plant.measure()).u);
-    }
-    allocs = c.count();
+  CountAllocations c;
+  for (int k = 0; k < 10000; ++k) {
+    const double yd = 15 + 10 * std::sin(2 * M_PI * 0.5 * k * 1e-3);
+    const auto o = ctrl->update(yd, yd, plant.measure());
+    plant.step(o.u, payload && k > 5000 ? 40.0 : 0.0);
   }
-  EXPECT_EQ(allocs, 0);
+  return c.count();
 }
+}  // namespace
 
 // The AMC and the emulator with the payload's friction inside its force balance (force_loop).
 TEST(Allocation, ForceLoopCyclesAllocateNothing) {
   if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const auto pc = plant::PlantConfig::fromJson(
       nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},"force_loop":{"enabled":true,"zmax":0.6}}})"), "test");
+  EXPECT_EQ(amcCycleAllocations({}, pc, true), 0);
+}
+
+// The paper's AMC read bus-aware (the posterior rolled through the commands in flight) on the emulator.
+TEST(Allocation, BusAwareAmcCyclesAllocateNothing) {
+  if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   control::ControllerConfig cfg;
-  cfg.model = pc.truth;
-  auto ctrl = control::makeController(control::Kind::PiAmc, cfg);
-  plant::Plant plant(pc);
-  plant.reset(0.0);
-  ctrl->activate(0.0, plant.measure());
-  long allocs = 0;
-  {
-    CountAllocations c;
-    for (int k = 0; k < 10000; ++k) {
-      const double yd = 15 + 10 * std::sin(2 * M_PI * 0.5 * k * 1e-3);
-      const auto o = ctrl->update(yd, yd, plant.measure());
-      plant.step(o.u, k > 5000 ? 40.0 : 0.0);
-    }
-    allocs = c.count();
-  }
-  EXPECT_EQ(allocs, 0);
+  cfg.amc_bus_aware = true;
+  EXPECT_EQ(amcCycleAllocations(cfg, plant::PlantConfig::modelDefaults(), false), 0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Controllers, AllocationFree,
