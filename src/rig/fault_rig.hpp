@@ -19,7 +19,7 @@
 #include "control/controller.hpp"
 #include "nodes/controller_node.hpp"
 
-namespace pamc::nodes {
+namespace pamc::rig {
 
 enum class BusFault {
   None,                 // the reference run
@@ -67,7 +67,7 @@ struct FaultRigOptions {
 struct FaultRun {
   BusFault fault = BusFault::None;
   double fault_s = 0;           // how long the fault was injected
-  Fault first = Fault::None;    // the controller's first safety fault (None: it stayed in control)
+  nodes::Fault first = nodes::Fault::None;  // the controller's first safety fault (None: it stayed in control)
   double detect_cycles = -1;    // SYNC periods from the injection to the controller's reaction (-1: none)
   double safe_cycles = -1;      // ... until the valve output its safe value (-1: it did not)
   std::vector<std::uint16_t> emcy;  // EMCY codes the controller sent after the injection, in order
@@ -82,7 +82,7 @@ struct FaultRun {
   std::uint64_t safe_cycles_total = 0;  // cycles the controller sent the safe value
   std::uint64_t cycles_without_sync = 0;  // SYNC periods in which no control cycle ran
   canopen::Counters counters;   // the controller node's counters at the end
-  FaultCounters fc;
+  nodes::FaultCounters fc;
   std::uint64_t bus_dropped = 0;  // frames the in-process bus refused (port queue full)
 };
 
@@ -193,4 +193,4 @@ struct GuardRow {
 std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o = {});
 std::string guardTableMarkdown(const std::vector<GuardRow>& rows);
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig

@@ -31,9 +31,10 @@
 extern "C" std::size_t __sanitizer_get_current_allocated_bytes(void);
 #endif
 
-namespace pamc::nodes {
+namespace pamc::rig {
 
 using namespace detail;
+using namespace nodes;
 
 namespace {
 
@@ -517,4 +518,4 @@ SoakResult runSoak(const SoakOptions& o, const std::function<void(const SoakInte
   return Soak(o, on_interval, on_progress).run();
 }
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig

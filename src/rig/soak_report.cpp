@@ -5,7 +5,9 @@
 
 #include "rig/fault_rig.hpp"
 
-namespace pamc::nodes {
+namespace pamc::rig {
+
+using namespace nodes;
 
 std::string soakIntervalHeader() {
   return "| h | cycles | SYNC gaps | lost outside faults | ring drops | faults (safe state) | back to normal | "
@@ -90,4 +92,4 @@ std::string soakReport(const SoakOptions& o, const SoakResult& r, bool intervals
   return s;
 }
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig
