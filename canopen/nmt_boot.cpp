@@ -80,15 +80,15 @@ void NmtMaster::reset(Slave& s, TimeUs now, bool send) noexcept {
   ++counters_.resets;
   s.state = Boot::Resetting;
   s.deadline = now + kBootUpTimeoutUs;
-  s.start_sent = kNever;
-  s.start_due = false;
+  s.start.sent = kNever;
+  s.start.due = false;
   arm();
 }
 
 void NmtMaster::steps(Slave& s, std::size_t from, bool checking) noexcept {
   s.checking = checking;
   s.kept = false;
-  s.start_due = false;
+  s.start.due = false;
   s.next_op = from;
   s.end_op = checking ? s.config_op : s.ops.size();
   s.tries_left = retriesOf(s.boot.assignment);
@@ -228,7 +228,7 @@ void NmtMaster::awaitHeartbeat(Slave& s, TimeUs now) noexcept {
 void NmtMaster::done(Slave& s, TimeUs now) noexcept {
   s.state = Boot::Done;
   s.deadline = kNever;
-  s.start_due = true;
+  s.start.due = true;
   if (s.kept) ++counters_.kept_alive;
   else ++counters_.boots;
   emit(s.id, s.kept ? SlaveEvent::KeptAlive : SlaveEvent::Configured, now);
@@ -243,8 +243,8 @@ void NmtMaster::bootFailed(Slave& s, BootStep step, std::uint32_t code, std::str
   ++counters_.boot_failures;
   // Left stopped: nothing of it moves on the bus until it boots again.
   node_.sendNmt(NmtCommand::Stop, s.id);
-  s.start_sent = kNever;
-  s.start_due = false;
+  s.start.sent = kNever;
+  s.start.due = false;
   const TimeUs now = node_.now();
   emit(s.id, SlaveEvent::BootFailed, now);
   poll(now);

@@ -138,7 +138,7 @@ void NmtMaster::loadPlan(Slave& s) {
   for (const auto& w : boot.writes)
     if (w.index == kProducerHeartbeat && w.sub == 0 && w.data.size() == 2)
       period_us = static_cast<TimeUs>(w.data[0] | (w.data[1] << 8)) * 1000;
-  s.grace_us = std::max<TimeUs>(kStartGraceFloorUs, kStartGracePeriods * period_us);
+  s.start.grace_us = std::max<TimeUs>(kStartGraceFloorUs, kStartGracePeriods * period_us);
 }
 
 namespace {
@@ -186,15 +186,15 @@ bool NmtMaster::mayStartAny() const noexcept {
 }
 
 bool NmtMaster::mayStart(const Slave& s) const noexcept {
-  if (s.hold != 0) return false;
+  if (s.start.hold != 0) return false;
   if (bootable(s) && s.state != Boot::Done) return false;
   return mayStartAny();
 }
 
 void NmtMaster::startSlave(Slave& s, TimeUs now) noexcept {
   node_.sendNmt(NmtCommand::Start, s.id);
-  s.start_sent = now;
-  s.start_due = false;
+  s.start.sent = now;
+  s.start.due = false;
   ++counters_.starts;
 }
 
@@ -206,7 +206,7 @@ void NmtMaster::startReady(TimeUs now) noexcept {
     network_started_ = true;
     if (std::all_of(slaves_.begin(), slaves_.end(), [this](const Slave& s) { return mayStart(s); })) {
       node_.sendNmt(NmtCommand::Start, 0);
-      for (auto& s : slaves_) s.start_sent = now, s.start_due = false;
+      for (auto& s : slaves_) s.start.sent = now, s.start.due = false;
       ++counters_.starts;
       return;
     }
@@ -214,7 +214,7 @@ void NmtMaster::startReady(TimeUs now) noexcept {
   // CiA 302-2 (as Lely's master): every booted slave is started, also one whose heartbeat already says
   // Operational (kept alive, or left running by another master).
   for (auto& s : slaves_)
-    if (s.start_due && mayStart(s)) startSlave(s, now);
+    if (s.start.due && mayStart(s)) startSlave(s, now);
 }
 
 void NmtMaster::begin(TimeUs now) {
@@ -224,7 +224,7 @@ void NmtMaster::begin(TimeUs now) {
   boot_time_ms_ = boot_time != nullptr ? static_cast<std::uint32_t>(boot_time->asUnsigned()) : 0;
   for (auto& s : slaves_) {
     if (s.state != Boot::Running) loadPlan(s);
-    s.start_due = !bootable(s);  // a boot slave is owed its start when its boot is done
+    s.start.due = !bootable(s);  // a boot slave is owed its start when its boot is done
   }
   begun_ = true;
   network_started_ = false;
@@ -280,25 +280,25 @@ void NmtMaster::start(std::uint8_t id, TimeUs now) noexcept {
 void NmtMaster::hold(std::uint8_t id, std::uint8_t reason) noexcept {
   Slave* s = find(id);
   if (s == nullptr) return;
-  const bool was = s->hold != 0;
-  s->hold |= reason;
+  const bool was = s->start.hold != 0;
+  s->start.hold |= reason;
   if (was) return;
   node_.sendNmt(NmtCommand::EnterPreOperational, id);
-  s->start_sent = kNever;
-  s->start_due = true;
+  s->start.sent = kNever;
+  s->start.due = true;
   ++counters_.holds;
 }
 
 void NmtMaster::release(std::uint8_t id, std::uint8_t reason, TimeUs now) noexcept {
   Slave* s = find(id);
-  if (s == nullptr || (s->hold & reason) == 0) return;
-  s->hold = static_cast<std::uint8_t>(s->hold & ~reason);
-  if (s->start_due && mayStart(*s)) startSlave(*s, now);
+  if (s == nullptr || (s->start.hold & reason) == 0) return;
+  s->start.hold = static_cast<std::uint8_t>(s->start.hold & ~reason);
+  if (s->start.due && mayStart(*s)) startSlave(*s, now);
 }
 
 std::uint8_t NmtMaster::holdReasons(std::uint8_t id) const noexcept {
   const Slave* s = find(id);
-  return s ? s->hold : 0;
+  return s ? s->start.hold : 0;
 }
 
 bool NmtMaster::down(std::uint8_t id, TimeUs now) noexcept {
@@ -314,12 +314,12 @@ bool NmtMaster::down(std::uint8_t id, TimeUs now) noexcept {
 
 bool NmtMaster::starting(std::uint8_t id, TimeUs now) const noexcept {
   const Slave* s = find(id);
-  return s != nullptr && s->start_sent != kNever && now - s->start_sent < s->grace_us;
+  return s != nullptr && s->start.sent != kNever && now - s->start.sent < s->start.grace_us;
 }
 
 TimeUs NmtMaster::startGraceUs(std::uint8_t id) const noexcept {
   const Slave* s = find(id);
-  return s != nullptr ? s->grace_us : kStartGraceFloorUs;
+  return s != nullptr ? s->start.grace_us : kStartGraceFloorUs;
 }
 
 bool NmtMaster::configured(std::uint8_t id) const noexcept {
@@ -345,11 +345,11 @@ const BootError* NmtMaster::bootError(std::uint8_t id) const noexcept {
 void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) noexcept {
   Slave* s = find(id);
   if (s == nullptr) return;
-  const bool held = s->hold != 0;
+  const bool held = s->start.hold != 0;
   switch (ev) {
     case HeartbeatEvent::Timeout:
       s->lost = true;
-      s->start_sent = kNever;
+      s->start.sent = kNever;
       emit(id, SlaveEvent::Lost, now);
       break;
     case HeartbeatEvent::BootUp:
@@ -359,7 +359,7 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
       if (bootable(*s)) {
         onBootEvent(*s, ev, st, now);
       } else {
-        s->start_due = true;
+        s->start.due = true;
         if (mayStart(*s)) startSlave(*s, now);
       }
       break;
@@ -371,7 +371,7 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
         if (!begun_) {
           // Not the master now: nothing to send.
         } else if ((s->boot.assignment & kAssignKeepAlive) != 0 && st == NmtState::Operational) {
-          s->start_sent = kNever;
+          s->start.sent = kNever;
           ++counters_.kept_alive;
         } else {
           ++counters_.reboots;
@@ -388,7 +388,7 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
         onBootEvent(*s, ev, st, now);
         break;
       }
-      if (st == NmtState::Operational) s->start_sent = kNever;
+      if (st == NmtState::Operational) s->start.sent = kNever;
       else if (st == NmtState::PreOperational && mayStart(*s)) startSlave(*s, now);
       break;
     case HeartbeatEvent::StateChanged:
@@ -397,7 +397,7 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
         break;
       }
       if (st == NmtState::Operational) {
-        s->start_sent = kNever;
+        s->start.sent = kNever;
       } else if (st == NmtState::PreOperational && !held) {
         emit(id, SlaveEvent::LeftOperational, now);
         if (mayStart(*s)) startSlave(*s, now);

@@ -227,13 +227,17 @@ class NmtMaster {
     std::uint32_t expected;  // Expect
     std::size_t item;        // Read: reads[item]; KeepRtr / Write / Verify: writes[item]; Config: config[item]
   };
+  // A slave's NMT start: owed, sent, held back.
+  struct Start {
+    TimeUs sent = kNever;          // NMT start sent, no Operational heartbeat yet
+    bool due = false;              // booted (or not to be booted), hold released: an NMT start is owed
+    TimeUs grace_us = kStartGraceFloorUs;  // for a start to show Operational
+    std::uint8_t hold = 0;         // reasons to keep it in Pre-operational
+  };
   struct Slave {
     std::uint8_t id = 0;
     bool lost = false;             // heartbeat timed out: re-boot it when it is back
-    TimeUs start_sent = kNever;    // NMT start sent, no Operational heartbeat yet
-    bool start_due = false;        // booted (or not to be booted), hold released: an NMT start is owed
-    TimeUs grace_us = kStartGraceFloorUs;  // for a start to show Operational
-    std::uint8_t hold = 0;         // reasons to keep it in Pre-operational
+    Start start;
     SlaveBoot boot;                // from the dictionary at begin(), with reads
     std::vector<SlaveBoot::Read> reads;    // the application's (setReads)
     std::vector<SlaveBoot::Write> config;  // the application's (setConfig)

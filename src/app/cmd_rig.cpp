@@ -39,12 +39,12 @@ class RigCommand final : public Command {
     guards_cmd_ = cmd_->add_subcommand("guards", "write parameters over SDO to the running controller and print "
                                                  "the abort codes and what the loop saw");
     addRunOptions(run_cmd_);
-    addFaultToolOptions(faults_cmd_, nodes::FaultRigOptions{});
+    addFaultToolOptions(faults_cmd_, rig::FaultRigOptions{});
     faults_cmd_->add_option("--only", only, kOnlyHelp);
-    addFaultToolOptions(soak_cmd_, nodes::SoakOptions{});
+    addFaultToolOptions(soak_cmd_, rig::SoakOptions{});
     addSoakOptions(soak_cmd_);
     soak_cmd_->get_option("--hours")->required();
-    addFaultToolOptions(guards_cmd_, nodes::FaultRigOptions{});
+    addFaultToolOptions(guards_cmd_, rig::FaultRigOptions{});
     addOldForms();
     cmd_->callback([this] { noticeOfPlainRig(); });
   }
@@ -132,19 +132,19 @@ class RigCommand final : public Command {
     if (from_->count("--ki")) o.ki = ctrl_.cc.ki;
     if (from_->count("--kc")) o.kc = ctrl_.cc.kc;
   }
-  std::vector<nodes::BusFault> faultList() const {
-    std::vector<nodes::BusFault> list;
+  std::vector<rig::BusFault> faultList() const {
+    std::vector<rig::BusFault> list;
     std::string rest = only;
     while (!rest.empty()) {
       const auto c = rest.find(',');
       const std::string name = rest.substr(0, c);
       rest = c == std::string::npos ? "" : rest.substr(c + 1);
       bool found = false;
-      for (auto f : nodes::allBusFaults())
-        if (name == nodes::busFaultName(f)) list.push_back(f), found = true;
+      for (auto f : rig::allBusFaults())
+        if (name == rig::busFaultName(f)) list.push_back(f), found = true;
       if (!found) {
         std::string names;
-        for (auto f : nodes::allBusFaults()) names += std::string(names.empty() ? "" : ", ") + nodes::busFaultName(f);
+        for (auto f : rig::allBusFaults()) names += std::string(names.empty() ? "" : ", ") + rig::busFaultName(f);
         throw std::invalid_argument("--only: unknown fault '" + name + "' (one of: " + names + ")");
       }
     }
@@ -152,23 +152,23 @@ class RigCommand final : public Command {
   }
 
   int runRigChecks() {
-    nodes::FaultRigOptions o;
+    rig::FaultRigOptions o;
     o.od_dir = od_.dir;
     applyController(o);
     if (from_ == guards_cmd_ || sdo_guards) {
-      std::printf("%s", nodes::guardTableMarkdown(nodes::runParameterGuards(o)).c_str());
+      std::printf("%s", rig::guardTableMarkdown(rig::runParameterGuards(o)).c_str());
       if (from_ == guards_cmd_ || !faults) return 0;
       std::printf("\n");
     }
     const auto list = faultList();
     std::fprintf(stderr, "in-process bus, %s, fault injected after %g s of a 0.2 Hz sine, run on %g s after it cleared\n",
                  control::toString(o.kind), o.inject_at_s, o.after_s);
-    std::printf("%s", nodes::faultTableMarkdown(nodes::runFaultTable(list, o)).c_str());
+    std::printf("%s", rig::faultTableMarkdown(rig::runFaultTable(list, o)).c_str());
     return 0;
   }
 
   int runSoak() {
-    nodes::SoakOptions o;
+    rig::SoakOptions o;
     o.od_dir = od_.dir;
     o.hours = soak_hours;
     o.seed = seed;
@@ -181,15 +181,15 @@ class RigCommand final : public Command {
                  "controller consuming the SYNC of a producer node, 1 Mbit/s bus; faults (%zu kinds) every %g-%g s "
                  "after the last check, seed %llu\n",
                  o.hours, control::toString(o.kind), o.kp, o.ki, o.kc,
-                 o.faults.empty() ? nodes::allBusFaults().size() : o.faults.size(), o.gap_min_s, o.gap_max_s,
+                 o.faults.empty() ? rig::allBusFaults().size() : o.faults.size(), o.gap_min_s, o.gap_max_s,
                  static_cast<unsigned long long>(o.seed));
-    std::printf("%s", nodes::soakIntervalHeader().c_str());
+    std::printf("%s", rig::soakIntervalHeader().c_str());
     std::fflush(stdout);
     const auto t0 = std::chrono::steady_clock::now();
-    const auto r = nodes::runSoak(
+    const auto r = rig::runSoak(
         o,
-        [](const nodes::SoakInterval& i) {
-          std::printf("%s", nodes::soakIntervalLine(i).c_str());
+        [](const rig::SoakInterval& i) {
+          std::printf("%s", rig::soakIntervalLine(i).c_str());
           std::fflush(stdout);
         },
         [&](double sim_s) {
@@ -199,7 +199,7 @@ class RigCommand final : public Command {
           std::fprintf(stderr, "soak: %.2f of %g h simulated, %.0f s wall, about %.0f s to go\n", sim_s / 3600.0,
                        o.hours, wall, wall / sim_s * (total - sim_s));
         });
-    std::printf("%s", nodes::soakReport(o, r, false).c_str());  // the intervals are printed above
+    std::printf("%s", rig::soakReport(o, r, false).c_str());  // the intervals are printed above
     return r.passed() ? 0 : 1;
   }
 
@@ -218,7 +218,7 @@ class RigCommand final : public Command {
     timespec wall{};
     ::clock_gettime(CLOCK_REALTIME, &wall);
     const canopen::TimeUs epoch = static_cast<canopen::TimeUs>(wall.tv_sec) * 1000000 + wall.tv_nsec / 1000;
-    nodes::VirtualRigHooks hooks;
+    rig::VirtualRigHooks hooks;
     hooks.realtime = true;
     hooks.tap = [&](const canopen::Frame& f, canopen::TimeUs t) { logger.frames.push({f, epoch + t}); };
     nodes::CycleRecord last{};
@@ -244,7 +244,7 @@ class RigCommand final : public Command {
     logger.start();
     std::fprintf(stderr, "in-process bus paced in real time: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
                  c.node_id ? c.node_id : 1u, c.sensor_id, c.valve_id, run_.preroll, run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
-    const auto r = nodes::runVirtualRig(c, ec, run_.duration, "", epoch, 0, hooks);
+    const auto r = rig::runVirtualRig(c, ec, run_.duration, "", epoch, 0, hooks);
     logger.stop();
     if (progress_fd >= 0) ::close(progress_fd);
     std::printf("%llu frames on the bus, %llu faults%s%s\n", static_cast<unsigned long long>(r.frames),
@@ -265,7 +265,7 @@ class RigCommand final : public Command {
 
   // Virtual time, as fast as it goes; --duration 0 runs until Ctrl-C.
   int runVirtual(const nodes::ControllerNodeConfig& c) {
-    nodes::VirtualRigHooks hooks;
+    rig::VirtualRigHooks hooks;
     const bool forever = run_.duration <= 0;
     if (forever) {
       installSignals();
@@ -285,7 +285,7 @@ class RigCommand final : public Command {
     std::fprintf(stderr, "in-process bus: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
                  c.node_id ? c.node_id : 1u, c.sensor_id, c.valve_id, run_.preroll,
                  forever ? "until Ctrl-C" : (std::to_string(run_.duration) + " s run").c_str());
-    const auto r = nodes::runVirtualRig(c, ec, run_.duration, candump, 1700000000000000, 0, hooks);
+    const auto r = rig::runVirtualRig(c, ec, run_.duration, candump, 1700000000000000, 0, hooks);
     if (!run_.csv.empty()) {
       std::vector<double> tt, yd, y, u, un, uc, yh, f;
       for (const auto& x : kept) {

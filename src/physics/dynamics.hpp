@@ -48,9 +48,23 @@ class RigModel {
   double muscleForce(double p_abs, double y) const noexcept;
   double staticForce(double p_abs, double y, double force_N) const noexcept;
 
+  // The muscle's geometry at rest (Tondu-Lopez): cross-section [m^2], length [m], the braid's
+  // a = 3 / tan^2 theta0, b = 1 / sin^2 theta0 and cos^2 theta0, and the braid's volume [m^3].
+  struct Geometry {
+    double area, len, a, b, cos2, vol0;
+  };
+  // The braid's Dahl friction: its amplitude at zero gauge pressure [N], its growth with pressure
+  // [N/Pa], and the travel over which it builds up [m].
+  struct Hysteresis {
+    double h0, per_Pa, delta;
+  };
+
   const PhysicsConfig* c_;
-  double p_atm_, p_sup_, p_set_max_, c_rho0_, band_Pa_, area_, len_, a_, b_, cos2_, vol0_, vol_dead_;
-  double rt_, k_rubber_, k_load_, hyst0_, hyst_per_Pa_, delta_h_, mass_, weight_, coul_v_;
+  double p_atm_, p_sup_, p_set_max_, c_rho0_, band_Pa_, vol_dead_, rt_;
+  Geometry geo_;
+  double k_rubber_, k_load_;
+  Hysteresis hyst_;
+  double mass_, weight_, coul_v_;
   double y_min_, y_max_;
 };
 

@@ -39,20 +39,20 @@ RigModel::RigModel(const PhysicsConfig& c) : c_(&c) {
   band_Pa_ = g.band_bar * 1e5;
   rt_ = kRAir * g.temperature_K;
   const double r0 = 0.5 * m.diameter_mm * 1e-3;
-  area_ = kPi * r0 * r0;
-  len_ = m.length_mm * 1e-3;
+  geo_.area = kPi * r0 * r0;
+  geo_.len = m.length_mm * 1e-3;
   const double th = m.braid_angle_deg * kPi / 180.0;
-  cos2_ = std::cos(th) * std::cos(th);
-  const double sin2 = 1.0 - cos2_;
-  a_ = 3.0 * cos2_ / sin2;  // 3 / tan^2 theta0
-  b_ = 1.0 / sin2;          // 1 / sin^2 theta0
-  vol0_ = area_ * len_;
+  geo_.cos2 = std::cos(th) * std::cos(th);
+  const double sin2 = 1.0 - geo_.cos2;
+  geo_.a = 3.0 * geo_.cos2 / sin2;  // 3 / tan^2 theta0
+  geo_.b = 1.0 / sin2;              // 1 / sin^2 theta0
+  geo_.vol0 = geo_.area * geo_.len;
   vol_dead_ = g.dead_volume_cm3 * 1e-6;
   k_rubber_ = m.rubber_N_per_mm * 1e3;
   k_load_ = l.spring_N_per_mm * 1e3;
-  hyst0_ = m.hysteresis_N;
-  hyst_per_Pa_ = m.hysteresis_N_per_bar * 1e-5;
-  delta_h_ = m.hysteresis_travel_mm * 1e-3;
+  hyst_.h0 = m.hysteresis_N;
+  hyst_.per_Pa = m.hysteresis_N_per_bar * 1e-5;
+  hyst_.delta = m.hysteresis_travel_mm * 1e-3;
   mass_ = l.mass_kg;
   weight_ = l.mass_kg * l.gravity_m_per_s2 + l.spring_preload_N;
   coul_v_ = l.coulomb_velocity_mm_per_s * 1e-3;
@@ -67,8 +67,8 @@ double RigModel::setpoint_Pa(double cmd) const noexcept {
 
 // Tondu-Lopez: F = p_gauge pi r0^2 (a (1 - k eps)^2 - b), minus the rubber's elastic force.
 double RigModel::muscleForce(double p_abs, double y) const noexcept {
-  const double s = 1.0 - c_->muscle.tondu_k * (y / len_);
-  return area_ * (p_abs - p_atm_) * (a_ * s * s - b_) - k_rubber_ * y;
+  const double s = 1.0 - c_->muscle.tondu_k * (y / geo_.len);
+  return geo_.area * (p_abs - p_atm_) * (geo_.a * s * s - geo_.b) - k_rubber_ * y;
 }
 
 // Net static force on the payload in the contraction direction, at rest (no friction).
@@ -90,7 +90,7 @@ void RigModel::rhs(const PhysicsState& x, PhysicsState& dx, double cmd, double f
 
   const double y = x[kY], v = x[kYd];
   const double p_gauge = p - p_atm_;
-  const double hyst = (hyst0_ + hyst_per_Pa_ * std::max(p_gauge, 0.0)) * x[kZh];
+  const double hyst = (hyst_.h0 + hyst_.per_Pa * std::max(p_gauge, 0.0)) * x[kZh];
   double f = muscleForce(p, y) - hyst - weight_ - k_load_ * y - force_N - c_->payload.viscous_N_s_per_m * v -
              c_->payload.coulomb_N * std::tanh(v / coul_v_);
   // Against a stop the stop's reaction balances a force into it: the payload rests there.
@@ -103,12 +103,13 @@ void RigModel::rhs(const PhysicsState& x, PhysicsState& dx, double cmd, double f
   dx[kYd] = v_eff == 0.0 && f == 0.0 ? 0.0 : f / mass_;
 
   // Geometric volume of the braid (Tondu's cylinder), dV/dy = pi r0^2 (a s^2 - b) with s = 1 - eps.
-  const double s = 1.0 - y / len_;
-  const double vol = std::max(vol0_ * s * (1.0 - cos2_ * s * s) / (1.0 - cos2_), 0.2 * vol0_) + vol_dead_;
-  const double dvol_dy = area_ * (a_ * s * s - b_);
+  const double s = 1.0 - y / geo_.len;
+  const double vol =
+      std::max(geo_.vol0 * s * (1.0 - geo_.cos2 * s * s) / (1.0 - geo_.cos2), 0.2 * geo_.vol0) + vol_dead_;
+  const double dvol_dy = geo_.area * (geo_.a * s * s - geo_.b);
   dx[kP] = g.polytropic_index / vol * (rt_ * mdot - p * dvol_dy * v_eff);
   // Dahl friction of the braid, rate-independent in the contraction: dz/dy = (1 - sgn(dy) z) / delta.
-  dx[kZh] = (v_eff - std::fabs(v_eff) * x[kZh]) / delta_h_;
+  dx[kZh] = (v_eff - std::fabs(v_eff) * x[kZh]) / hyst_.delta;
   if (c_->effects.creep.enabled)
     dx[kCreepR] = (c_->effects.creep.fraction * y * 1e3 - x[kCreepR]) / c_->effects.creep.tau;
 }
@@ -117,8 +118,8 @@ void RigModel::rest(PhysicsState& x, double cmd, double force_N) const noexcept 
   x.fill(0.0);
   const double p = setpoint_Pa(cmd);
   x[kP] = p;
-  double lo = c_->stroke_limits ? y_min_ : -0.1 * len_;
-  double hi = c_->stroke_limits ? y_max_ : 0.45 * len_;
+  double lo = c_->stroke_limits ? y_min_ : -0.1 * geo_.len;
+  double hi = c_->stroke_limits ? y_max_ : 0.45 * geo_.len;
   double y;
   // The net force falls with the contraction: bisect to the equilibrium, or rest on a stop.
   if (staticForce(p, lo, force_N) <= 0.0) {

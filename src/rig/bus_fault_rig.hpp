@@ -16,7 +16,7 @@
 #include "plant/plant.hpp"
 #include "rig/fault_rig.hpp"
 
-namespace pamc::nodes::detail {
+namespace pamc::rig::detail {
 
 using canopen::Frame;
 using canopen::TimeUs;
@@ -159,7 +159,7 @@ struct Rig {
       : bus(), cport(bus.addPort()), eport(bus.addPort()), aux(bus.addPort()) {
     const bool consume = soak || consumesSync(f);
     if (soak || timedBus(f)) bus.setBitrate(1'000'000, 32);
-    ControllerNodeConfig c;
+    nodes::ControllerNodeConfig c;
     c.eds_path = o.od_dir + "/controller.eds";
     c.kind = static_cast<int>(o.kind);
     c.gains_from_config = true;
@@ -172,12 +172,12 @@ struct Rig {
     c.preroll_s = o.preroll_s;
     c.produce_sync = !consume;
     traj = c.trajectory;
-    EmulatorConfig e;
+    nodes::EmulatorConfig e;
     e.sensor_eds = o.od_dir + "/sensor.eds";
     e.valve_eds = o.od_dir + "/valve.eds";
     e.seed = o.seed;
-    ctrl = std::make_unique<ControllerNode>(c, cport, [this] { return bus.now(); });
-    emu = std::make_unique<EmulatorNodes>(e, eport);
+    ctrl = std::make_unique<nodes::ControllerNode>(c, cport, [this] { return bus.now(); });
+    emu = std::make_unique<nodes::EmulatorNodes>(e, eport);
     cport.setClient(&ctrl->node());
     eport.setClient(emu.get());
     if (consume) {
@@ -220,7 +220,7 @@ struct Rig {
   }
   void step(TimeUs dt) {
     bus.advanceBy(dt);
-    CycleRecord r;
+    nodes::CycleRecord r;
     while (ctrl->records().pop(r)) {
       recs.push_back(r);
       rec_us.push_back(bus.now());
@@ -229,13 +229,13 @@ struct Rig {
 
   VirtualBus bus;
   VirtualBus::Port &cport, &eport, &aux;
-  std::unique_ptr<ControllerNode> ctrl;
-  std::unique_ptr<EmulatorNodes> emu;
+  std::unique_ptr<nodes::ControllerNode> ctrl;
+  std::unique_ptr<nodes::EmulatorNodes> emu;
   std::unique_ptr<SyncSource> sync;
   std::unique_ptr<Flooder> flood;
   std::unique_ptr<Impostor> imp_ctrl, imp_sensor;
   control::Trajectory traj;
-  std::vector<CycleRecord> recs;
+  std::vector<nodes::CycleRecord> recs;
   std::vector<TimeUs> rec_us;
   std::vector<std::uint16_t> emcy;
   std::uint64_t emcy_frames = 0;
@@ -245,4 +245,4 @@ struct Rig {
 void begin(Rig& r, BusFault f);
 void end(Rig& r, BusFault f);
 
-}  // namespace pamc::nodes::detail
+}  // namespace pamc::rig::detail

@@ -25,9 +25,10 @@
 #include "plant/plant.hpp"
 
 
-namespace pamc::nodes {
+namespace pamc::rig {
 
 using namespace detail;
+using namespace nodes;
 
 namespace detail {
 
@@ -264,4 +265,4 @@ std::string faultTableMarkdown(const std::vector<FaultRun>& runs) {
   return s;
 }
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig

@@ -19,7 +19,7 @@
 #include "control/controller.hpp"
 #include "nodes/controller_node.hpp"
 
-namespace pamc::nodes {
+namespace pamc::rig {
 
 enum class BusFault {
   None,                 // the reference run
@@ -67,7 +67,7 @@ struct FaultRigOptions {
 struct FaultRun {
   BusFault fault = BusFault::None;
   double fault_s = 0;           // how long the fault was injected
-  Fault first = Fault::None;    // the controller's first safety fault (None: it stayed in control)
+  nodes::Fault first = nodes::Fault::None;  // the controller's first safety fault (None: it stayed in control)
   double detect_cycles = -1;    // SYNC periods from the injection to the controller's reaction (-1: none)
   double safe_cycles = -1;      // ... until the valve output its safe value (-1: it did not)
   std::vector<std::uint16_t> emcy;  // EMCY codes the controller sent after the injection, in order
@@ -82,7 +82,7 @@ struct FaultRun {
   std::uint64_t safe_cycles_total = 0;  // cycles the controller sent the safe value
   std::uint64_t cycles_without_sync = 0;  // SYNC periods in which no control cycle ran
   canopen::Counters counters;   // the controller node's counters at the end
-  FaultCounters fc;
+  nodes::FaultCounters fc;
   std::uint64_t bus_dropped = 0;  // frames the in-process bus refused (port queue full)
 };
 
@@ -121,6 +121,19 @@ struct SoakOptions {
 };
 
 struct SoakInterval {
+  // Between faults: the trajectory periods without a fault.
+  struct Clean {
+    double rmse_mean = 0, rmse_max = 0;  // their RMSE [mm]
+    std::uint64_t periods = 0;
+    std::uint64_t bad = 0;               // ... of them above the tolerance (tracking left its level without a fault)
+  };
+  // What the run cost the machine.
+  struct Usage {
+    double heap_mb = 0, rss_mb = 0;      // at the end of the interval
+    double cpu_us_per_cycle = 0;         // process CPU time per SYNC period of the interval
+    double step_us_p99 = 0, step_us_max = 0;  // wall time of one 1 ms step of the whole rig
+    double wall_s = 0;                   // wall time of the interval
+  };
   int index = 0;
   double end_h = 0;                   // simulated hours at the end of the interval
   std::uint64_t cycles = 0;           // control cycles run
@@ -132,15 +145,10 @@ struct SoakInterval {
   std::uint64_t reacted = 0;          // ... that put the controller in its safe state
   std::uint64_t checked = 0, back = 0;  // tracking checks done, and passed
   double worst_ratio = 0;             // largest check RMSE / baseline
-  double clean_rmse_mean = 0, clean_rmse_max = 0;  // RMSE of the trajectory periods without faults [mm]
-  std::uint64_t clean_periods = 0;
-  std::uint64_t clean_bad = 0;        // ... of them above the tolerance (tracking left its level without a fault)
+  Clean clean;
   std::uint64_t safe_cycles = 0, samples_missing = 0;  // the controller's counters over the interval
   std::uint64_t emcy = 0;             // EMCY frames (with resets)
-  double heap_mb = 0, rss_mb = 0;     // at the end of the interval
-  double cpu_us_per_cycle = 0;        // process CPU time per SYNC period of the interval
-  double step_us_p99 = 0, step_us_max = 0;  // wall time of one 1 ms step of the whole rig
-  double wall_s = 0;                  // wall time of the interval
+  Usage usage;
 };
 
 struct SoakFaultStat {
@@ -185,4 +193,4 @@ struct GuardRow {
 std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o = {});
 std::string guardTableMarkdown(const std::vector<GuardRow>& rows);
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig

@@ -25,9 +25,10 @@
 #include "plant/plant.hpp"
 
 
-namespace pamc::nodes {
+namespace pamc::rig {
 
 using namespace detail;
+using namespace nodes;
 
 namespace {
 
@@ -231,5 +232,5 @@ std::string guardTableMarkdown(const std::vector<GuardRow>& rows) {
   return s;
 }
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig
 

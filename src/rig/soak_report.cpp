@@ -5,7 +5,9 @@
 
 #include "rig/fault_rig.hpp"
 
-namespace pamc::nodes {
+namespace pamc::rig {
+
+using namespace nodes;
 
 std::string soakIntervalHeader() {
   return "| h | cycles | SYNC gaps | lost outside faults | ring drops | faults (safe state) | back to normal | "
@@ -22,9 +24,9 @@ std::string soakIntervalLine(const SoakInterval& i) {
                 static_cast<unsigned long long>(i.lost_clean), static_cast<unsigned long long>(i.ring_dropped),
                 static_cast<unsigned long long>(i.faults), static_cast<unsigned long long>(i.reacted),
                 static_cast<unsigned long long>(i.back), static_cast<unsigned long long>(i.checked), i.worst_ratio,
-                i.clean_rmse_mean, i.clean_rmse_max, static_cast<unsigned long long>(i.clean_bad),
-                static_cast<unsigned long long>(i.emcy), i.heap_mb, i.rss_mb,
-                i.cpu_us_per_cycle, i.step_us_p99, i.step_us_max);
+                i.clean.rmse_mean, i.clean.rmse_max, static_cast<unsigned long long>(i.clean.bad),
+                static_cast<unsigned long long>(i.emcy), i.usage.heap_mb, i.usage.rss_mb,
+                i.usage.cpu_us_per_cycle, i.usage.step_us_p99, i.usage.step_us_max);
   return b;
 }
 
@@ -44,10 +46,10 @@ std::string soakReport(const SoakOptions& o, const SoakResult& r, bool intervals
                   f.max_resume_s);
     s += b;
   }
-  const double heap0 = r.intervals.empty() ? 0.0 : r.intervals.front().heap_mb;
-  const double heap1 = r.intervals.empty() ? 0.0 : r.intervals.back().heap_mb;
-  const double rss0 = r.intervals.empty() ? 0.0 : r.intervals.front().rss_mb;
-  const double rss1 = r.intervals.empty() ? 0.0 : r.intervals.back().rss_mb;
+  const double heap0 = r.intervals.empty() ? 0.0 : r.intervals.front().usage.heap_mb;
+  const double heap1 = r.intervals.empty() ? 0.0 : r.intervals.back().usage.heap_mb;
+  const double rss0 = r.intervals.empty() ? 0.0 : r.intervals.front().usage.rss_mb;
+  const double rss1 = r.intervals.empty() ? 0.0 : r.intervals.back().usage.rss_mb;
   std::snprintf(b, sizeof b,
                 "\n%.2f h simulated (%s, seed %llu) in %.0f s wall time; baseline tracking RMSE %.4f mm (%d periods "
                 "before the first fault), tolerance %.0f %% + 0.005 mm\n",
@@ -71,7 +73,7 @@ std::string soakReport(const SoakOptions& o, const SoakResult& r, bool intervals
                 o.cpu_drift_limit, r.cycle_ok && r.timing_ok ? "ok" : "FAILED");
   s += b;
   std::uint64_t clean = 0, clean_bad = 0;
-  for (const auto& i : r.intervals) clean += i.clean_periods, clean_bad += i.clean_bad;
+  for (const auto& i : r.intervals) clean += i.clean.periods, clean_bad += i.clean.bad;
   std::snprintf(b, sizeof b,
                 "faults: %llu injected, %llu put the controller in its safe state, tracking back to normal after "
                 "%llu of %llu checked; %llu of %llu trajectory periods between faults above the tolerance: %s\n",
@@ -90,4 +92,4 @@ std::string soakReport(const SoakOptions& o, const SoakResult& r, bool intervals
   return s;
 }
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig

@@ -9,7 +9,9 @@
 
 #include "canopen/candump_log.hpp"
 
-namespace pamc::nodes {
+namespace pamc::rig {
+
+using namespace nodes;
 
 VirtualRig::VirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, std::uint32_t bitrate,
                        FrameEdit emulator_tx)
@@ -97,4 +99,4 @@ VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConf
   return r;
 }
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig

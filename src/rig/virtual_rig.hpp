@@ -11,7 +11,7 @@
 #include "nodes/emulator_node.hpp"
 #include "nodes/fault_report.hpp"
 
-namespace pamc::nodes {
+namespace pamc::rig {
 
 // The rig declared once and then stepped (the shape of a simulation diagram: declare, then step).
 // The constructor builds the bus (with bit timing when bitrate > 0), the controller node and the
@@ -25,7 +25,7 @@ class VirtualRig {
   // this first and may be changed (return true) or dropped (return false).
   using FrameEdit = std::function<bool(canopen::Frame&)>;
 
-  VirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, std::uint32_t bitrate = 0,
+  VirtualRig(const nodes::ControllerNodeConfig& c, const nodes::EmulatorConfig& e, std::uint32_t bitrate = 0,
              FrameEdit emulator_tx = nullptr);
   VirtualRig(const VirtualRig&) = delete;
   VirtualRig& operator=(const VirtualRig&) = delete;
@@ -33,7 +33,7 @@ class VirtualRig {
   canopen::VirtualBus::Port& addPort() { return bus_.addPort(); }
   void addTap(canopen::VirtualBus::Tap tap) { bus_.addTap(std::move(tap)); }
   // Where the cycle records go; without a sink they are kept (records()).
-  void setRecordSink(std::function<void(const CycleRecord&)> sink) { sink_ = std::move(sink); }
+  void setRecordSink(std::function<void(const nodes::CycleRecord&)> sink) { sink_ = std::move(sink); }
 
   void start();                                    // boot-up of the emulator nodes, then the controller
   void startEmulator();                            // the two halves of start(): slaves first, e.g. to
@@ -45,9 +45,9 @@ class VirtualRig {
 
   canopen::VirtualBus& bus() { return bus_; }
   canopen::TimeUs now() const { return bus_.now(); }
-  ControllerNode& controller() { return *ctrl_; }
-  EmulatorNodes& emulator() { return *emu_; }
-  std::vector<CycleRecord>& records() { return records_; }
+  nodes::ControllerNode& controller() { return *ctrl_; }
+  nodes::EmulatorNodes& emulator() { return *emu_; }
+  std::vector<nodes::CycleRecord>& records() { return records_; }
 
  private:
   canopen::VirtualBus bus_;  // first: outlives the nodes that send through it
@@ -71,23 +71,23 @@ class VirtualRig {
     FrameEdit edit_;
   };
   EditingTransport etx_;
-  std::unique_ptr<ControllerNode> ctrl_;  // rings: heap
-  std::unique_ptr<EmulatorNodes> emu_;
-  std::function<void(const CycleRecord&)> sink_;
-  std::vector<CycleRecord> records_;
-  FaultReporter reporter_;
+  std::unique_ptr<nodes::ControllerNode> ctrl_;  // rings: heap
+  std::unique_ptr<nodes::EmulatorNodes> emu_;
+  std::function<void(const nodes::CycleRecord&)> sink_;
+  std::vector<nodes::CycleRecord> records_;
+  nodes::FaultReporter reporter_;
 };
 
 struct VirtualRigResult {
-  std::vector<CycleRecord> records;
-  CycleStats stats;
+  std::vector<nodes::CycleRecord> records;
+  nodes::CycleStats stats;
   std::uint64_t frames = 0;
   std::uint64_t faults = 0;
-  Fault final_fault = Fault::None;
+  nodes::Fault final_fault = nodes::Fault::None;
   canopen::Counters counters;  // the controller node's
   canopen::TimeUs bus_busy_us = 0;  // with a bitrate: time the bus carried frames
   // Paced in real time: how late each wake-up came, and how many came a whole period late or more.
-  Histogram wake_late_us;
+  nodes::Histogram wake_late_us;
   std::uint64_t wake_overruns = 0;
   std::string failure;  // why the run failed (runFailure), empty if it did not
 };
@@ -102,7 +102,7 @@ struct VirtualRigHooks {
   // Every frame on the bus with its bus time (e.g. into a logger's ring).
   std::function<void(const canopen::Frame&, canopen::TimeUs)> tap;
   // Each cycle record as the controller produces it; when set, the result keeps no records.
-  std::function<void(const CycleRecord&)> on_record;
+  std::function<void(const nodes::CycleRecord&)> on_record;
   // After every step (1 ms of bus time); false stops the run.
   std::function<bool(canopen::TimeUs)> on_step;
 };
@@ -113,8 +113,8 @@ struct VirtualRigHooks {
 // with virtual timestamps from epoch_us; it is handed to the kernel (write(2)) at cycle boundaries at
 // least once per millisecond of wall time, so a crash loses at most the last millisecond of frames.
 // bitrate > 0 gives the bus bit timing and CAN arbitration (VirtualBus::setBitrate); 0 is the ideal bus.
-VirtualRigResult runVirtualRig(const ControllerNodeConfig& c, const EmulatorConfig& e, double duration_s,
+VirtualRigResult runVirtualRig(const nodes::ControllerNodeConfig& c, const nodes::EmulatorConfig& e, double duration_s,
                                const std::string& candump_log = "", canopen::TimeUs epoch_us = 1700000000000000,
                                std::uint32_t bitrate = 0, const VirtualRigHooks& hooks = VirtualRigHooks());
 
-}  // namespace pamc::nodes
+}  // namespace pamc::rig

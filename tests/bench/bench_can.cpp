@@ -40,7 +40,7 @@ nodes::EmulatorConfig emuConfig() {
 // estimator and controller -> valve setpoint TPDO handed to the transport. `background` frames of
 // other COB-IDs (higher priority than the position PDO) reach the node each cycle.
 void syncToSetpoint(benchmark::State& state, control::Kind kind, int background) {
-  nodes::VirtualRig rig(ctrlConfig(kind), emuConfig());
+  rig::VirtualRig rig(ctrlConfig(kind), emuConfig());
   rig.setRecordSink([](const nodes::CycleRecord&) {});
   auto& bus = rig.bus();
   auto& ctrl = rig.controller();
@@ -80,7 +80,7 @@ void BM_SyncToSetpoint_AMC_Traffic(benchmark::State& s) { syncToSetpoint(s, cont
 void sdoCommit(benchmark::State& state, control::Kind kind, bool off_cycle) {
   auto c = ctrlConfig(kind);
   c.build_off_cycle = off_cycle;
-  nodes::VirtualRig rig(c, emuConfig());
+  rig::VirtualRig rig(c, emuConfig());
   rig.setRecordSink([](const nodes::CycleRecord&) {});
   auto& ctrl = rig.controller();
   rig.start();
@@ -113,7 +113,7 @@ void BM_SdoCommit_AMC_OffCycle(benchmark::State& s) { sdoCommit(s, control::Kind
 // A whole 1 ms cycle of the rig on the in-process bus (SYNC, 3 PDOs, heartbeats, both node sides,
 // emulator physics, AMC): how much faster than real time the CAN-level simulation runs.
 void BM_RigCycle(benchmark::State& state) {
-  nodes::VirtualRig rig(ctrlConfig(control::Kind::PiAmc), emuConfig());
+  rig::VirtualRig rig(ctrlConfig(control::Kind::PiAmc), emuConfig());
   rig.setRecordSink([](const nodes::CycleRecord&) {});
   rig.start();
   for (auto _ : state) rig.step();
@@ -122,7 +122,7 @@ void BM_RigCycle(benchmark::State& state) {
 
 // Bits on the wire per cycle against the 1 ms period at 1 Mbit/s.
 void BM_BusLoadPerCycle(benchmark::State& state) {
-  nodes::VirtualRig rig(ctrlConfig(control::Kind::PI), emuConfig());
+  rig::VirtualRig rig(ctrlConfig(control::Kind::PI), emuConfig());
   rig.setRecordSink([](const nodes::CycleRecord&) {});
   auto& bus = rig.bus();
   double bits = 0;

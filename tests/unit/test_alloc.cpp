@@ -115,7 +115,7 @@ nodes::EmulatorConfig emulatorWithSilentSensor(const std::string& od) {
 
 // Heap allocations over 10 s of the rig's cycles, after 1 s to settle; the rig ran its fault path.
 long rigAllocations(const nodes::ControllerNodeConfig& c, const nodes::EmulatorConfig& e) {
-  nodes::VirtualRig rig(c, e);
+  rig::VirtualRig rig(c, e);
   rig.setRecordSink([](const nodes::CycleRecord&) {});  // drained, not kept
   rig.start();
   rig.runFor(1.0);

@@ -740,7 +740,7 @@ NodeRun runNode(control::Kind kind, bool whole_model, const std::function<void(l
     }
     return true;
   };
-  nodes::VirtualRig rig(c, e, 0, tamper);
+  rig::VirtualRig rig(c, e, 0, tamper);
   NodeRun r;
   rig.addTap([&r](const canopen::Frame& f, canopen::TimeUs) {
     if (f.id == 0x81 && f.len == 8 && !f.error()) r.emcy.push_back(canopen::getU16(f.data));

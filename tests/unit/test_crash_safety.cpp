@@ -109,7 +109,7 @@ TEST(VirtualRig, CandumpLogIsOnDiskWhileTheRunGoesOn) {
   nodes::EmulatorConfig e;
   e.sensor_eds = kOd + "/sensor.eds";
   e.valve_eds = kOd + "/valve.eds";
-  nodes::VirtualRigHooks hooks;
+  rig::VirtualRigHooks hooks;
   hooks.realtime = true;
   const canopen::TimeUs epoch = 1700000000000000;
   int checks = 0;
@@ -125,7 +125,7 @@ TEST(VirtualRig, CandumpLogIsOnDiskWhileTheRunGoesOn) {
     ++checks;
     return true;
   };
-  const auto r = nodes::runVirtualRig(c, e, 0.1, log, epoch, 0, hooks);
+  const auto r = rig::runVirtualRig(c, e, 0.1, log, epoch, 0, hooks);
   EXPECT_GE(checks, 5);
   EXPECT_LE(worst_gap, 2000);
   EXPECT_GE(r.records.size(), 99u);
@@ -134,15 +134,15 @@ TEST(VirtualRig, CandumpLogIsOnDiskWhileTheRunGoesOn) {
 
 // A short soak: faults of the whole catalogue at random times, every one checked.
 TEST(Soak, ShortRunWithRandomFaultsPasses) {
-  nodes::SoakOptions o;
+  rig::SoakOptions o;
   o.od_dir = kOd;
   o.kind = control::Kind::PI;  // PI + AMC does not pass yet: docs/RELIABILITY.md, "Soak"
   o.hours = 0.05;
   o.report_s = 60;
   o.gap_min_s = 2;
   o.gap_max_s = 5;
-  const auto r = nodes::runSoak(o);
-  EXPECT_TRUE(r.passed()) << nodes::soakReport(o, r);
+  const auto r = rig::runSoak(o);
+  EXPECT_TRUE(r.passed()) << rig::soakReport(o, r);
   EXPECT_EQ(r.intervals.size(), 3u);
   EXPECT_GE(r.faults, 5u);
   EXPECT_GE(r.reacted, 1u);

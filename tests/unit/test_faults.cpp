@@ -18,18 +18,18 @@
 #include <cstring>
 
 using namespace pamc;
-using nodes::BusFault;
+using rig::BusFault;
 using nodes::Fault;
 
 namespace {
 
-nodes::FaultRigOptions options() {
-  nodes::FaultRigOptions o;
+rig::FaultRigOptions options() {
+  rig::FaultRigOptions o;
   o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
   return o;
 }
 
-bool sent(const nodes::FaultRun& r, std::uint16_t code) {
+bool sent(const rig::FaultRun& r, std::uint16_t code) {
   return std::find(r.emcy.begin(), r.emcy.end(), code) != r.emcy.end();
 }
 
@@ -39,8 +39,8 @@ bool sent(const nodes::FaultRun& r, std::uint16_t code) {
 constexpr double kStepBound = 0.1;
 
 // The common part: a safety fault, the valve safe within max_safe cycles, its EMCY, then recovery.
-void expectSafeAndBack(const nodes::FaultRun& r, Fault first, std::uint16_t code, double max_detect, double max_safe) {
-  SCOPED_TRACE(nodes::busFaultDescription(r.fault));
+void expectSafeAndBack(const rig::FaultRun& r, Fault first, std::uint16_t code, double max_detect, double max_safe) {
+  SCOPED_TRACE(rig::busFaultDescription(r.fault));
   EXPECT_EQ(r.first, first) << nodes::toString(r.first);
   EXPECT_GE(r.detect_cycles, 0.0);
   EXPECT_LE(r.detect_cycles, max_detect);
@@ -57,8 +57,8 @@ void expectSafeAndBack(const nodes::FaultRun& r, Fault first, std::uint16_t code
 }
 
 // Faults the loop rides through: no safe state, no jump, tracking as without the fault.
-void expectRideThrough(const nodes::FaultRun& r) {
-  SCOPED_TRACE(nodes::busFaultDescription(r.fault));
+void expectRideThrough(const rig::FaultRun& r) {
+  SCOPED_TRACE(rig::busFaultDescription(r.fault));
   EXPECT_EQ(r.first, Fault::None) << nodes::toString(r.first);
   EXPECT_EQ(r.safe_cycles_total, 0u);
   EXPECT_TRUE(r.recovered);
@@ -69,7 +69,7 @@ void expectRideThrough(const nodes::FaultRun& r) {
 }  // namespace
 
 TEST(Faults, SensorSilentShortIsAMissingPositionAndResumesWithoutReboot) {
-  const auto r = nodes::runBusFault(BusFault::SensorSilentShort, options());
+  const auto r = rig::runBusFault(BusFault::SensorSilentShort, options());
   // The 4th SYNC without a position (0x2021 = 3) raises the fault, the valve applies it one SYNC later.
   expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
   EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8250});  // shorter than the 250 ms heartbeat time
@@ -78,7 +78,7 @@ TEST(Faults, SensorSilentShortIsAMissingPositionAndResumesWithoutReboot) {
 }
 
 TEST(Faults, SensorSilentLongLosesTheHeartbeatAndIsRebootedWhenBack) {
-  const auto r = nodes::runBusFault(BusFault::SensorSilentLong, options());
+  const auto r = rig::runBusFault(BusFault::SensorSilentLong, options());
   expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
   EXPECT_TRUE(sent(r, 0x8130));
   // Back after the heartbeat timeout: NMT reset communication, boot-up, NMT start.
@@ -87,7 +87,7 @@ TEST(Faults, SensorSilentLongLosesTheHeartbeatAndIsRebootedWhenBack) {
 }
 
 TEST(Faults, SensorRebootIsStartedAgainByTheMaster) {
-  const auto r = nodes::runBusFault(BusFault::SensorReboot, options());
+  const auto r = rig::runBusFault(BusFault::SensorReboot, options());
   expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
   EXPECT_TRUE(sent(r, 0x8130));  // the boot-up of a monitored node (remote reset)
   EXPECT_EQ(r.fc.nmt_reboots, 0u);
@@ -96,20 +96,20 @@ TEST(Faults, SensorRebootIsStartedAgainByTheMaster) {
 }
 
 TEST(Faults, PdosAfterTheSynchronousWindowAreDiscarded) {
-  const auto r = nodes::runBusFault(BusFault::PdoLateInCycle, options());
+  const auto r = rig::runBusFault(BusFault::PdoLateInCycle, options());
   expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
   EXPECT_GE(r.counters.rpdo_late, 190u);
 }
 
 TEST(Faults, PdosOneCycleLateAreNotDetectedAndCostOneCycleOfDelay) {
-  const auto r = nodes::runBusFault(BusFault::PdoLateCycle, options());
+  const auto r = rig::runBusFault(BusFault::PdoLateCycle, options());
   expectRideThrough(r);
   EXPECT_TRUE(r.emcy.empty());
   EXPECT_LE(r.samples_lost, 3u);  // the first cycle (nothing arrives) and the last (two arrive: conflict)
 }
 
 TEST(Faults, RandomPdoLossIsBridged) {
-  const auto r = nodes::runBusFault(BusFault::PdoDropRandom, options());
+  const auto r = rig::runBusFault(BusFault::PdoDropRandom, options());
   expectRideThrough(r);
   EXPECT_TRUE(r.emcy.empty());
   EXPECT_GT(r.samples_lost, 50u);  // 5 % of 2000
@@ -117,13 +117,13 @@ TEST(Faults, RandomPdoLossIsBridged) {
 }
 
 TEST(Faults, ABurstOfLostPdosIsAMissingPosition) {
-  const auto r = nodes::runBusFault(BusFault::PdoDropBurst, options());
+  const auto r = rig::runBusFault(BusFault::PdoDropBurst, options());
   expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
   EXPECT_EQ(r.samples_lost, 10u);
 }
 
 TEST(Faults, DuplicatedPdosAreIgnored) {
-  const auto r = nodes::runBusFault(BusFault::PdoDuplicate, options());
+  const auto r = rig::runBusFault(BusFault::PdoDuplicate, options());
   expectRideThrough(r);
   EXPECT_TRUE(r.emcy.empty());
   EXPECT_GE(r.counters.rpdo_duplicates, 1990u);
@@ -131,7 +131,7 @@ TEST(Faults, DuplicatedPdosAreIgnored) {
 }
 
 TEST(Faults, SyncStopIsDetectedWithinOneAndAHalfPeriods) {
-  const auto r = nodes::runBusFault(BusFault::SyncStop, options());
+  const auto r = rig::runBusFault(BusFault::SyncStop, options());
   // The controller's SYNC timeout and the valve's own both fire 1.5 periods after the last SYNC.
   expectSafeAndBack(r, Fault::SyncLost, 0x8100, 1.5, 1.5);
   EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8100});
@@ -141,20 +141,20 @@ TEST(Faults, SyncStopIsDetectedWithinOneAndAHalfPeriods) {
 }
 
 TEST(Faults, ValveSilentShortIsAMissingValvePdo) {
-  const auto r = nodes::runBusFault(BusFault::ValveSilentShort, options());
+  const auto r = rig::runBusFault(BusFault::ValveSilentShort, options());
   expectSafeAndBack(r, Fault::ValvePdoMissing, 0x8250, 5.0, 6.0);
   EXPECT_EQ(r.samples_lost, 0u);
 }
 
 TEST(Faults, ValveSilentLongIsRebootedWhenBack) {
-  const auto r = nodes::runBusFault(BusFault::ValveSilentLong, options());
+  const auto r = rig::runBusFault(BusFault::ValveSilentLong, options());
   expectSafeAndBack(r, Fault::ValvePdoMissing, 0x8250, 5.0, 6.0);
   EXPECT_TRUE(sent(r, 0x8130));
   EXPECT_GE(r.fc.nmt_reboots, 1u);
 }
 
 TEST(Faults, HalfLoadOfHigherPriorityFramesIsAbsorbed) {
-  const auto r = nodes::runBusFault(BusFault::FloodHalf, options());
+  const auto r = rig::runBusFault(BusFault::FloodHalf, options());
   expectRideThrough(r);
   EXPECT_TRUE(r.emcy.empty());
   EXPECT_EQ(r.samples_lost, 0u);
@@ -162,7 +162,7 @@ TEST(Faults, HalfLoadOfHigherPriorityFramesIsAbsorbed) {
 }
 
 TEST(Faults, ABabblingNodeStopsTheBusAndTheValveGoesSafeOnItsOwn) {
-  const auto r = nodes::runBusFault(BusFault::FloodFull, options());
+  const auto r = rig::runBusFault(BusFault::FloodFull, options());
   // Nothing the controller sends gets through; the valve's SYNC timeout (1.5 periods) vents it.
   expectSafeAndBack(r, Fault::CanOverrun, 0x8110, 3.0, 2.0);
   EXPECT_TRUE(sent(r, 0x8250));
@@ -171,7 +171,7 @@ TEST(Faults, ABabblingNodeStopsTheBusAndTheValveGoesSafeOnItsOwn) {
 }
 
 TEST(Faults, OnePdoWithAWrongLengthIsDiscardedWithAWarning) {
-  const auto r = nodes::runBusFault(BusFault::PdoShortOnce, options());
+  const auto r = rig::runBusFault(BusFault::PdoShortOnce, options());
   expectRideThrough(r);
   EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8210});
   EXPECT_TRUE(r.emcy_reset);
@@ -180,27 +180,27 @@ TEST(Faults, OnePdoWithAWrongLengthIsDiscardedWithAWarning) {
 }
 
 TEST(Faults, PdosWithAWrongLengthAreNeverDecoded) {
-  const auto r = nodes::runBusFault(BusFault::PdoLong, options());
+  const auto r = rig::runBusFault(BusFault::PdoLong, options());
   expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 2.0, 6.0);
   EXPECT_EQ(r.emcy.front(), 0x8210);  // the warning comes first, at the first bad frame
   EXPECT_GE(r.counters.wrong_length, 190u);
 }
 
 TEST(Faults, SyncWithAWrongLengthIsIgnoredAndTimesOut) {
-  const auto r = nodes::runBusFault(BusFault::SyncWrongLength, options());
+  const auto r = rig::runBusFault(BusFault::SyncWrongLength, options());
   expectSafeAndBack(r, Fault::SyncLost, 0x8100, 1.5, 1.5);
   EXPECT_TRUE(sent(r, 0x8240));
 }
 
 TEST(Faults, HeartbeatsWithAWrongLengthTimeOut) {
-  const auto r = nodes::runBusFault(BusFault::HeartbeatWrongLength, options());
+  const auto r = rig::runBusFault(BusFault::HeartbeatWrongLength, options());
   expectSafeAndBack(r, Fault::SensorHeartbeat, 0x8130, 251.0, 252.0);
   EXPECT_GE(r.detect_cycles, 150.0);  // the last good heartbeat plus 250 ms
   EXPECT_GE(r.fc.nmt_reboots, 1u);
 }
 
 TEST(Faults, ASecondNodeWithTheControllersIdIsACollision) {
-  const auto r = nodes::runBusFault(BusFault::DuplicateController, options());
+  const auto r = rig::runBusFault(BusFault::DuplicateController, options());
   // Its boot-up comes in on 0x701, which only this node may send: immediate.
   expectSafeAndBack(r, Fault::IdCollision, 0x8150, 0.0, 0.0);
   EXPECT_GE(r.fc.collisions, 10u);
@@ -209,32 +209,32 @@ TEST(Faults, ASecondNodeWithTheControllersIdIsACollision) {
 }
 
 TEST(Faults, ASecondSensorIsAConflictAndACollision) {
-  const auto r = nodes::runBusFault(BusFault::DuplicateSensor, options());
+  const auto r = rig::runBusFault(BusFault::DuplicateSensor, options());
   expectSafeAndBack(r, Fault::SensorState, 0x8130, 1.0, 2.0);  // its boot-up on 0x702
   EXPECT_TRUE(sent(r, 0x8150));
   EXPECT_GE(r.counters.rpdo_conflicts, 990u);
 }
 
 TEST(Faults, ErrorPassiveGoesSafe) {
-  const auto r = nodes::runBusFault(BusFault::ErrorPassive, options());
+  const auto r = rig::runBusFault(BusFault::ErrorPassive, options());
   expectSafeAndBack(r, Fault::BusError, 0x8120, 1.0, 2.0);
 }
 
 TEST(Faults, BusOffReportsRecoveredFromBusOffAfterTheRestart) {
-  const auto r = nodes::runBusFault(BusFault::BusOff, options());
+  const auto r = rig::runBusFault(BusFault::BusOff, options());
   expectSafeAndBack(r, Fault::BusOff, 0x8140, 1.0, 2.0);
   EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8140});  // nothing while off the bus
 }
 
 TEST(Faults, ControllerOverflowIsAnOverrun) {
-  const auto r = nodes::runBusFault(BusFault::CanOverflow, options());
+  const auto r = rig::runBusFault(BusFault::CanOverflow, options());
   expectSafeAndBack(r, Fault::CanOverrun, 0x8110, 1.0, 2.0);
 }
 
 // Injected before the controller starts: the loop never ran, so the reaction is the start-up limit
 // (1 s after Operational); the valve was at its safe value all along; moved back, the loop starts.
 TEST(Faults, ATpdoMovedBeforeTheStartIsNoPositionAfterOneSecond) {
-  const auto r = nodes::runBusFault(BusFault::SensorPdoMovedAtStart, options());
+  const auto r = rig::runBusFault(BusFault::SensorPdoMovedAtStart, options());
   EXPECT_EQ(r.first, Fault::NoPosition) << nodes::toString(r.first);
   EXPECT_NEAR(r.detect_cycles, 1000.0, 5.0);
   EXPECT_TRUE(sent(r, 0x8250));
@@ -246,11 +246,11 @@ TEST(Faults, ATpdoMovedBeforeTheStartIsNoPositionAfterOneSecond) {
 }
 
 TEST(Faults, RunsAreRepeatable) {
-  const auto a = nodes::runBusFault(BusFault::PdoDropRandom, options());
-  const auto b = nodes::runBusFault(BusFault::PdoDropRandom, options());
+  const auto a = rig::runBusFault(BusFault::PdoDropRandom, options());
+  const auto b = rig::runBusFault(BusFault::PdoDropRandom, options());
   EXPECT_EQ(a.samples_lost, b.samples_lost);
   EXPECT_EQ(a.rmse_end, b.rmse_end);
-  EXPECT_EQ(nodes::faultTableMarkdown({a}), nodes::faultTableMarkdown({b}));
+  EXPECT_EQ(rig::faultTableMarkdown({a}), rig::faultTableMarkdown({b}));
 }
 
 // ---- The pieces of the CANopen layer the faults rely on ----
@@ -390,9 +390,9 @@ TEST(BusModel, SyncConsumerTimesOutAfterOneAndAHalfPeriods) {
 // to 0x6411:01 is stored but does not re-arm the output; the next synchronous command does, with an
 // EMCY error reset.
 TEST(FaultRig, AValveWithoutSyncShowsItsErrorStateUntilAFreshCommand) {
-  nodes::FaultRigOptions o;
+  rig::FaultRigOptions o;
   o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
-  nodes::detail::Rig r(nodes::BusFault::SyncStop, o);
+  rig::detail::Rig r(rig::BusFault::SyncStop, o);
   std::vector<std::uint16_t> valve_emcy;
   r.bus.addTap([&](const canopen::Frame& f, canopen::TimeUs) {
     if (f.id == 0x83 && f.len == 8) valve_emcy.push_back(canopen::getU16(f.data));
@@ -400,7 +400,7 @@ TEST(FaultRig, AValveWithoutSyncShowsItsErrorStateUntilAFreshCommand) {
   while (r.ctrl->runTime() < 1.0) r.step(1000);
   EXPECT_FALSE(r.emu->valveInError());
   EXPECT_EQ(r.emu->valve().emcy().errorRegister(), 0);
-  nodes::detail::begin(r, nodes::BusFault::SyncStop);
+  rig::detail::begin(r, rig::BusFault::SyncStop);
   for (int k = 0; k < 20; ++k) r.step(1000);
   EXPECT_TRUE(r.emu->valveInError());
   ASSERT_EQ(valve_emcy.size(), 1u);
@@ -413,7 +413,7 @@ TEST(FaultRig, AValveWithoutSyncShowsItsErrorStateUntilAFreshCommand) {
   EXPECT_EQ(r.emu->valve().od().remoteWrite(out, b, 2), 0u);
   for (int k = 0; k < 5; ++k) r.step(1000);
   EXPECT_TRUE(r.emu->valveInError()) << "an SDO write of the output does not re-arm it";
-  nodes::detail::end(r, nodes::BusFault::SyncStop);
+  rig::detail::end(r, rig::BusFault::SyncStop);
   for (int k = 0; k < 2000 && r.emu->valveInError(); ++k) r.step(1000);
   EXPECT_FALSE(r.emu->valveInError());
   ASSERT_EQ(valve_emcy.size(), 2u);

@@ -68,14 +68,14 @@ TEST(NoPosition, ASilentSensorIsReportedAndTheRunEndsOnTime) {
   std::vector<Emcy> emcy;
   auto e = emulator();
   e.sensor_silent_at_s = 0.0;
-  nodes::VirtualRigHooks hooks;
+  rig::VirtualRigHooks hooks;
   canopen::TimeUs last = 0;
   hooks.tap = [&](const Frame& f, canopen::TimeUs) { collect(emcy, f); };
   hooks.on_step = [&](canopen::TimeUs now) {
     last = now;
     return true;
   };
-  const auto r = nodes::runVirtualRig(controller(&log), e, 2.0, "", 0, 0, hooks);
+  const auto r = rig::runVirtualRig(controller(&log), e, 2.0, "", 0, 0, hooks);
   expectTheLine(log);
   EXPECT_TRUE(has(emcy, 0x8250, nodes::Fault::NoPosition)) << "EMCY 0x8250 with fault 19";
   EXPECT_EQ(r.final_fault, nodes::Fault::NoPosition);
@@ -92,7 +92,7 @@ TEST(NoPosition, ASilentSensorIsReportedAndTheRunEndsOnTime) {
 TEST(NoPosition, ATpdoMovedBeforeTheStartIsReportedWithTheCobIdAwaited) {
   std::vector<std::string> log;
   std::vector<Emcy> emcy;
-  nodes::VirtualRig rig(controller(&log), emulator());
+  rig::VirtualRig rig(controller(&log), emulator());
   rig.addTap([&](const Frame& f, canopen::TimeUs) { collect(emcy, f); });
   auto& port = rig.addPort();
   auto move = [&](std::uint32_t from, std::uint32_t to) {
@@ -128,7 +128,7 @@ TEST(NoPosition, ATpdoMovedBeforeTheStartIsReportedWithTheCobIdAwaited) {
 // A run that ends normally is bounded by its trajectory time, not by the clock's deadline.
 TEST(NoPosition, ANormalRunEndsAfterItsTrajectory) {
   std::vector<std::string> log;
-  const auto r = nodes::runVirtualRig(controller(&log), emulator(), 1.0);
+  const auto r = rig::runVirtualRig(controller(&log), emulator(), 1.0);
   EXPECT_TRUE(r.failure.empty()) << r.failure;
   ASSERT_FALSE(r.records.empty());
   EXPECT_NEAR(r.records.back().t, 1.0, 0.002);

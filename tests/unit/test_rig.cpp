@@ -54,7 +54,7 @@ TEST_P(RigMatchesLockstep, TrackingRmseAgrees) {
   const auto traj = control::Trajectory::triangle(0.1, 5.0, 25.0);
   const double duration = 10.0;
   auto cc = controllerConfig(GetParam(), traj);
-  const auto rig = nodes::runVirtualRig(cc, emulatorConfig(), duration);
+  const auto rig = rig::runVirtualRig(cc, emulatorConfig(), duration);
   ASSERT_GE(rig.records.size(), 9990u);
   EXPECT_EQ(rig.faults, 0u);
   std::vector<double> e_rig;
@@ -105,7 +105,7 @@ TEST(RigTiming, CommandShowsInThePositionThreeCyclesLater) {
       "test");
   ec.plant.sensor_noise = false;
   cc.ctrl.model = ec.plant.truth;
-  const auto rig = nodes::runVirtualRig(cc, ec, 2.0);
+  const auto rig = rig::runVirtualRig(cc, ec, 2.0);
   std::vector<double> u, y;
   for (const auto& r : rig.records) u.push_back(r.u), y.push_back(r.y);
   EXPECT_EQ(cyclesUntilResponse(u, y), 3);
@@ -128,7 +128,7 @@ INSTANTIATE_TEST_SUITE_P(Controllers, RigMatchesLockstep,
 
 TEST(Rig, CandumpLogOfTheRunDecodesBack) {
   const std::string log = ::testing::TempDir() + "/pamc_rig.log";
-  const auto rig = nodes::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)),
+  const auto rig = rig::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)),
                                         emulatorConfig(), 1.0, log);
   const auto frames = canopen::readCandumpLog(log);
   ASSERT_GT(frames.size(), 3 * 6000u);  // SYNC + position + setpoint + pressure per cycle, 6 s
@@ -148,7 +148,7 @@ TEST(Rig, SensorSilenceDrivesTheValveSafeAndSendsEmcy) {
   auto e = emulatorConfig();
   e.sensor_silent_at_s = 7.0;  // 2 s into the run after the 5 s pre-roll
   const std::string log = ::testing::TempDir() + "/pamc_silent.log";
-  const auto rig = nodes::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)), e, 4.0, log);
+  const auto rig = rig::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)), e, 4.0, log);
   EXPECT_GE(rig.faults, 1u);
   // After the fault, every record has the safe command (0 V = -5 V relative) and a fault code.
   size_t first = 0;
@@ -174,8 +174,8 @@ TEST(RigTiming, OneMegabitBusKeepsTheCycle) {
   const auto traj = control::Trajectory::triangle(0.1, 5.0, 25.0);
   auto cc = controllerConfig(control::Kind::PI, traj);
   cc.preroll_s = 1.0;
-  const auto ideal = nodes::runVirtualRig(cc, emulatorConfig(), 3.0);
-  const auto timed = nodes::runVirtualRig(cc, emulatorConfig(), 3.0, "", 1700000000000000, 1'000'000);
+  const auto ideal = rig::runVirtualRig(cc, emulatorConfig(), 3.0);
+  const auto timed = rig::runVirtualRig(cc, emulatorConfig(), 3.0, "", 1700000000000000, 1'000'000);
   EXPECT_EQ(timed.faults, 0u);
   EXPECT_EQ(timed.counters.rpdo_late, 0u);
   EXPECT_EQ(timed.counters.tx_dropped, 0u);
@@ -194,7 +194,7 @@ TEST(RigTiming, OneMegabitBusKeepsTheCycle) {
 TEST(RigInput, CommandIsTheInputClampedAndThePositionThePlants) {
   const auto input = control::Trajectory::parse("random:1:-7:7");  // beyond the valve's range on both sides
   auto cc = controllerConfig(control::Kind::Input, input);
-  const auto rig = nodes::runVirtualRig(cc, emulatorConfig(), 20.0);
+  const auto rig = rig::runVirtualRig(cc, emulatorConfig(), 20.0);
   ASSERT_GE(rig.records.size(), 19990u);
   EXPECT_EQ(rig.faults, 0u);
   int clamped = 0;

@@ -76,7 +76,7 @@ nodes::EmulatorConfig emulator() {
 
 // A tool port: SDO requests to a node and NMT, answered on the ideal bus at once.
 struct Tool {
-  Tool(nodes::VirtualRig& r) : rig(r), port(r.addPort()) {
+  Tool(rig::VirtualRig& r) : rig(r), port(r.addPort()) {
     rig.addTap([this](const Frame& f, canopen::TimeUs) {
       if (f.id >= 0x581 && f.id <= 0x5FF) last = f;
       if (f.id > 0x80 && f.id < 0x100 && f.len == 8) emcy.push_back(canopen::getU16(f.data));
@@ -127,7 +127,7 @@ struct Tool {
     const auto b = upload(node, idx, sub);
     return b.size() == 4 ? canopen::getU32(b.data()) : 0xDEADBEEFu;
   }
-  nodes::VirtualRig& rig;
+  rig::VirtualRig& rig;
   canopen::VirtualBus::Port& port;
   Frame last{};
   std::vector<std::uint16_t> emcy;
@@ -253,7 +253,7 @@ TEST(RigFile, ABadFileGetsOneLineNamingTheLine) {
 // pamc's own devices from the shipped rig: checked, configured, read back, started; the loop runs.
 TEST(RigBoot, TheShippedRigBootsTheEmulatorAndTheLoopRuns) {
   std::vector<std::string> log;
-  nodes::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), &log), emulator());
+  rig::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), &log), emulator());
   rig.start();
   rig.runFor(4.0);
   const auto fc = rig.controller().faultCounters();
@@ -269,7 +269,7 @@ TEST(RigBoot, TheShippedRigBootsTheEmulatorAndTheLoopRuns) {
 // Another master left the sensor's position PDO asynchronous on another COB-ID and the valve's command
 // PDO mapped to nothing: without the rig the loop never starts; with it the slaves are configured first.
 TEST(RigBoot, SlavesScrambledBeforeTheControllerStartsAreConfigured) {
-  auto scramble = [](nodes::VirtualRig& rig, Tool& tool) {
+  auto scramble = [](rig::VirtualRig& rig, Tool& tool) {
     rig.startEmulator();
     for (std::uint8_t n : {2, 3}) {
       const std::uint8_t nmt[2] = {0x01, n};  // another master started them
@@ -287,7 +287,7 @@ TEST(RigBoot, SlavesScrambledBeforeTheControllerStartsAreConfigured) {
     nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
     c.layout = nodes::SlaveLayout{};  // the built-in layout: nothing is configured
     c.dictionary.clear();
-    nodes::VirtualRig rig(c, emulator());
+    rig::VirtualRig rig(c, emulator());
     Tool tool(rig);
     scramble(rig, tool);
     rig.startController();
@@ -295,7 +295,7 @@ TEST(RigBoot, SlavesScrambledBeforeTheControllerStartsAreConfigured) {
     EXPECT_TRUE(rig.records().empty() || trackingRmse(rig.records(), 0.0) > 3.0) << "the loop ran on scrambled slaves";
   }
   std::vector<std::string> log;
-  nodes::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), &log), emulator());
+  rig::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), &log), emulator());
   Tool tool(rig);
   scramble(rig, tool);
   rig.startController();
@@ -308,7 +308,7 @@ TEST(RigBoot, SlavesScrambledBeforeTheControllerStartsAreConfigured) {
 TEST(RigBoot, AWrongIdentityIsReportedAndTheSlaveLeftStopped) {
   std::vector<std::string> log;
   const auto path = writeTemp("rig.ini", rigText({{"device_type = 0x00080196", "device_type = 0x00020196"}}));
-  nodes::VirtualRig rig(controllerFromRig(path, &log), emulator());
+  rig::VirtualRig rig(controllerFromRig(path, &log), emulator());
   Tool tool(rig);
   rig.start();
   rig.runFor(2.0);
@@ -341,7 +341,7 @@ TEST(RigBoot, NothingIsWrittenToTheValveBeforeItsIdentityIsChecked) {
                                                      vendor + "\nproduct_code = 0x00000003"}}));
     nodes::EmulatorConfig e = emulator();
     e.valve_eds = edsWith("valve.eds", {{"1018sub1", "0x0000ABCD"}});
-    nodes::VirtualRig rig(controllerFromRig(path, nullptr), e);
+    rig::VirtualRig rig(controllerFromRig(path, nullptr), e);
     std::vector<std::string> frames;
     rig.addTap([&frames](const Frame& f, canopen::TimeUs) { frames.push_back(canopen::formatFrame(f)); });
     rig.start();
@@ -374,7 +374,7 @@ TEST(RigBoot, ARefusedWriteIsReportedWithItsAbortCode) {
   std::vector<std::string> log;
   const auto path = writeTemp("rig.ini", rigText() +
                                              "\n[valve.sdo]\n6411sub1 = -5\n");
-  nodes::VirtualRig rig(controllerFromRig(path, &log), emulator());
+  rig::VirtualRig rig(controllerFromRig(path, &log), emulator());
   rig.start();
   rig.runFor(2.0);
   // The boot report; the loop's own line (no position: the sensor waits for the valve) follows it.
@@ -386,7 +386,7 @@ TEST(RigBoot, ARefusedWriteIsReportedWithItsAbortCode) {
 }
 
 TEST(RigBoot, ASlaveThatRebootsIsConfiguredAgain) {
-  nodes::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), nullptr), emulator());
+  rig::VirtualRig rig(controllerFromRig(writeTemp("default.ini", rigText()), nullptr), emulator());
   rig.start();
   rig.runFor(3.0);
   ASSERT_EQ(rig.controller().faultCounters().slave_boots, 2u);
@@ -404,7 +404,7 @@ TEST(RigBoot, ASlaveThatRebootsIsConfiguredAgain) {
 TEST(RigBoot, AResetControllerBringsTheRigBackUnlessToldToWait) {
   for (bool wait : {false, true}) {
     const auto path = writeTemp("rig.ini", wait ? rigText({{"startup = 0x00000001", "startup = 0x00000005"}}) : rigText());
-    nodes::VirtualRig rig(controllerFromRig(path, nullptr), emulator());
+    rig::VirtualRig rig(controllerFromRig(path, nullptr), emulator());
     Tool tool(rig);
     rig.start();
     rig.runFor(wait ? 0.5 : 3.0);
@@ -443,7 +443,7 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
     nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
     c.layout = nodes::SlaveLayout{};
     c.dictionary.clear();
-    nodes::VirtualRig rig(c, profile);
+    rig::VirtualRig rig(c, profile);
     Tool tool(rig);
     std::vector<std::pair<canopen::TimeUs, Frame>> frames;
     rig.addTap([&](const Frame& f, canopen::TimeUs t) { frames.push_back({t, f}); });
@@ -473,7 +473,7 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
   }
   std::vector<std::string> log;
   auto c = controllerFromRig(writeTemp("profile.ini", profileRig()), &log);
-  nodes::VirtualRig rig(c, profile);
+  rig::VirtualRig rig(c, profile);
   rig.start();
   rig.runFor(4.0);
   ASSERT_EQ(log.size(), 2u);
@@ -490,7 +490,7 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
 // the EDS files alone (pamc's own COB-IDs) it has no position at all.
 TEST(RigDecode, ALogOfTheProfileRigDecodesToThePositionsTheControllerSaw) {
   const auto path = writeTemp("profile.ini", profileRig());
-  nodes::VirtualRig rig(controllerFromRig(path, nullptr), nodes::EmulatorConfig::profileDevices(kOd.substr(0, kOd.size() - 1)));
+  rig::VirtualRig rig(controllerFromRig(path, nullptr), nodes::EmulatorConfig::profileDevices(kOd.substr(0, kOd.size() - 1)));
   std::vector<canopen::CandumpRecord> log;
   rig.addTap([&](const Frame& f, canopen::TimeUs t) {
     canopen::CandumpRecord r;
@@ -540,7 +540,7 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
                                                          : rigText({{"boot = yes               ; configure at boot",
                                                                      "retries = 0\nboot = yes ; configure at boot"}}));
     int lost = 0;  // the sensor's first answer to the read of its product code 0x1018:02
-    nodes::VirtualRig rig(controllerFromRig(path, &log), emulator(), 0, [&](Frame& f) {
+    rig::VirtualRig rig(controllerFromRig(path, &log), emulator(), 0, [&](Frame& f) {
       return !(f.id == 0x582 && f.data[1] == 0x18 && f.data[2] == 0x10 && f.data[3] == 2 && lost++ == 0);
     });
     rig.start();
@@ -568,7 +568,7 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
 TEST(RigMaster, AnSdoUploadOfTheMastersObjectsShowsTheRigsBoot) {
   const auto path = writeTemp("rig.ini", rigText({{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = 1000 ; 0x1017"}}));
   const auto rig = nodes::readRigFile(path);
-  nodes::VirtualRig vr(controllerFromRig(path, nullptr), emulator());
+  rig::VirtualRig vr(controllerFromRig(path, nullptr), emulator());
   Tool tool(vr);
   vr.start();
   vr.runFor(0.2);
@@ -602,7 +602,7 @@ TEST(RigMaster, AnSdoUploadOfTheMastersObjectsShowsTheRigsBoot) {
 TEST(RigMaster, TheBootFollowsTheMastersDictionary) {
   std::vector<std::string> log;
   const auto path = writeTemp("default.ini", rigText());
-  nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+  rig::VirtualRig vr(controllerFromRig(path, &log), emulator());
   Tool tool(vr);
   vr.start();
   vr.runFor(2.0);
@@ -641,7 +641,7 @@ TEST(MasterDcf, TheControllerBootsTheSlavesFromAHandWrittenDcf) {
     std::vector<std::string> log;
     auto c = controllerFromRig(writeTemp("default.ini", rigText()), &log);
     nodes::applyMasterDcf(dcf, c);
-    nodes::VirtualRig vr(c, emulator());
+    rig::VirtualRig vr(c, emulator());
     Tool tool(vr);
     int old_cobs = 0, new_cobs = 0;
     vr.addTap([&](const Frame& f, canopen::TimeUs t) {
@@ -741,7 +741,7 @@ TEST(RigBoot, SlavesAnotherMasterLeftOtherwiseAreConfiguredBeforeTheStart) {
       std::vector<std::string> log;
       auto cfg = controllerFromRig(writeTemp("default.ini", rigText()), &log);
       if (!configured) cfg.dictionary.clear(), cfg.layout = nodes::SlaveLayout{};  // pamc's layout assumed
-      nodes::VirtualRig vr(cfg, e);
+      rig::VirtualRig vr(cfg, e);
       Tool tool(vr);
       vr.startEmulator();
       const std::uint8_t all[2] = {0x01, 0x00};  // the other master started them
@@ -775,7 +775,7 @@ TEST(RigBoot, SlowHeartbeatsGiveALongerConsumerTimeAndStartGrace) {
   const auto path = writeTemp("rig.ini", rigText({{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = 1000 ; 0x1017"},
                                                   {"heartbeat_ms = 100\nmaster", "heartbeat_ms = 1000\nmaster"}}));
   std::vector<std::string> log;
-  nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+  rig::VirtualRig vr(controllerFromRig(path, &log), emulator());
   Tool tool(vr);
   vr.start();
   vr.runFor(6.0);
@@ -799,7 +799,7 @@ TEST(RigBoot, KeptAliveSlavesThatRunAreNotResetAtTheControllersStart) {
   for (bool operational : {true, false}) {
     SCOPED_TRACE(operational ? "Operational" : "Pre-operational");
     std::vector<std::string> log;
-    nodes::VirtualRig vr(controllerFromRig(path, &log), emulator());
+    rig::VirtualRig vr(controllerFromRig(path, &log), emulator());
     Tool tool(vr);
     std::vector<std::string> nmt;
     vr.addTap([&](const Frame& f, canopen::TimeUs) {

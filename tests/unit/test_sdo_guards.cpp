@@ -105,7 +105,7 @@ struct Rig {
     bus.flush();
   }
 
-  nodes::VirtualRig rig;
+  rig::VirtualRig rig;
   canopen::VirtualBus& bus;
   canopen::VirtualBus::Port& tool;
   nodes::ControllerNode* ctrl;
@@ -120,9 +120,9 @@ struct Rig {
 // The table of docs/RELIABILITY.md ("Parameters over SDO"): every write answered as expected, and
 // the loop's parameter set changed only by the commit.
 TEST(SdoGuards, EveryWriteGetsTheExpectedAnswer) {
-  nodes::FaultRigOptions o;
+  rig::FaultRigOptions o;
   o.od_dir = kOd;
-  const auto rows = nodes::runParameterGuards(o);
+  const auto rows = rig::runParameterGuards(o);
   ASSERT_GE(rows.size(), 20u);
   for (const auto& r : rows) {
     EXPECT_EQ(r.got, r.expected) << r.write;
