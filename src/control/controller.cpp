@@ -263,10 +263,9 @@ class PiAmc final : public Controller {
     ctx.Ts = cfg_.Ts;
     ctx.load = load;
     double y_next;
-    std::array<double, 8> in_flight{};  // the commands still on their way, the oldest first
     const int d = cfg_.delay_cycles;
-    for (int j = 0; j < d; ++j) in_flight[static_cast<size_t>(j)] = hist_.get(d - 1 - j);
     if (cfg_.amc_inverse > 0.0) {
+      const auto in_flight = inFlight();
       // Predictive form: the commands already on their way first, then the nominal command held.
       y_next = am_.predictAhead(in_flight.data(), d, un, cfg_.amc_horizon, load);
       if (std::isfinite(y_next)) {
@@ -276,8 +275,9 @@ class PiAmc final : public Controller {
         if (std::isfinite(g) && std::fabs(g) > 1e-3) inverse_gain_ = g;
       }
     } else if (cfg_.amc_bus_aware) {
-      // Eq. (17) through the bus: the commands on their way, then one step of the nominal command.
-      y_next = am_.predictAhead(in_flight.data(), d, un, d + 1, load);
+      // Eq. (17) through the bus: the commands on their way, then one step of the nominal command
+      // (the horizon is delay_cycles + 1, amcHorizon).
+      y_next = am_.predictAhead(inFlight().data(), d, un, cfg_.amc_horizon, load);
     } else if (cfg_.amc_horizon <= 1) {
       const double un_eff = cfg_.model.inputStage(nom_, un, ctx);
       y_next = cfg_.amc_as_printed ? am_.predictNextAsPrinted(un_eff_prev_, un_eff, load)
@@ -302,6 +302,14 @@ class PiAmc final : public Controller {
   const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
 
  private:
+  // The commands still on their way (delay_cycles of them), the oldest first.
+  std::array<double, 8> inFlight() const noexcept {
+    std::array<double, 8> c{};
+    const int d = cfg_.delay_cycles;
+    for (int j = 0; j < d; ++j) c[static_cast<size_t>(j)] = hist_.get(d - 1 - j);
+    return c;
+  }
+
   ControllerConfig cfg_;
   PiCore pi_;
   LastGood y_;
