@@ -73,21 +73,29 @@ void Emcy::configure() {
 
 void Emcy::updateRegister() {
   std::uint8_t reg = 0;
-  for (std::size_t i = 0; i < active_count_; ++i) reg |= kErrRegGeneric | errorRegisterBit(active_[i]);
+  for (std::size_t i = 0; i < active_count_; ++i) reg |= kErrRegGeneric | errorRegisterBit(static_cast<std::uint16_t>(active_[i] & 0xFFFFu));
   register_ = reg;
   if (Entry* e = ctx_.od.find(kErrorRegister, 0)) e->set<std::uint8_t>(reg);
 }
 
 bool Emcy::active(std::uint16_t code) const {
   for (std::size_t i = 0; i < active_count_; ++i) {
-    if (active_[i] == code) return true;
+    if ((active_[i] & 0xFFFFu) == code) return true;
   }
   return false;
 }
 
-bool Emcy::report(std::uint16_t code, const std::uint8_t* manufacturer) {
-  if (code == kEmcyNoError || active(code)) return false;
-  if (active_count_ < kMaxActive) active_[active_count_++] = code;
+bool Emcy::activeFrom(std::uint32_t key) const {
+  for (std::size_t i = 0; i < active_count_; ++i) {
+    if (active_[i] == key) return true;
+  }
+  return false;
+}
+
+bool Emcy::report(std::uint16_t code, const std::uint8_t* manufacturer, std::uint8_t source) {
+  const std::uint32_t key = code | static_cast<std::uint32_t>(source) << 16;
+  if (code == kEmcyNoError || activeFrom(key)) return false;
+  if (active_count_ < kMaxActive) active_[active_count_++] = key;
   updateRegister();
   if (const ObjectInfo* hist = ctx_.od.object(kErrorHistory)) {
     // Newest error first in 0x1003:01; older ones shift down, the oldest falls off.
@@ -109,9 +117,10 @@ bool Emcy::report(std::uint16_t code, const std::uint8_t* manufacturer) {
   return queue(code, manufacturer);
 }
 
-bool Emcy::clear(std::uint16_t code) {
+bool Emcy::clear(std::uint16_t code, std::uint8_t source) {
+  const std::uint32_t key = code | static_cast<std::uint32_t>(source) << 16;
   for (std::size_t i = 0; i < active_count_; ++i) {
-    if (active_[i] != code) continue;
+    if (active_[i] != key) continue;
     active_[i] = active_[--active_count_];
     updateRegister();
     return queue(kEmcyNoError, nullptr);

@@ -59,11 +59,12 @@ class Emcy {
   // Reads 0x1014/0x1015 and subscribes the consumer (0x1028 if present, else 0x81..0xFF except this node).
   void configure();
 
-  // An error occurred: sets the error register, records 0x1003, sends the EMCY frame.
-  // Returns false if the error was already active or the frame could not be queued.
-  bool report(std::uint16_t error_code, const std::uint8_t* manufacturer = nullptr);
+  // An error occurred: sets the error register, records 0x1003, sends the EMCY frame. source tells
+  // apart the same error of several parts of a device (a controller's channels): each is active by
+  // itself. Returns false if the error was already active or the frame could not be queued.
+  bool report(std::uint16_t error_code, const std::uint8_t* manufacturer = nullptr, std::uint8_t source = 0);
   // The error disappeared: updates the register and sends an "error reset" EMCY (code 0x0000).
-  bool clear(std::uint16_t error_code);
+  bool clear(std::uint16_t error_code, std::uint8_t source = 0);
   void clearAll();
   bool active(std::uint16_t error_code) const;
   std::uint8_t errorRegister() const { return register_; }
@@ -89,7 +90,8 @@ class Emcy {
   TimeUs inhibit_us_ = 0;
   bool has_sent_ = false;
   TimeUs last_tx_us_ = 0;
-  std::array<std::uint16_t, kMaxActive> active_{};
+  bool activeFrom(std::uint32_t key) const;
+  std::array<std::uint32_t, kMaxActive> active_{};  // error code | source << 16
   std::size_t active_count_ = 0;
   std::uint8_t register_ = 0;
   std::array<Frame, kQueue> queue_{};

@@ -101,16 +101,16 @@ void NmtMaster::setBoot(std::uint8_t id, SlaveBoot boot) {
   s->state = Boot::Idle;
 }
 
-void NmtMaster::setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads) {
+void NmtMaster::addReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads) {
   Slave* s = find(id);
   if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
-  s->reads = std::move(reads);
+  s->reads.insert(s->reads.end(), std::make_move_iterator(reads.begin()), std::make_move_iterator(reads.end()));
 }
 
-void NmtMaster::setConfig(std::uint8_t id, std::vector<SlaveBoot::Write> writes) {
+void NmtMaster::addConfig(std::uint8_t id, std::vector<SlaveBoot::Write> writes) {
   Slave* s = find(id);
   if (s == nullptr) throw std::invalid_argument("NMT master: node " + std::to_string(id) + " is not a slave");
-  s->config = std::move(writes);
+  s->config.insert(s->config.end(), std::make_move_iterator(writes.begin()), std::make_move_iterator(writes.end()));
 }
 
 void NmtMaster::loadPlan(Slave& s) {

@@ -6,13 +6,13 @@
 //   1. (after a reset) its boot-up awaited (kBootUpTimeoutUs);
 //   2. identity: 0x1000 read always (it also proves the slave is there), compared only where 0x1F84
 //      expects a device type, then 0x1018:01..04 against 0x1F85-0x1F88 (0: not read);
-//   3. the application's reads (setReads(): values a driver needs before the slave starts);
+//   3. the application's reads (addReads(): values a driver needs before the slave starts);
 //   4. kept alive only: its heartbeat tells whether it runs - Operational, it is left as it is (no
 //      configuration) and goes on at 7; otherwise it is reset communication, and after its boot-up
 //      goes on at 5 (its identity is not read again);
 //   5. configuration: the concise DCF 0x1F22 (CiA 302-3) written, then every entry read back; a PDO
 //      COB-ID (0x1400/0x1800+n:01) is read before its first write and keeps the device's bit 30;
-//   6. the application's configuration (setConfig(): a driver's own writes, its values taken when they
+//   6. the application's configuration (addConfig(): a driver's own writes, its values taken when they
 //      go out);
 //   7. its first heartbeat awaited, if 0x1016 supervises it (within its consumer time);
 //   8. NMT start - also to a slave that already runs - once it is not held and every mandatory slave
@@ -157,10 +157,11 @@ class NmtMaster {
   // What to check and write at its boot, into the master's dictionary (bootToDictionary), its reads and
   // the application's writes kept (throws for an unknown slave or a dictionary without the master's objects).
   void setBoot(std::uint8_t id, SlaveBoot boot);
-  // The application's reads at the slave's boot, after its identity, before its configuration.
-  void setReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads);
-  // The application's writes at the slave's boot, after the concise DCF and its read-back.
-  void setConfig(std::uint8_t id, std::vector<SlaveBoot::Write> writes);
+  // Adds to the application's reads at the slave's boot, after its identity, before its configuration.
+  void addReads(std::uint8_t id, std::vector<SlaveBoot::Read> reads);
+  // Adds to the application's writes at the slave's boot, after the concise DCF and its read-back (one per
+  // driver: several channels on one slave each add theirs).
+  void addConfig(std::uint8_t id, std::vector<SlaveBoot::Write> writes);
   void setStartup(std::uint32_t bits) { startup_ = bits; }
   std::uint32_t startup() const noexcept { return startup_; }
   void onEvent(EventHook hook) { hook_ = std::move(hook); }
@@ -239,8 +240,8 @@ class NmtMaster {
     bool lost = false;             // heartbeat timed out: re-boot it when it is back
     Start start;
     SlaveBoot boot;                // from the dictionary at begin(), with reads
-    std::vector<SlaveBoot::Read> reads;    // the application's (setReads)
-    std::vector<SlaveBoot::Write> config;  // the application's (setConfig)
+    std::vector<SlaveBoot::Read> reads;    // the application's (addReads)
+    std::vector<SlaveBoot::Write> config;  // the application's (addConfig)
     std::vector<Op> ops;           // the boot, flattened: identity, reads, writes, read-backs, the application's writes
     std::size_t config_op = 0;     // the first write (a kept-alive slave's state is checked before it)
     std::string plan_error;        // 0x1F22:id did not decode: the boot fails with this

@@ -58,7 +58,7 @@ class ControllerCommand final : public Command {
     auto loggerp = std::make_unique<Logger>(candump, iface, csv, c.period_us);
     auto& logger = *loggerp;
     logger.records = &node.records();
-    MeasurementRecord measurement(c.layout.feedback, c.delay_cycles);
+    MeasurementRecord measurement(c.channels[0].layout.feedback, c.delay_cycles);
     attachMeasurement(logger, measurement, run_);
     can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
     canopen::EventLoop loop(can, node.node());

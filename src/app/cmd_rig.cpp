@@ -208,7 +208,7 @@ class RigCommand final : public Command {
     auto loggerp = std::make_unique<Logger>(candump, kInProcessBusName, run_.csv, run_.period_us);
     auto& logger = *loggerp;
     logger.records = ring.get();
-    MeasurementRecord measurement(c.layout.feedback, c.delay_cycles);
+    MeasurementRecord measurement(c.channels[0].layout.feedback, c.delay_cycles);
     attachMeasurement(logger, measurement, run_);
     int progress_fd = -1;
     if (!progress.empty()) {
@@ -243,7 +243,7 @@ class RigCommand final : public Command {
     realtimeSetup(true, rt_.cpu, rt_.priority);
     logger.start();
     std::fprintf(stderr, "in-process bus paced in real time: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
-                 c.node_id ? c.node_id : 1u, c.sensor_id, c.valve_id, run_.preroll, run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
+                 c.node_id ? c.node_id : 1u, c.channels[0].sensor_id, c.channels[0].valve_id, run_.preroll, run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
     const auto r = rig::runVirtualRig(c, ec, run_.duration, "", epoch, 0, hooks);
     logger.stop();
     if (progress_fd >= 0) ::close(progress_fd);
@@ -276,14 +276,14 @@ class RigCommand final : public Command {
     TrackingSummary t;
     t.open_loop_input = run_.openLoopInput();
     std::vector<nodes::CycleRecord> kept;
-    MeasurementRecord measurement(c.layout.feedback, c.delay_cycles);
+    MeasurementRecord measurement(c.channels[0].layout.feedback, c.delay_cycles);
     hooks.on_record = [&](const nodes::CycleRecord& x) {
       t.add(x);
       if (!run_.csv.empty()) kept.push_back(x);
       if (!run_.out.empty()) measurement.add(x);
     };
     std::fprintf(stderr, "in-process bus: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
-                 c.node_id ? c.node_id : 1u, c.sensor_id, c.valve_id, run_.preroll,
+                 c.node_id ? c.node_id : 1u, c.channels[0].sensor_id, c.channels[0].valve_id, run_.preroll,
                  forever ? "until Ctrl-C" : (std::to_string(run_.duration) + " s run").c_str());
     const auto r = rig::runVirtualRig(c, ec, run_.duration, candump, 1700000000000000, 0, hooks);
     if (!run_.csv.empty()) {

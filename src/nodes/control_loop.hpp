@@ -15,15 +15,9 @@
 #include "control/trajectory.hpp"
 #include "nodes/cycle_stats.hpp"
 #include "nodes/range_watch.hpp"
+#include "nodes/position_sample.hpp"
 
 namespace pamc::nodes {
-
-// The position of one cycle as the loop sees it.
-struct PositionSample {
-  double y = 0.0;       // [mm]
-  double y_ctrl = 0.0;  // what the controller gets: y, or NaN when it is not to be used
-  bool usable = false;  // fresh and plausible
-};
 
 class ControlLoop {
  public:

@@ -6,6 +6,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "canopen/nmt_master.hpp"
 #include "control/controller.hpp"
@@ -29,6 +30,32 @@ struct SlaveLayout {
   bool position_step_from_device = false;  // the step is read from the sensor at its boot (0x6005:01, nm)
 };
 
+// A node runs at most this many channels (the controller's dictionary has the objects of eight).
+inline constexpr std::size_t kMaxChannels = 8;
+
+// The controller's own objects of channel c (0-based), 0x10 apart as CiA 301 lays out the virtual
+// devices of a module: the position it receives, the pressure it receives, the command it sends.
+constexpr std::uint16_t positionObject(std::size_t c) { return static_cast<std::uint16_t>(0x3000 + 0x10 * c); }
+constexpr std::uint16_t pressureObject(std::size_t c) { return static_cast<std::uint16_t>(0x3001 + 0x10 * c); }
+constexpr std::uint16_t commandObject(std::size_t c) { return static_cast<std::uint16_t>(0x3002 + 0x10 * c); }
+
+// One channel: one muscle's position input, valve output and control loop. Where its numbers are on
+// the bus (its sensor and valve slaves - one slave may serve several channels - their COB-IDs and
+// scaling) and which of the controller's PDOs carry them; and what it runs where a rig file gives it
+// its own (unset: the node's, i.e. the dictionary's and the command line's).
+struct ChannelConfig {
+  std::uint8_t sensor_id = 2, valve_id = 3;
+  SlaveLayout layout;
+  // The controller's RPDO bringing the position, its RPDO bringing the pressure (with layout.feedback)
+  // and its TPDO taking the command.
+  unsigned position_rpdo = 1, feedback_rpdo = 2, command_tpdo = 1;
+  int kind = -1;  // control::Kind; -1: 0x2010
+  std::optional<model::Model> model;
+  std::optional<control::Trajectory> trajectory;
+  // Its joint partner (0-based; -1: none): a fault of either puts both at their safe values.
+  int partner = -1;
+};
+
 struct ControllerNodeConfig {
   std::string eds_path = "od/controller.eds";
   std::uint8_t node_id = 0;           // 0: the EDS's
@@ -44,12 +71,15 @@ struct ControllerNodeConfig {
   double preroll_s = 5.0;             // hold the first setpoint this long before the trajectory starts
   bool produce_sync = true;
   unsigned period_us = 0;             // SYNC period override (0: 0x1006 of the EDS)
-  std::uint8_t sensor_id = 2, valve_id = 3;
   int recover_cycles = 500;           // a fault must be gone this long before control resumes
   double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast (V/s for Kind::Input)
   double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
   double no_position_s = 1.0;         // no position this long after entering Operational (or after the sensor's boot): Fault::NoPosition
-  SlaveLayout layout;
+  // The channels, in order (channel 1 first); one by default: pamc's own sensor and valve.
+  std::vector<ChannelConfig> channels{ChannelConfig{}};
+  // A fault of one channel puts every channel at its safe value (a rig file's `faults = all`);
+  // otherwise only the channel and its joint partner.
+  bool fault_all = false;
   // Values of the controller's own dictionary in place of the EDS defaults (a reset restores them):
   // a rig file compiled (masterValues), a DCF (--dcf). The boot of the slaves follows them: 0x1F22,
   // 0x1F80, 0x1F81, 0x1F84-0x1F89, 0x1016 (canopen/nmt_master.hpp).

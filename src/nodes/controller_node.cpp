@@ -1,5 +1,5 @@
-// The controller node's cycle: what the SYNC callback runs, in order, across the drivers, the fault
-// supervisor and the control loop. Set-up and hooks are in controller_node_setup.cpp.
+// The controller node's cycle: what the SYNC callback runs, in order, across the channels - each one's
+// drivers, fault supervisor and control loop. Set-up and hooks are in controller_node_setup.cpp.
 #include "nodes/controller_node.hpp"
 
 #include <cmath>
@@ -10,47 +10,93 @@ using canopen::TimeUs;
 
 // ---- Faults ----------------------------------------------------------------------------------------
 
-void ControllerNode::takeCauses(TimeUs now) noexcept {
-  if (!faults_->takeCauses(now)) return;
+void ControllerNode::takeCauses(Channel& c, TimeUs now) noexcept {
+  if (!c.faults->takeCauses(now)) return;
   // The safe state begins: the loop's command is the safe value, which send() gives the valve in this
   // cycle's TPDO (the one write of the cycle).
-  loop_->enterSafe(params_->safeCommand());
+  c.loop->enterSafe(params_->safeCommand());
 }
 
-void ControllerNode::recover(double y, TimeUs now) noexcept {
-  faults_->recover();
-  valve_->release(ValveDriver::kHoldCollision, now);
-  loop_->recoverFrom(y, params_->safeCommand());
+void ControllerNode::recover(Channel& c, double y, TimeUs now) noexcept {
+  c.faults->recover();
+  c.valve->release(ValveDriver::kHoldCollision, now);
+  c.loop->recoverFrom(y, params_->safeCommand());
 }
 
-// Every fault cause, every cycle: the sensor's and the valve's, then the bus's.
-void ControllerNode::poll(TimeUs now, bool usable) noexcept {
-  const ParameterSet& ps = params_->running();
-  sensor_->supervise(*faults_, now, loop_->active(), usable, ps, loop_->period());
-  valve_->supervise(*faults_, now, loop_->active(), loop_->cycle(), ps.missing_limit);
-  faults_->pollBus();
+// A cause of the bus or of the node itself: every channel meets it (one reports it).
+void ControllerNode::raiseAll(Fault f, std::uint8_t detail) noexcept {
+  for (auto& c : channels_) c.faults->raise(f, detail);
+}
+
+void ControllerNode::holdValves(std::uint8_t reason) noexcept {
+  for (auto& c : channels_) c.valve->hold(reason);
+}
+
+void ControllerNode::releaseValves(std::uint8_t reason, TimeUs now) noexcept {
+  for (auto& c : channels_) c.valve->release(reason, now);
+}
+
+// Every fault cause of a channel, every cycle: its sensor's and its valve's, then the bus's.
+void ControllerNode::poll(Channel& c, TimeUs now) noexcept {
+  DriverCycle dc;
+  dc.now = now;
+  dc.active = c.loop->active();
+  dc.usable = c.sample.usable();
+  dc.cycle = c.loop->cycle();
+  dc.ps = &params_->running();
+  dc.Ts = c.loop->period();
+  c.sensor->supervise(*c.faults, dc);
+  c.valve->supervise(*c.faults, dc);
+  c.faults->pollBus();
+}
+
+// A channel in its safe state by a cause of its own takes its joint partner along (every channel
+// with faults = all), in the same cycle.
+void ControllerNode::spreadFaults() noexcept {
+  if (channels_.size() < 2) return;
+  for (std::size_t i = 0; i < channels_.size(); ++i) {
+    if (!channels_[i].faults->spreads()) continue;
+    for (std::size_t j = 0; j < channels_.size(); ++j) {
+      if (j == i || !(fault_all_ || channels_[i].partner == static_cast<int>(j))) continue;
+      channels_[j].faults->raise(Fault::OtherChannel, static_cast<std::uint8_t>(i + 1));
+      takeCauses(channels_[j], node_->now());
+    }
+  }
 }
 
 // ---- The cycle -------------------------------------------------------------------------------------
 
 void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   measurePeriod(now);
-  valve_->release(ValveDriver::kHoldSync, now);  // SYNC is back
-  const SensorDriver::Sample s = sensor_->latch(params_->running());
-  sensor_->checkPlausibility(s, loop_->command());
-  advance(s);
-  poll(now, s.usable());
-  takeCauses(now);
-  if (valve_->errorValuePending()) valve_->pushErrorValue(params_->safeCommand());
-  const CycleRecord rec = control(s, now);
+  releaseValves(ValveDriver::kHoldSync, now);  // SYNC is back
+  for (auto& c : channels_) input(c);
+  if (params_->committed()) takeCommitted();
+  for (auto& c : channels_) {
+    c.loop->count();
+    poll(c, now);
+    takeCauses(c, now);
+  }
+  spreadFaults();
+  CycleRecord recs[kMaxChannels];
+  for (std::size_t i = 0; i < channels_.size(); ++i) {
+    Channel& c = channels_[i];
+    if (c.valve->errorValuePending()) c.valve->pushErrorValue(params_->safeCommand());
+    recs[i] = control(c, now);
+  }
   master_->poll(now);  // boot work left waiting for the SDO client
-  faults_->clearWarnings();
-  send(rec, now);
+  for (auto& c : channels_) {
+    c.faults->clearWarnings();
+    c.valve->command(c.loop->command());  // each valve written once, into this cycle's TPDO
+  }
+  const double lat = clock_ ? static_cast<double>(clock_() - now) : 0.0;
+  stats_.latency_us.add(lat);
+  if (lat > channels_[0].loop->period() * 1e6) ++stats_.overruns;
+  for (std::size_t i = 0; i < channels_.size(); ++i) send(channels_[i], static_cast<std::uint8_t>(i), recs[i], lat);
 }
 
 // Period jitter and missed SYNCs.
 void ControllerNode::measurePeriod(TimeUs now) noexcept {
-  const double Ts = loop_->period();
+  const double Ts = channels_[0].loop->period();
   if (last_sync_ != 0) {
     const double dt = static_cast<double>(now - last_sync_);
     stats_.jitter_us.add(std::fabs(dt - Ts * 1e6));
@@ -60,47 +106,45 @@ void ControllerNode::measurePeriod(TimeUs now) noexcept {
   ++stats_.cycles;
 }
 
-// Activation on the first usable position, a committed parameter set at the cycle boundary, the cycle count.
-void ControllerNode::advance(const SensorDriver::Sample& s) noexcept {
-  loop_->activateOn(s.forLoop());
-  if (params_->committed()) takeCommitted(s.y_ctrl);
-  loop_->count();
+// The channel's position of this SYNC, its plausibility, and the loop's activation on the first usable one.
+void ControllerNode::input(Channel& c) noexcept {
+  c.sample = c.sensor->latch(params_->running());
+  c.sensor->checkPlausibility(c.sample, c.loop->command());
+  c.loop->activateOn(c.sample.forLoop());
 }
 
 // The command: the safe value in a fault, otherwise the controller's (slew-limited after a restart).
-CycleRecord ControllerNode::control(const SensorDriver::Sample& s, TimeUs now) noexcept {
+CycleRecord ControllerNode::control(Channel& c, TimeUs now) noexcept {
   const double safe_u = params_->safeCommand();
+  const SensorDriver::Sample& s = c.sample;
   const PositionSample p = s.forLoop();
-  const auto sp = loop_->setpointNow();
-  if (faults_->fault() != Fault::None) {
+  const auto sp = c.loop->setpointNow();
+  if (c.faults->fault() != Fault::None) {
     // Safe state: valve to its safe value every cycle until the causes have been gone long enough
     // (and SYNC, hence the valve, is back); then estimator and integrator restart (no jump).
-    const CycleRecord rec = loop_->holdSafe(p, sp, safe_u);
-    if (faults_->safeCycle() && s.usable() && (valve_->holdReasons() & ValveDriver::kHoldSync) == 0) recover(s.y, now);
+    const CycleRecord rec = c.loop->holdSafe(p, sp, safe_u);
+    if (c.faults->safeCycle() && s.usable() && (c.valve->holdReasons() & ValveDriver::kHoldSync) == 0) recover(c, s.y, now);
     return rec;
   }
-  if (!loop_->active()) return loop_->idle(p, sp, safe_u);
+  if (!c.loop->active()) return c.loop->idle(p, sp, safe_u);
   CycleRecord rec;
-  if (!loop_->step(p, sp, safe_u, rec)) {
-    faults_->raise(Fault::Estimator);
-    takeCauses(now);
+  if (!c.loop->step(p, sp, safe_u, rec)) {
+    c.faults->raise(Fault::Estimator);
+    takeCauses(c, now);
   }
   return rec;
 }
 
-// The setpoint goes out in this cycle's TPDO, right after this callback; the record to the ring.
-void ControllerNode::send(CycleRecord rec, TimeUs now) noexcept {
-  valve_->command(loop_->command());
-  const double lat = clock_ ? static_cast<double>(clock_() - now) : 0.0;
-  stats_.latency_us.add(lat);
-  if (lat > loop_->period() * 1e6) ++stats_.overruns;
-  faults_->publish();
-  loop_->publishTime(rec.t);
-  if (loop_->active() && loop_->running()) {
-    rec.u = loop_->command();
-    rec.fault = static_cast<std::uint8_t>(faults_->fault());
-    rec.latency_us = static_cast<float>(lat);
-    rec.p = valve_->pressureBar();
+// The setpoint went into this cycle's TPDO, sent right after this callback; the record to the ring.
+void ControllerNode::send(Channel& c, std::uint8_t number, CycleRecord rec, double latency_us) noexcept {
+  c.faults->publish();
+  c.loop->publishTime(rec.t);
+  if (c.loop->active() && c.loop->running()) {
+    rec.u = c.loop->command();
+    rec.fault = static_cast<std::uint8_t>(c.faults->fault());
+    rec.latency_us = static_cast<float>(latency_us);
+    rec.p = c.valve->pressureBar();
+    rec.channel = number;
     records_.push(rec);
   }
 }

@@ -28,6 +28,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "canopen/nmt_master.hpp"
 #include "canopen/node.hpp"
@@ -75,63 +76,84 @@ class ControllerNode {
   // (checked, configured) and started, and again whenever one boots.
   void start(canopen::TimeUs now);
 
-  // Safe to call from another thread (the command line's watcher).
-  Fault fault() const noexcept { return faults_->published(); }
+  // Safe to call from another thread (the command line's watcher). Of a node with several channels:
+  // the first channel's fault that is not None, channel 1's trajectory time, the sum of the counters.
+  Fault fault() const noexcept;
   const CycleStats& stats() const noexcept { return stats_; }
+  // Every channel's cycle records, CycleRecord::channel telling them apart.
   SpscRing<CycleRecord, 1 << 15>& records() noexcept { return records_; }
-  bool running() const noexcept { return loop_->running(); }
-  double runTime() const noexcept { return loop_->runTime(); }  // trajectory seconds so far; any thread
-  std::uint64_t faultsRaised() const noexcept { return faults_->raised(); }
-  control::Kind kind() const noexcept { return loop_->kind(); }
-  const RangeWatch& rangeWatch() const noexcept { return loop_->rangeWatch(); }  // any thread
+  bool running() const noexcept;  // every channel past its pre-roll
+  double runTime() const noexcept { return ch(0).loop->runTime(); }  // trajectory seconds so far; any thread
+  std::uint64_t faultsRaised() const noexcept;
+  control::Kind kind() const noexcept { return ch(0).loop->kind(); }
+  const RangeWatch& rangeWatch(std::size_t c = 0) const noexcept { return ch(c).loop->rangeWatch(); }  // any thread
   FaultCounters faultCounters() const noexcept;
-  // Causes whose EMCY went out in the present episode (bit per Fault).
-  std::uint32_t episodeCauses() const noexcept { return faults_->episode(); }
+  // Causes whose EMCY went out in the present episode (bit per Fault), of every channel.
+  std::uint32_t episodeCauses() const noexcept;
+  // The channels: how many, and each one's fault (any thread).
+  std::size_t channels() const noexcept { return channels_.size(); }
+  Fault channelFault(std::size_t c) const noexcept { return ch(c).faults->published(); }
   // The parameters the loop uses (kp, ki, ... as taken into use).
   const control::ControllerConfig& activeParameters() const noexcept { return params_->running().ctrl; }
   double safeCommand() const noexcept { return params_->safeCommand(); }  // relative volts (-5 = 0 V)
   std::uint32_t lastRefusal() const noexcept { return params_->lastRefusal(); }  // abort code of the last refused commit
   // COB-ID of the last frame another node sent on this node's identifiers (0: none); any thread.
   std::uint32_t lastCollisionCob() const noexcept { return collision_pub_.load(std::memory_order_relaxed); }
-  // COB-ID the position is awaited on (RPDO1, as configured at the last NMT start); any thread.
-  std::uint32_t positionCob() const noexcept { return sensor_->cob(); }
-  std::uint8_t sensorId() const noexcept { return sensor_->id(); }
-  double noPositionSeconds() const noexcept { return sensor_->noPositionSeconds(); }
+  // COB-ID channel 1's position is awaited on (as configured at the last NMT start); any thread.
+  std::uint32_t positionCob() const noexcept { return ch(0).sensor->cob(); }
+  std::uint8_t sensorId() const noexcept { return ch(0).sensor->id(); }
+  double noPositionSeconds() const noexcept { return ch(0).sensor->noPositionSeconds(); }
   // Node time of the first reaction (EMCY or safe state) of the present episode; kNever if none.
-  canopen::TimeUs reactedAtUs() const noexcept { return faults_->reactedAt(); }
+  canopen::TimeUs reactedAtUs() const noexcept;
   const canopen::NmtMaster& master() const noexcept { return *master_; }
-  const pd::Scaling& scaling() const noexcept { return sensor_->scaling(); }
+  const pd::Scaling& scaling() const noexcept { return ch(0).sensor->scaling(); }
 
  private:
+  // One channel: its input and output drivers, its faults, its loop.
+  struct Channel {
+    std::unique_ptr<SensorDriver> sensor;
+    std::unique_ptr<ValveDriver> valve;
+    std::unique_ptr<FaultSupervisor> faults;
+    std::unique_ptr<ControlLoop> loop;
+    int partner = -1;
+    SensorDriver::Sample sample;  // latched at this SYNC
+  };
+  const Channel& ch(std::size_t c) const noexcept { return channels_[c]; }
+  void addChannel(const ControllerNodeConfig& cfg, std::size_t c);
+  std::unique_ptr<control::Controller> buildFor(control::Kind kind, const control::ControllerConfig& ctrl, std::size_t c) const;
   void installHooks();
   void installStateHook();
   void configureFromOd();
   void onOperational(canopen::TimeUs now);
-  void takeCommitted(double y) noexcept;
+  void takeCommitted() noexcept;
 
-  // The cycle, in the order onSync runs it.
+  // The cycle, in the order onSync runs it: each channel's input, the faults (a channel's spreading
+  // to its partner), each channel's loop, each channel's output.
   void onSync(std::uint8_t counter, canopen::TimeUs now) noexcept;
   void measurePeriod(canopen::TimeUs now) noexcept;
-  void advance(const SensorDriver::Sample& s) noexcept;
-  void poll(canopen::TimeUs now, bool usable) noexcept;
-  CycleRecord control(const SensorDriver::Sample& s, canopen::TimeUs now) noexcept;
-  void send(CycleRecord rec, canopen::TimeUs now) noexcept;
+  void input(Channel& c) noexcept;
+  void poll(Channel& c, canopen::TimeUs now) noexcept;
+  void spreadFaults() noexcept;
+  CycleRecord control(Channel& c, canopen::TimeUs now) noexcept;
+  void send(Channel& c, std::uint8_t number, CycleRecord rec, double latency_us) noexcept;
 
   // Faults: the supervisor's causes, and on entering the safe state the valve at its safe value.
-  void takeCauses(canopen::TimeUs now) noexcept;
-  void recover(double y, canopen::TimeUs now) noexcept;
+  void raiseAll(Fault f, std::uint8_t detail = 0) noexcept;
+  void takeCauses(Channel& c, canopen::TimeUs now) noexcept;
+  void recover(Channel& c, double y, canopen::TimeUs now) noexcept;
   void onSlaveEvent(std::uint8_t id, canopen::SlaveEvent ev);
-  void valveKeptAlive();  // kept alive and running: not configured by this boot, its error value goes out
+  void logSlaveEvent(const char* role, std::uint8_t id, canopen::SlaveEvent ev) const;
+  void holdValves(std::uint8_t reason) noexcept;
+  void releaseValves(std::uint8_t reason, canopen::TimeUs now) noexcept;
 
   std::function<canopen::TimeUs()> clock_;
   std::unique_ptr<canopen::Node> node_;
-  std::unique_ptr<canopen::NmtMaster> master_;    // of the sensor and the valve
+  std::unique_ptr<canopen::NmtMaster> master_;    // of the sensors and the valves
   std::unique_ptr<OdOverrides> overrides_;
-  std::unique_ptr<SensorDriver> sensor_;
-  std::unique_ptr<ValveDriver> valve_;
   std::unique_ptr<ControllerParameters> params_;  // the dictionary's parameter set and its commit
-  std::unique_ptr<FaultSupervisor> faults_;
-  std::unique_ptr<ControlLoop> loop_;
+  std::vector<Channel> channels_;
+  std::vector<ChannelConfig> channel_cfg_;        // what each channel runs of its own
+  bool fault_all_ = false;
   std::function<void(const std::string&)> log_;   // the slaves' boot reports
   std::uint64_t collisions_ = 0;                  // frames on this node's own identifiers
   std::atomic<std::uint32_t> collision_pub_{0};

@@ -2,6 +2,7 @@
 // configuration on entering Operational, the slaves' boot reports. The cycle is in controller_node.cpp.
 #include "nodes/controller_node.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "canopen/eds_dictionary.hpp"
@@ -16,48 +17,79 @@ using canopen::TimeUs;
 
 ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport,
                                std::function<TimeUs()> clock)
-    : clock_(std::move(clock)), log_(cfg.log) {
+    : clock_(std::move(clock)), channel_cfg_(cfg.channels), fault_all_(cfg.fault_all), log_(cfg.log) {
+  if (cfg.channels.empty() || cfg.channels.size() > kMaxChannels)
+    throw std::invalid_argument("controller: " + std::to_string(cfg.channels.size()) + " channels (1.." +
+                                std::to_string(kMaxChannels) + ")");
   // The dictionary: the EDS with the rig file's or a DCF's values as its defaults (the slaves' boot).
   const canopen::EdsFile eds = canopen::EdsFile::load(cfg.eds_path);
   const std::uint8_t id = canopen::resolveNodeId(eds, cfg.eds_path, cfg.node_id);
   node_ = std::make_unique<canopen::Node>(canopen::dictionaryFromEds(eds, id, cfg.dictionary), id, transport);
   master_ = std::make_unique<canopen::NmtMaster>(*node_);
-  const auto& lay = cfg.layout;
-  sensor_ = std::make_unique<SensorDriver>(*node_, *master_, cfg.sensor_id, lay.scaling, cfg.no_position_s);
-  valve_ = std::make_unique<ValveDriver>(*node_, *master_, cfg.valve_id, lay.scaling, lay.feedback,
-                                         lay.error_value_index, lay.error_value_sub);
-  if (lay.position_step_from_device) sensor_->readStepAtBoot();
   params_ = std::make_unique<ControllerParameters>(*node_, cfg.ctrl, cfg.build_off_cycle);
-  valve_->errorValueAtBoot([this] { return params_->safeCommand(); });
+  params_->setChannels(cfg.channels.size(), [this](control::Kind k, const control::ControllerConfig& c, std::size_t ch) {
+    return buildFor(k, c, ch);
+  });
+  channels_.reserve(cfg.channels.size());
+  for (std::size_t c = 0; c < cfg.channels.size(); ++c) addChannel(cfg, c);
   overrides_ = std::make_unique<OdOverrides>(cfg);
   overrides_->apply(node_->od(), *params_);
-  faults_ = std::make_unique<FaultSupervisor>(*node_, cfg.recover_cycles);
-  loop_ = std::make_unique<ControlLoop>(cfg.ramp_mm_per_s, cfg.ramp_slew_v);
-  sensor_->bind();
-  valve_->bind();
   configureFromOd();
   params_->installGuards();
   installHooks();
 }
 
+// Channel c: its drivers over the controller's objects and PDOs of the channel, its supervisor (the
+// first reports the bus's causes), its loop.
+void ControllerNode::addChannel(const ControllerNodeConfig& cfg, std::size_t c) {
+  const ChannelConfig& cc = cfg.channels[c];
+  const auto& lay = cc.layout;
+  Channel ch;
+  ch.sensor = std::make_unique<SensorDriver>(*node_, *master_, cc.sensor_id, lay.scaling, cfg.no_position_s,
+                                             cc.position_rpdo, positionObject(c));
+  ch.valve = std::make_unique<ValveDriver>(*node_, *master_, cc.valve_id, lay.scaling, lay.feedback, lay.error_value_index,
+                                           lay.error_value_sub, cc.feedback_rpdo, commandObject(c), pressureObject(c));
+  if (lay.position_step_from_device) ch.sensor->readStepAtBoot();
+  ch.valve->errorValueAtBoot([this] { return params_->safeCommand(); });
+  const auto number = static_cast<std::uint8_t>(cfg.channels.size() > 1 ? c + 1 : 0);
+  ch.faults = std::make_unique<FaultSupervisor>(*node_, cfg.recover_cycles, number, c == 0);
+  ch.loop = std::make_unique<ControlLoop>(cfg.ramp_mm_per_s, cfg.ramp_slew_v);
+  ch.partner = cc.partner;
+  ch.sensor->bind();
+  ch.valve->bind();
+  channels_.push_back(std::move(ch));
+}
+
+// Channel c's controller of a parameter set: its own kind and model where the rig file gives them.
+std::unique_ptr<control::Controller> ControllerNode::buildFor(control::Kind kind, const control::ControllerConfig& ctrl,
+                                                              std::size_t c) const {
+  const ChannelConfig& cc = channel_cfg_[c];
+  if (cc.kind < 0 && !cc.model) return control::makeController(kind, ctrl);
+  control::ControllerConfig own = ctrl;
+  if (cc.model) own.model = *cc.model;
+  return control::makeController(cc.kind >= 0 ? static_cast<control::Kind>(cc.kind) : kind, own);
+}
+
 void ControllerNode::installHooks() {
   node_->onSync([this](std::uint8_t counter, TimeUs now) { onSync(counter, now); });
   master_->onEvent([this](std::uint8_t id, SlaveEvent ev, TimeUs) { onSlaveEvent(id, ev); });
-  node_->onErrorFrame([this](const canopen::Frame& f, TimeUs) { faults_->onErrorFrame(f); });
-  // SYNC consumer: without SYNC no cycle runs, so act in the hook: safe value, EMCY, and the valve to
-  // Pre-operational, where it outputs its error value (it would hold the last command otherwise).
+  node_->onErrorFrame([this](const canopen::Frame& f, TimeUs) {
+    for (auto& c : channels_) c.faults->onErrorFrame(f);
+  });
+  // SYNC consumer: without SYNC no cycle runs, so act in the hook: safe value, EMCY, and the valves to
+  // Pre-operational, where they output their error values (they would hold the last command otherwise).
   node_->onSyncTimeout([this](TimeUs now) {
-    faults_->raise(Fault::SyncLost);
-    takeCauses(now);
-    valve_->hold(ValveDriver::kHoldSync);
+    raiseAll(Fault::SyncLost);
+    for (auto& c : channels_) takeCauses(c, now);
+    holdValves(ValveDriver::kHoldSync);
   });
   node_->onCollision([this](const canopen::Frame& f, TimeUs now) {
     ++collisions_;
     collision_pub_.store(f.id, std::memory_order_relaxed);
-    faults_->raise(Fault::IdCollision, static_cast<std::uint8_t>(f.id & 0xFF));
-    takeCauses(now);
-    // The other node may command the valve too: keep it in Pre-operational until the collision is gone.
-    valve_->hold(ValveDriver::kHoldCollision);
+    raiseAll(Fault::IdCollision, static_cast<std::uint8_t>(f.id & 0xFF));
+    for (auto& c : channels_) takeCauses(c, now);
+    // The other node may command the valves too: keep them in Pre-operational until the collision is gone.
+    holdValves(ValveDriver::kHoldCollision);
   });
   installStateHook();
   // A reset restores the EDS defaults: put the command line's choices back.
@@ -82,26 +114,30 @@ void ControllerNode::installStateHook() {
     } else if (from == NmtState::Operational) {
       // No more setpoints from here: the valve goes to its error value instead of holding the last one.
       // The loop stops (PDOs do not move outside Operational); NMT start configures it afresh.
-      valve_->hold(ValveDriver::kHoldSelf);
+      holdValves(ValveDriver::kHoldSelf);
       master_->end();
-      sensor_->onLeftOperational();
-      loop_->stop();
+      for (auto& c : channels_) {
+        c.sensor->onLeftOperational();
+        c.loop->stop();
+      }
     }
   });
 }
 
 FaultCounters ControllerNode::faultCounters() const noexcept {
   FaultCounters c;
-  const auto& f = faults_->counters();
-  c.episodes = f.episodes;
-  c.recoveries = f.recoveries;
-  c.safe_cycles = f.safe_cycles;
-  c.warnings = f.warnings;
-  c.samples_missing = sensor_->samplesMissing();
-  c.positions = sensor_->positions();
+  for (const auto& ch : channels_) {
+    const auto& f = ch.faults->counters();
+    c.episodes += f.episodes;
+    c.recoveries += f.recoveries;
+    c.safe_cycles += f.safe_cycles;
+    c.warnings += f.warnings;
+    c.samples_missing += ch.sensor->samplesMissing();
+    c.positions += ch.sensor->positions();
+    c.valve_sdo_errors += ch.valve->sdoErrors();
+  }
   c.collisions = collisions_;
   c.last_collision_cob = collision_pub_.load(std::memory_order_relaxed);
-  c.valve_sdo_errors = valve_->sdoErrors();
   c.nmt_starts = master_->counters().starts;
   c.nmt_reboots = master_->counters().reboots;
   c.valve_holds = master_->counters().holds;
@@ -112,6 +148,36 @@ FaultCounters ControllerNode::faultCounters() const noexcept {
   return c;
 }
 
+Fault ControllerNode::fault() const noexcept {
+  for (const auto& c : channels_)
+    if (const Fault f = c.faults->published(); f != Fault::None) return f;
+  return Fault::None;
+}
+
+bool ControllerNode::running() const noexcept {
+  for (const auto& c : channels_)
+    if (!c.loop->running()) return false;
+  return true;
+}
+
+std::uint64_t ControllerNode::faultsRaised() const noexcept {
+  std::uint64_t n = 0;
+  for (const auto& c : channels_) n += c.faults->raised();
+  return n;
+}
+
+std::uint32_t ControllerNode::episodeCauses() const noexcept {
+  std::uint32_t e = 0;
+  for (const auto& c : channels_) e |= c.faults->episode();
+  return e;
+}
+
+TimeUs ControllerNode::reactedAtUs() const noexcept {
+  TimeUs t = canopen::kNever;
+  for (const auto& c : channels_) t = std::min(t, c.faults->reactedAt());
+  return t;
+}
+
 void ControllerNode::configureFromOd() {
   auto& od = node_->od();
   const ControllerNodeConfig& cfg = overrides_->config();
@@ -120,99 +186,95 @@ void ControllerNode::configureFromOd() {
   if (params_->check(p, &why) != canopen::kSdoOk) throw std::invalid_argument(cfg.eds_path + ": parameter set refused: " + why);
   const std::uint32_t period_us = od.ref<std::uint32_t>(0x1006, 0).get();
   if (period_us == 0) throw std::invalid_argument(cfg.eds_path + ": 0x1006 communication cycle period is 0");
-  // Build everything first, then swap: a failure leaves the running controller in place.
+  // Build everything first, then swap: a failure leaves the running controllers in place.
   const double Ts = period_us * 1e-6;
   p.ctrl.Ts = Ts;
   p.ctrl.delay_cycles = cfg.delay_cycles;  // 2 on this rig: y_k reflects u_{k-3} (controller_node.hpp)
   const auto kind = static_cast<control::Kind>(od.ref<std::uint8_t>(0x2010, 0).get());
   auto traj = trajectoryFromOd(od);
   if (overrides_->trajectoryOverridden()) traj = cfg.trajectory;  // shapes the OD cannot hold
-  auto fresh_ctrl = control::makeController(kind, p.ctrl);
-  const model::OperatingRange range = control::usesModel(kind) ? p.ctrl.model.range() : model::OperatingRange{};
-  if (kind == control::Kind::Mbc && !range.known && log_)
-    log_("mbc: the model records no range it was identified on (model.json without 'range'): its feedforward is "
-         "used everywhere, with no fallback to the PI");
+  std::vector<std::unique_ptr<control::Controller>> fresh;
+  std::vector<model::OperatingRange> ranges;
+  for (std::size_t c = 0; c < channels_.size(); ++c) {
+    fresh.push_back(buildFor(kind, p.ctrl, c));
+    const ChannelConfig& cc = channel_cfg_[c];
+    const bool model_based = control::usesModel(cc.kind >= 0 ? static_cast<control::Kind>(cc.kind) : kind);
+    ranges.push_back(model_based ? (cc.model ? *cc.model : p.ctrl.model).range() : model::OperatingRange{});
+  }
   params_->adopt(std::move(p), kind);
-  loop_->configure(std::move(fresh_ctrl), kind, traj, Ts, cfg.preroll_s, params_->safeCommand());
-  loop_->watchRange(range);
-  valve_->zero();
+  for (std::size_t c = 0; c < channels_.size(); ++c) {
+    const ChannelConfig& cc = channel_cfg_[c];
+    const auto k = cc.kind >= 0 ? static_cast<control::Kind>(cc.kind) : kind;
+    if (k == control::Kind::Mbc && !ranges[c].known && log_)
+      log_("mbc: the model records no range it was identified on (model.json without 'range'): its feedforward is "
+           "used everywhere, with no fallback to the PI");
+    channels_[c].loop->configure(std::move(fresh[c]), k, cc.trajectory ? *cc.trajectory : traj, Ts, cfg.preroll_s,
+                                 params_->safeCommand());
+    channels_[c].loop->watchRange(ranges[c]);
+    channels_[c].valve->zero();
+  }
 }
 
 void ControllerNode::onOperational(TimeUs now) {
   // Parameters set over SDO take effect here; a set that does not configure keeps the running
-  // controller and raises a fault instead of escaping into the event loop.
+  // controllers and raises a fault instead of escaping into the event loop.
   try {
     configureFromOd();
   } catch (const std::exception&) {
     params_->countRefused();
-    faults_->raise(Fault::Estimator);
+    raiseAll(Fault::Estimator);
   }
-  // Boots (checks and configures) the slaves that need it and starts those that may run; the valve
-  // starts once nothing else holds it.
-  sensor_->onOperational(now);
+  // Boots (checks and configures) the slaves that need it and starts those that may run; the valves
+  // start once nothing else holds them.
+  for (auto& c : channels_) c.sensor->onOperational(now);
   master_->begin(now);
-  valve_->release(ValveDriver::kHoldSelf, now);
-  // The valve's boot writes its error value (its configuration); one the master does not boot gets it
+  releaseValves(ValveDriver::kHoldSelf, now);
+  // A valve's boot writes its error value (its configuration); one the master does not boot gets it
   // from the cycle.
-  if (!master_->boots(valve_->id())) valve_->errorValueDue();
+  for (auto& c : channels_)
+    if (!master_->boots(c.valve->id())) c.valve->errorValueDue();
 }
 
-void ControllerNode::takeCommitted(double y) noexcept {
-  if (params_->take(loop_->controller())) valve_->errorValueDue();  // the valve's error value follows the safe value
-  // Bumpless: the new controller starts from the command in effect; the setpoint ramps from here.
-  if (loop_->active() && faults_->fault() == Fault::None) loop_->restartFrom(y);
+void ControllerNode::takeCommitted() noexcept {
+  std::unique_ptr<control::Controller>* ctrls[kMaxChannels] = {};
+  for (std::size_t c = 0; c < channels_.size(); ++c) ctrls[c] = &channels_[c].loop->controller();
+  const bool safe_changed = params_->take(ctrls);
+  for (auto& c : channels_) {
+    if (safe_changed) c.valve->errorValueDue();  // the valve's error value follows the safe value
+    // Bumpless: the new controller starts from the command in effect; the setpoint ramps from here.
+    if (c.loop->active() && c.faults->fault() == Fault::None) c.loop->restartFrom(c.sample.y_ctrl);
+  }
 }
 
 void ControllerNode::start(TimeUs now) { node_->start(now); }  // the state hook goes on to Operational
 
-// Kept alive and running, the valve was not configured by this boot: its error value goes out now -
-// the safe value may have changed since it was configured - unless the SDO client is busy (then from
-// the cycle).
-void ControllerNode::valveKeptAlive() {
-  valve_->errorValueDue();
-  valve_->pushErrorValue(params_->safeCommand());
+// A slave's event goes to every channel's driver of that slave; its boot report is logged once.
+void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
+  const char* role = nullptr;
+  const TimeUs now = node_->now();
+  for (auto& c : channels_) {
+    Driver* drivers[] = {c.sensor.get(), c.valve.get()};
+    for (Driver* d : drivers) {
+      if (d->id() != id) continue;
+      if (role == nullptr) role = d->role();
+      d->onEvent(ev, now, *c.faults, c.loop->active());
+    }
+    if (ev == SlaveEvent::BootFailed) takeCauses(c, now);
+  }
+  if (role != nullptr) logSlaveEvent(role, id, ev);
 }
 
-void ControllerNode::onSlaveEvent(std::uint8_t id, SlaveEvent ev) {
-  const bool is_valve = id == valve_->id();
-  const char* role = is_valve ? "valve" : "sensor";
-  switch (ev) {
-    case SlaveEvent::Configured:
-      if (!is_valve) sensor_->onBooted(node_->now());
-      if (log_) log_(std::string(role) + " (node " + std::to_string(id) + "): identity checked, configuration written and read back");
-      break;
-    case SlaveEvent::KeptAlive:
-      if (is_valve) valveKeptAlive();
-      else sensor_->onBooted(node_->now());
-      if (log_)
-        log_(std::string(role) + " (node " + std::to_string(id) +
-             "): kept alive (Operational, heartbeat live): identity checked, not reset or configured again");
-      break;
-    case SlaveEvent::BootFailed: {
-      const auto* e = master_->bootError(id);
-      faults_->raise(Fault::SlaveBoot, id);
-      takeCauses(node_->now());
-      if (log_ && e) {
-        char code[32] = "";
-        if (e->abort_code) std::snprintf(code, sizeof code, " (SDO abort 0x%08X)", e->abort_code);
-        log_(std::string(role) + " (node " + std::to_string(id) + ") not started, " + canopen::bootStepName(e->step) + ": " +
-             e->text + code);
-      }
-      break;
-    }
-    case SlaveEvent::Lost:
-      faults_->raise(is_valve ? Fault::ValveHeartbeat : Fault::SensorHeartbeat, id);
-      break;
-    case SlaveEvent::BootUp:
-      // It lost its state (the master boots and starts it again; the boot writes the valve's error
-      // value, the cycle for a valve the master does not boot).
-      if (is_valve && !master_->boots(id)) valve_->errorValueDue();
-      if (loop_->active()) faults_->raise(is_valve ? Fault::ValveState : Fault::SensorState, id);
-      break;
-    case SlaveEvent::LeftOperational:
-    case SlaveEvent::Stopped:
-      if (loop_->active()) faults_->raise(is_valve ? Fault::ValveState : Fault::SensorState, id);
-      break;
+void ControllerNode::logSlaveEvent(const char* role, std::uint8_t id, SlaveEvent ev) const {
+  if (!log_) return;
+  const std::string who = std::string(role) + " (node " + std::to_string(id) + ")";
+  if (ev == SlaveEvent::Configured) log_(who + ": identity checked, configuration written and read back");
+  if (ev == SlaveEvent::KeptAlive)
+    log_(who + ": kept alive (Operational, heartbeat live): identity checked, not reset or configured again");
+  if (ev != SlaveEvent::BootFailed) return;
+  if (const auto* e = master_->bootError(id)) {
+    char code[32] = "";
+    if (e->abort_code) std::snprintf(code, sizeof code, " (SDO abort 0x%08X)", e->abort_code);
+    log_(who + " not started, " + canopen::bootStepName(e->step) + ": " + e->text + code);
   }
 }
 

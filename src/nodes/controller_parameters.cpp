@@ -206,6 +206,23 @@ void ControllerParameters::installGuards() {
   od.addObserver(0x2003, 1, [](Entry& e) { e.set<std::uint8_t>(0); });
 }
 
+void ControllerParameters::setChannels(std::size_t n, Builder build) {
+  if (n < 1 || n > kMaxChannels) throw std::invalid_argument("controller: " + std::to_string(n) + " channels (1..8)");
+  n_ = n;
+  build_ = std::move(build);
+}
+
+// Every channel's controller of a set; false (nothing kept) when one does not build.
+bool ControllerParameters::buildAll(control::Kind kind, const control::ControllerConfig& ctrl, Controllers& into) const {
+  try {
+    for (std::size_t c = 0; c < n_; ++c) into[c] = build_ ? build_(kind, ctrl, c) : control::makeController(kind, ctrl);
+    return true;
+  } catch (const std::exception&) {
+    for (auto& p : into) p.reset();
+    return false;
+  }
+}
+
 void ControllerParameters::countApplied() noexcept {
   ++applied_;
   sets_applied_.set(static_cast<std::uint8_t>(applied_));
@@ -214,12 +231,12 @@ void ControllerParameters::countApplied() noexcept {
 void ControllerParameters::adopt(ParameterSet p, control::Kind kind) {
   // A commit still being built belongs to the set this one replaces.
   if (worker_.joinable()) worker_.join();
-  built_.reset();
+  for (auto& b : built_) b.reset();
   build_state_.store(kIdle, std::memory_order_relaxed);
   running_ = std::move(p);
   kind_ = kind;
   safe_u_ = std::clamp(running_.safe_u, pd::kCommandMin, pd::kCommandMax);
-  next_ctrl_.reset();
+  for (auto& c : next_ctrl_) c.reset();
   ready_ = false;
   staged_flag_.set(0);
   countApplied();
@@ -233,7 +250,7 @@ bool ControllerParameters::committed() noexcept {
   if (ready_) return true;
   const int st = build_state_.load(std::memory_order_acquire);
   if (st == kBuilt) {
-    next_ctrl_ = std::move(built_);  // the previous next_ctrl_ is empty: nothing freed here
+    std::swap(next_ctrl_, built_);  // the previous next_ctrl_ is empty: nothing freed here
     build_state_.store(kIdle, std::memory_order_relaxed);
     ready_ = true;
   } else if (st == kFailed) {
@@ -258,37 +275,26 @@ std::uint32_t ControllerParameters::commit() {
       code = canopen::kAbortParameterIncompatible;
     }
     if (code == canopen::kSdoOk) {
-      retired_.reset();
+      for (auto& r : retired_) r.reset();
       next_ = p;
       ready_ = false;
       staged_flag_.set(0);
       build_state_.store(kBuilding, std::memory_order_relaxed);
       worker_ = std::thread([this, kind = kind_, ctrl = std::move(p.ctrl)] {
-        try {
-          built_ = control::makeController(kind, ctrl);
-          build_state_.store(kBuilt, std::memory_order_release);
-        } catch (const std::exception&) {
-          build_state_.store(kFailed, std::memory_order_release);
-        }
+        build_state_.store(buildAll(kind, ctrl, built_) ? kBuilt : kFailed, std::memory_order_release);
       });
       return canopen::kSdoOk;
     }
   }
-  std::unique_ptr<control::Controller> c;
-  if (code == canopen::kSdoOk) {
-    try {
-      c = control::makeController(kind_, p.ctrl);
-    } catch (const std::exception&) {
-      code = canopen::kAbortParameterIncompatible;
-    }
-  }
+  Controllers c;
+  if (code == canopen::kSdoOk && !buildAll(kind_, p.ctrl, c)) code = canopen::kAbortParameterIncompatible;
   if (code != canopen::kSdoOk) {
     ++refused_;
     last_refusal_ = code;
     return code;
   }
-  retired_.reset();  // the controller replaced at the last cycle boundary
-  next_ctrl_ = std::move(c);
+  for (auto& r : retired_) r.reset();  // the controllers replaced at the last cycle boundary
+  std::swap(next_ctrl_, c);
   next_ = std::move(p);
   ready_ = true;
   staged_flag_.set(0);
@@ -300,9 +306,11 @@ void ControllerParameters::discard() {
   staged_flag_.set(0);
 }
 
-bool ControllerParameters::take(std::unique_ptr<control::Controller>& ctrl) noexcept {
-  std::swap(ctrl, next_ctrl_);
-  retired_.swap(next_ctrl_);
+bool ControllerParameters::take(std::unique_ptr<control::Controller>* const* ctrls) noexcept {
+  for (std::size_t c = 0; c < n_; ++c) {
+    std::swap(*ctrls[c], next_ctrl_[c]);
+    retired_[c].swap(next_ctrl_[c]);
+  }
   std::swap(running_, next_);
   ready_ = false;
   safe_u_ = std::clamp(running_.safe_u, pd::kCommandMin, pd::kCommandMax);

@@ -12,7 +12,9 @@
 // then taken by the cycle at its next boundary with pointer swaps only (take()).
 #pragma once
 
+#include <array>
 #include <atomic>
+#include <functional>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -22,6 +24,7 @@
 #include "canopen/node.hpp"
 #include "control/controller.hpp"
 #include "control/trajectory.hpp"
+#include "nodes/controller_config.hpp"
 
 namespace pamc::nodes {
 
@@ -61,6 +64,13 @@ class ControllerParameters {
   // ranges, staging of every write and the commit object 0x2003:01.
   void installGuards();
 
+  // A node of several channels builds one controller per channel from a set (a channel may run its
+  // own model or controller kind: the builder knows); one channel and makeController by default.
+  using Builder = std::function<std::unique_ptr<control::Controller>(control::Kind, const control::ControllerConfig&,
+                                                                     std::size_t channel)>;
+  void setChannels(std::size_t n, Builder build);
+  std::size_t channels() const noexcept { return n_; }
+
   // The set taken into use when the node enters Operational (built by the caller).
   void adopt(ParameterSet p, control::Kind kind);
   // 0x2003:01 = 1 (SDO server, between cycles): check, build a controller of the running kind (here or
@@ -71,9 +81,14 @@ class ControllerParameters {
   // The cycle asks at its boundary: a committed set whose controller is built. Takes a finished
   // build from the worker (a pointer move; a failed build is counted as refused).
   bool committed() noexcept;
-  // At a cycle boundary: the committed set and controller become the running ones (swaps only; the
-  // replaced controller is freed at the next commit). Returns true if the safe value changed.
-  bool take(std::unique_ptr<control::Controller>& ctrl) noexcept;
+  // At a cycle boundary: the committed set and controllers become the running ones, ctrls[c] channel
+  // c's (swaps only; the replaced controllers are freed at the next commit). Returns true if the safe
+  // value changed.
+  bool take(std::unique_ptr<control::Controller>* const* ctrls) noexcept;
+  bool take(std::unique_ptr<control::Controller>& ctrl) noexcept {  // one channel
+    std::unique_ptr<control::Controller>* one[] = {&ctrl};
+    return take(one);
+  }
 
   const ParameterSet& running() const noexcept { return running_; }
   double safeCommand() const noexcept { return safe_u_; }
@@ -84,6 +99,8 @@ class ControllerParameters {
 
  private:
   void countApplied() noexcept;
+  using Controllers = std::array<std::unique_ptr<control::Controller>, kMaxChannels>;
+  bool buildAll(control::Kind kind, const control::ControllerConfig& ctrl, Controllers& into) const;
 
   canopen::Node& node_;
   canopen::Ref<std::uint8_t> staged_flag_{nullptr};
@@ -91,15 +108,17 @@ class ControllerParameters {
   ParameterSet running_, next_;
   control::Kind kind_ = control::Kind::PI;
   double safe_u_ = pd::kCommandMin;
-  std::unique_ptr<control::Controller> next_ctrl_;
-  std::unique_ptr<control::Controller> retired_;
+  std::size_t n_ = 1;
+  Builder build_;
+  Controllers next_ctrl_;
+  Controllers retired_;
   bool ready_ = false;
   // The worker's hand-over: it writes built_, then build_state_ (release); the cycle reads it (acquire).
   enum : int { kIdle, kBuilding, kBuilt, kFailed };
   bool off_cycle_ = false;
   std::thread worker_;
   std::atomic<int> build_state_{kIdle};
-  std::unique_ptr<control::Controller> built_;
+  Controllers built_;
   std::uint64_t applied_ = 0, refused_ = 0;
   std::uint32_t last_refusal_ = 0;
 };

@@ -61,6 +61,7 @@ struct CycleRecord {
   std::uint8_t fault = 0;
   float latency_us = 0;
   double p = NAN;  // the valve's pressure feedback latched with y [bar]; NaN where the rig maps none
+  std::uint8_t channel = 0;  // the node's channel (0-based)
 };
 
 // Single producer (the SYNC callback), single consumer (a logger thread).

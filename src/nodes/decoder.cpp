@@ -151,9 +151,10 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
 }
 
 namespace {
-// A PDO of one field on cob, from node id of device dev, in role with its scaling.
+// A field of a PDO on cob, from node id of device dev, in role with its scaling; the fields of one
+// PDO in the order they are added (the channels' order, their order in the PDO).
 void addField(BusDictionary& bd, std::uint32_t cob, const std::string& dev, std::uint8_t id, const RigObject& o,
-              const char* name, const char* role, double scale, double offset, const char* unit) {
+              const std::string& name, const std::string& role, double scale, double offset, const char* unit) {
   PdoField f;
   f.index = o.index;
   f.sub = o.sub;
@@ -164,31 +165,39 @@ void addField(BusDictionary& bd, std::uint32_t cob, const std::string& dev, std:
   f.scale = scale;
   f.offset = offset;
   f.unit = unit;
-  PdoLayout l;
+  PdoLayout& l = bd.pdos[cob];
   l.cob_id = cob;
   l.device = dev;
   l.node_id = id;
   l.fields.push_back(f);
-  l.length = f.bytes;
-  bd.pdos[cob] = l;
+  l.length = static_cast<std::uint8_t>(l.length + f.bytes);
 }
 }  // namespace
+
+// Channel c's column of a role: "y" for channel 1, "y2" for channel 2, ...
+std::string channelRole(const char* role, std::size_t c) { return c == 0 ? std::string(role) : role + std::to_string(c + 1); }
 
 BusDictionary busDictionaryFromRig(const RigFile& rig) {
   BusDictionary bd;
   bd.sync_period_s = static_cast<double>(rig.period_us) * 1e-6;
   bd.nodes[rig.controller_id] = "controller";
-  bd.nodes[rig.sensor_id] = "sensor";
-  bd.nodes[rig.valve_id] = "valve";
-  const pd::Scaling& s = rig.layout.scaling;
-  addField(bd, rig.layout.sensor_cob, "sensor", rig.sensor_id, rig.position, "position", "y", s.position_step_mm, 0.0, "mm");
-  // Counts -> volts over 0..10 V, relative to mid-range as the controller's u.
-  const double v_per_count = pd::kValveFullScale_V / s.command_full_counts;
-  addField(bd, rig.layout.valve_cob, "valve", rig.valve_id, rig.command, "command", "u", v_per_count,
-           -s.command_zero_counts * v_per_count - pd::kValveMid_V, "V");
-  if (rig.layout.feedback)
-    addField(bd, rig.layout.feedback_cob, "valve", rig.valve_id, rig.feedback, "pressure", "p",
-             pd::kPressureFullScale_bar / s.pressure_full_counts, 0.0, "bar");
+  for (const auto& s : rig.slaves) bd.nodes[s.id] = s.name;
+  for (std::size_t c = 0; c < rig.channels.size(); ++c) {
+    const RigChannel& ch = rig.channels[c];
+    const ChannelConfig& cc = ch.cfg;
+    const pd::Scaling& s = cc.layout.scaling;
+    const std::string sensor = rig.slave(cc.sensor_id).name, valve = rig.slave(cc.valve_id).name;
+    const std::string n = rig.channels.size() > 1 ? std::to_string(c + 1) : std::string();
+    addField(bd, cc.layout.sensor_cob, sensor, cc.sensor_id, ch.position, "position" + n, channelRole("y", c), s.position_step_mm,
+             0.0, "mm");
+    // Counts -> volts over 0..10 V, relative to mid-range as the controller's u.
+    const double v_per_count = pd::kValveFullScale_V / s.command_full_counts;
+    addField(bd, cc.layout.valve_cob, valve, cc.valve_id, ch.command, "command" + n, channelRole("u", c), v_per_count,
+             -s.command_zero_counts * v_per_count - pd::kValveMid_V, "V");
+    if (cc.layout.feedback)
+      addField(bd, cc.layout.feedback_cob, valve, cc.valve_id, ch.feedback, "pressure" + n, channelRole("p", c),
+               pd::kPressureFullScale_bar / s.pressure_full_counts, 0.0, "bar");
+  }
   return bd;
 }
 
@@ -232,6 +241,14 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
   // Columns: the roles first, then every other field.
   std::map<std::string, size_t> col;
   run.columns = {"t", "u", "y", "p", "t_log"};
+  // Channels 2.. of a rig with several: u2, y2, p2, ... after t_log.
+  std::size_t channels = 1;
+  for (const auto& [cob, l] : dict.pdos)
+    for (const auto& f : l.fields)
+      if (f.role.size() > 1 && (f.role[0] == 'u' || f.role[0] == 'y' || f.role[0] == 'p'))
+        channels = std::max<std::size_t>(channels, std::stoul(f.role.substr(1)));
+  for (std::size_t c = 1; c < channels; ++c)
+    for (const char* r : {"u", "y", "p"}) run.columns.push_back(channelRole(r, c));
   for (size_t i = 0; i < run.columns.size(); ++i) col[run.columns[i]] = i;
   for (const auto& [cob, l] : dict.pdos)
     for (const auto& f : l.fields)
@@ -242,14 +259,17 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
   std::vector<double> cur(run.columns.size(), NAN);
   std::vector<double> last(run.columns.size(), NAN);  // last value seen of every column
   std::vector<double> vals;
-  double latest_u = NAN, latched_prev = NAN, latched_now = NAN;
+  // Per channel: the last command sent, the one latched at the last SYNC and at the one before.
+  std::vector<double> latest_u(channels, NAN), latched_prev(channels, NAN), latched_now(channels, NAN);
+  std::vector<std::size_t> iu(channels);
+  for (std::size_t c = 0; c < channels; ++c) iu[c] = col[channelRole("u", c)];
   double t0 = NAN;
   std::int64_t k = -1, k_first = -1;
   const size_t iy = col["y"];
   auto emit = [&](double sync_time) {
     // Row for the cycle that started at the previous SYNC. A value that did not arrive in this
     // cycle (a lost PDO) holds its last one, so the time base stays even; such cycles are counted.
-    if (k < 1 || std::isnan(latched_prev)) return;
+    if (k < 1 || std::isnan(latched_prev[0])) return;
     if (std::isnan(cur[iy]) && std::isnan(last[iy])) return;  // no position yet
     if (std::isnan(cur[iy])) ++run.held;
     std::vector<double> row(cur.size());
@@ -257,7 +277,7 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
       if (!std::isnan(cur[i])) last[i] = cur[i];
       row[i] = last[i];
     }
-    row[col["u"]] = latched_prev;
+    for (std::size_t c = 0; c < channels; ++c) row[iu[c]] = latched_prev[c];
     row[col["t_log"]] = sync_time;
     row[0] = static_cast<double>(k - 1);  // SYNC index of the cycle; scaled to seconds below
     if (k_first < 0) k_first = k - 1;
@@ -294,7 +314,7 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
     }
     for (size_t i = 0; i < vals.size(); ++i) {
       const auto& fl = it->second.fields[i];
-      if (fl.role == "u") latest_u = vals[i];
+      if (!fl.role.empty() && fl.role[0] == 'u') latest_u[fl.role.size() > 1 ? std::stoul(fl.role.substr(1)) - 1 : 0] = vals[i];
       else if (!fl.role.empty()) cur[col[fl.role]] = vals[i];
       else cur[col[fl.column]] = vals[i];
     }

@@ -46,13 +46,15 @@ struct RigFile;
 // The rig's devices as the controller configures them (nodes/rig_file.hpp): the sensor's position,
 // the valve's command and feedback on the rig's COB-IDs, in the rig's scaling; the SYNC period of the
 // rig. A position step read from the device at boot is taken as its EDS's default.
+// With several channels the roles of channel c (0-based) are channelRole("y", c) ("y2" for the second).
 BusDictionary busDictionaryFromRig(const RigFile& rig);
+std::string channelRole(const char* role, std::size_t c);
 
 // Decodes one PDO's fields into engineering values (false on a length mismatch).
 bool decodePdo(const PdoLayout& l, const canopen::Frame& f, std::vector<double>& out);
 
 struct DecodedRun {
-  std::vector<std::string> columns;  // t, u, y, p, t_log, then every other mapped object
+  std::vector<std::string> columns;  // t, u, y, p, t_log, u2, y2, p2, ... (channels 2..), then every other mapped object
   std::vector<std::vector<double>> rows;
   std::uint64_t frames = 0, syncs = 0, unknown = 0, bad_length = 0;
   std::uint64_t held = 0;  // cycles without a position PDO (last value held)

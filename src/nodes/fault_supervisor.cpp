@@ -8,7 +8,13 @@ namespace {
 constexpr std::uint32_t bit(Fault f) { return faultBit(f); }
 constexpr std::uint32_t kWarnMask = warningMask();
 constexpr std::uint32_t kSafetyMask = ((1u << kFaultCount) - 2u) & ~kWarnMask;
+// The causes of the bus, met by every channel at once.
+constexpr std::uint32_t kBusMask = bit(Fault::BusError) | bit(Fault::SyncLost) | bit(Fault::CanOverrun) |
+                                   bit(Fault::BusOff) | bit(Fault::IdCollision) | bit(Fault::PdoLength) |
+                                   bit(Fault::SyncLength);
 }  // namespace
+
+bool FaultSupervisor::reports(Fault f) const noexcept { return reports_bus_ || (kBusMask & bit(f)) == 0; }
 
 void FaultSupervisor::raise(Fault f, std::uint8_t detail) noexcept {
   pending_ |= bit(f);
@@ -25,13 +31,15 @@ bool FaultSupervisor::takeCauses(TimeUs now) noexcept {
     if ((p & bit(f)) == 0 || (episode_ & bit(f)) != 0) continue;
     if (f == Fault::BusOff) continue;  // nothing goes out in bus off: its EMCY (0x8140) follows the restart
     episode_ |= bit(f);
-    const std::uint8_t m[5] = {static_cast<std::uint8_t>(i), detail_[i], 0, 0, 0};
-    node_.emcy().report(emcyCode(f), m);
+    if (!reports(f)) continue;
+    const std::uint8_t m[5] = {static_cast<std::uint8_t>(i), detail_[i], channel_, 0, 0};
+    node_.emcy().report(emcyCode(f), m, channel_);
     if (isWarning(f)) ++counters_.warnings;
   }
   if ((p & kWarnMask) != 0) warn_clear_ = 0;
   if ((p & kSafetyMask) == 0) return false;
   clear_cycles_ = 0;
+  if ((p & kSafetyMask & ~bit(Fault::OtherChannel)) != 0) own_clear_cycles_ = 0;
   if (fault_ != Fault::None) return false;
   for (int i = 1; i < kFaultCount; ++i)
     if ((p & kSafetyMask & bit(static_cast<Fault>(i))) != 0) {
@@ -47,7 +55,7 @@ bool FaultSupervisor::takeCauses(TimeUs now) noexcept {
 void FaultSupervisor::recover() noexcept {
   for (int i = 1; i < kFaultCount; ++i) {
     const auto f = static_cast<Fault>(i);
-    if ((episode_ & kSafetyMask & bit(f)) != 0) node_.emcy().clear(emcyCode(f));
+    if ((episode_ & kSafetyMask & bit(f)) != 0 && reports(f)) node_.emcy().clear(emcyCode(f), channel_);
   }
   episode_ &= kWarnMask;
   if (episode_ == 0) reacted_at_us_ = canopen::kNever;
@@ -59,7 +67,7 @@ void FaultSupervisor::clearWarnings() noexcept {
   if ((episode_ & kWarnMask) == 0 || ++warn_clear_ < recover_cycles_) return;
   for (int i = 1; i < kFaultCount; ++i) {
     const auto w = static_cast<Fault>(i);
-    if (isWarning(w) && (episode_ & bit(w)) != 0) node_.emcy().clear(emcyCode(w));
+    if (isWarning(w) && (episode_ & bit(w)) != 0 && reports(w)) node_.emcy().clear(emcyCode(w), channel_);
   }
   episode_ &= ~kWarnMask;
   if (fault_ == Fault::None) reacted_at_us_ = canopen::kNever;
@@ -103,8 +111,8 @@ void FaultSupervisor::onErrorFrame(const canopen::Frame& f) noexcept {
   if ((f.id & 0x100u) != 0 && bus_off_) {
     bus_off_ = false;
     // Back on the bus: now the EMCY can go out.
-    const std::uint8_t m[5] = {static_cast<std::uint8_t>(Fault::BusOff), 0, 0, 0, 0};
-    node_.emcy().report(emcyCode(Fault::BusOff), m);
+    const std::uint8_t m[5] = {static_cast<std::uint8_t>(Fault::BusOff), 0, channel_, 0, 0};
+    if (reports_bus_) node_.emcy().report(emcyCode(Fault::BusOff), m, channel_);
     episode_ |= bit(Fault::BusOff);
   }
   if (crtl && (f.data[1] & 0x30u) != 0) raise(Fault::BusError);

@@ -21,7 +21,11 @@ class FaultSupervisor {
     std::uint64_t warnings = 0;     // warning EMCYs sent
   };
 
-  FaultSupervisor(canopen::Node& node, int recover_cycles) : node_(node), recover_cycles_(recover_cycles) {}
+  // channel: the channel it supervises, named in byte 3 of its EMCYs (1..8; 0: the node's only one).
+  // reports_bus: it sends the EMCYs of the bus's causes (SYNC, CAN errors, collisions, wrong lengths),
+  // which every channel meets at once: one channel of a node reports them, the others only react.
+  FaultSupervisor(canopen::Node& node, int recover_cycles, std::uint8_t channel = 0, bool reports_bus = true)
+      : node_(node), recover_cycles_(recover_cycles), channel_(channel), reports_bus_(reports_bus) {}
 
   void raise(Fault f, std::uint8_t detail = 0) noexcept;
   // Sends the EMCY of every cause not yet reported in this episode; true when a safety cause has just
@@ -30,8 +34,13 @@ class FaultSupervisor {
   // One cycle in the safe state; true once the causes have been gone for recover_cycles.
   bool safeCycle() noexcept {
     ++counters_.safe_cycles;
+    ++own_clear_cycles_;
     return ++clear_cycles_ >= recover_cycles_;
   }
+  // In the safe state by a cause of its own (not Fault::OtherChannel) raised within the last
+  // recover_cycles: the channel's fault spreads to its partner. Two partners that fault together
+  // thus stop spreading once their own causes are gone, and both recover.
+  bool spreads() const noexcept { return fault_ != Fault::None && own_clear_cycles_ < recover_cycles_; }
   // Back in control: the EMCY resets of the episode's safety causes.
   void recover() noexcept;
   // Warnings (wrong-length PDO or SYNC) clear themselves after recover_cycles without a new one.
@@ -50,13 +59,18 @@ class FaultSupervisor {
   const Counters& counters() const noexcept { return counters_; }
 
  private:
+  bool reports(Fault f) const noexcept;
+
   canopen::Node& node_;
   int recover_cycles_;
+  std::uint8_t channel_;
+  bool reports_bus_;
   Fault fault_ = Fault::None;
   std::uint32_t pending_ = 0;   // causes raised since the last cycle (bit per Fault)
   std::uint32_t episode_ = 0;   // causes whose EMCY went out in this episode
   std::uint8_t detail_[kFaultCount] = {};
   int clear_cycles_ = 0;
+  int own_clear_cycles_ = 0;
   int warn_clear_ = 0;
   std::uint64_t raised_ = 0;    // episodes begun (faultsRaised)
   canopen::TimeUs reacted_at_us_ = canopen::kNever;

@@ -34,8 +34,10 @@ enum class Fault : std::uint8_t {
   SlaveBoot = 18,        // a slave's identity did not match, or it refused or lost its configuration at boot
   // Safety fault: the loop never started.
   NoPosition = 19,       // no position PDO within ControllerNodeConfig::no_position_s of entering Operational (or of the sensor's boot)
+  // Safety fault of a node with several channels: it follows another channel into the safe state.
+  OtherChannel = 20,     // its joint partner (or, with faults = all, any channel) is in its safe state
 };
-inline constexpr int kFaultCount = 20;
+inline constexpr int kFaultCount = 21;
 
 struct FaultInfo {
   Fault fault;
@@ -70,6 +72,8 @@ inline constexpr FaultInfo kFaults[kFaultCount] = {
     {Fault::SlaveBoot, "slave boot failed (identity or configuration)", canopen::kEmcyDataSet, true},
     // An RPDO that never came is an RPDO timeout too; the first byte of the EMCY (19) tells it apart.
     {Fault::NoPosition, "no position since Operational", canopen::kEmcyRpdoTimeout, false},
+    // The EMCY's second byte is the channel whose fault it follows (1-based).
+    {Fault::OtherChannel, "another channel of its joint is in its safe state", canopen::kEmcyDeviceSpecific, false},
 };
 
 constexpr bool faultTableInOrder() {

@@ -8,11 +8,17 @@
 // masterValues() compiles the file into the controller's own dictionary (CiA 302: 0x1F22, 0x1F80,
 // 0x1F81, 0x1F84-0x1F89, 0x1016, and its PDOs), as Lely's dcfgen compiles its YAML into a master DCF;
 // the controller's boot then follows its dictionary.
+//
+// Two forms: one muscle ([sensor] and [valve] with the objects in them, od/rigs/default.ini), or
+// several ([slave.NAME] per slave, [channel.N] per muscle naming its sensor and valve slaves and
+// their objects, od/rigs/four_muscles.ini). A slave serving several channels carries them in one PDO
+// (a four-output module's setpoints in one RPDO), in channel order.
 #pragma once
 
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "nodes/controller_node.hpp"
 
@@ -34,6 +40,25 @@ struct RigObject {
   canopen::DataType type = canopen::DataType::Integer32;
 };
 
+// A slave as the rig file describes it: its name ("sensor" and "valve" in the one-muscle form, NAME
+// of [slave.NAME] otherwise), node-ID, EDS, what to check and write at its boot, its heartbeat.
+struct RigSlave {
+  std::string name;
+  std::uint8_t id = 0;
+  std::string eds;            // resolved path
+  canopen::SlaveBoot boot;    // 0x1F81, identity, configuration
+  unsigned heartbeat_ms = 0;  // its heartbeat period once booted: heartbeat_ms, or else its EDS's 0x1017 (0: none)
+};
+
+// A channel as the rig file describes it: its configuration for the controller node (which slaves,
+// their COB-IDs and scaling, the controller's PDOs), and its objects in the slaves' PDOs with their
+// byte offsets there (several channels may share one PDO).
+struct RigChannel {
+  ChannelConfig cfg;
+  RigObject position, command, feedback;  // feedback.index 0: none
+  unsigned position_offset = 0, command_offset = 0, feedback_offset = 0;  // bytes into the PDO
+};
+
 struct RigFile {
   std::string path;
   std::string interface = kDefaultInterface;
@@ -43,13 +68,15 @@ struct RigFile {
   std::string controller_eds;  // resolved path
   std::uint32_t startup = canopen::kStartupMaster;
   unsigned boot_time_ms = 0;  // 0x1F89 (0: no limit)
-  std::uint8_t sensor_id = 2, valve_id = 3;
-  std::string sensor_eds, valve_eds;  // resolved paths
-  SlaveLayout layout;                 // COB-IDs, scaling
-  RigObject position, command, feedback;  // in the PDOs on layout's sensor_cob, valve_cob, feedback_cob
-  canopen::SlaveBoot sensor_boot, valve_boot;  // 0x1F81, identity, configuration of each slave
-  // Each slave's heartbeat period once booted: heartbeat_ms, or else its EDS's 0x1017 (0: none).
-  unsigned sensor_heartbeat_ms = 0, valve_heartbeat_ms = 0;
+  bool fault_all = false;     // [controller] faults = all: one channel's fault stops every channel
+  // Written in the one-muscle form ([sensor], [valve]) rather than with [slave.NAME] and [channel.N]
+  // sections (still read: one channel).
+  bool one_muscle_form = false;
+  std::vector<RigSlave> slaves;      // in the file's order
+  std::vector<RigChannel> channels;  // channel 1 first
+  unsigned controller_rpdos = 0, controller_tpdos = 0;  // the PDOs of the controller's EDS
+
+  const RigSlave& slave(std::uint8_t id) const;  // throws std::out_of_range for a node-ID not in the file
 };
 
 // What the controller consumes of a slave's heartbeat (0x1016): twice its period plus 50 ms - one
@@ -67,10 +94,11 @@ RigFile parseRigFile(const std::string& text, const std::string& path);
 
 // The rig file compiled into values of the controller's dictionary: 0x1F80 start-up; per slave 0x1F81
 // assignment, 0x1F84-0x1F88 identity (0: not checked), 0x1F22 concise DCF; 0x1F89 boot time; 0x1016
-// consumer heartbeat times (consumerHeartbeatMs); RPDO1 / RPDO2 / TPDO1 on the slaves' COB-IDs.
+// consumer heartbeat times (consumerHeartbeatMs); the controller's RPDOs and TPDOs on the slaves'
+// COB-IDs, mapped to its channels' objects (0x3000 + 0x10 c), the others off.
 canopen::ConciseDcf masterValues(const RigFile& rig);
 
-// The node settings the rig file makes: node-IDs, EDS, period, layout, and masterValues() as the
+// The node settings the rig file makes: node-IDs, EDS, period, the channels, and masterValues() as the
 // dictionary's values. The rest of cfg is kept.
 void applyRig(const RigFile& rig, ControllerNodeConfig& cfg);
 

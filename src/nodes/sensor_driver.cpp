@@ -9,14 +9,14 @@ namespace pamc::nodes {
 using canopen::TimeUs;
 
 SensorDriver::SensorDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
-                           double no_position_s)
-    : node_(node), master_(master), id_(id), scaling_(scaling), no_position_s_(no_position_s) {
+                           double no_position_s, unsigned rpdo, std::uint16_t object)
+    : node_(node), master_(master), id_(id), rpdo_(rpdo), object_(object), scaling_(scaling), no_position_s_(no_position_s) {
   master_.addSlave(id_);
 }
 
 void SensorDriver::readStepAtBoot() {
   // CiA 406: 0x6005:01 is the measuring step in nm; the loop sees it before the sensor starts.
-  master_.setReads(id_, {canopen::SlaveBoot::Read{0x6005, 1, [this](const std::uint8_t* d, std::size_t len, std::string* why) {
+  master_.addReads(id_, {canopen::SlaveBoot::Read{0x6005, 1, [this](const std::uint8_t* d, std::size_t len, std::string* why) {
     std::uint32_t nm = 0;
     for (std::size_t i = 0; i < len && i < 4; ++i) nm |= static_cast<std::uint32_t>(d[i]) << (8 * i);
     if (len != 4 || nm == 0) {
@@ -30,7 +30,28 @@ void SensorDriver::readStepAtBoot() {
 
 void SensorDriver::onOperational(TimeUs now) noexcept {
   operational_at_ = now;
-  cob_pub_.store(node_.rpdo(1).cobId() & 0x7FFu, std::memory_order_relaxed);
+  cob_pub_.store(node_.rpdo(rpdo_).cobId() & 0x7FFu, std::memory_order_relaxed);
+}
+
+void SensorDriver::onEvent(canopen::SlaveEvent ev, TimeUs now, FaultSupervisor& f, bool active) noexcept {
+  using canopen::SlaveEvent;
+  switch (ev) {
+    case SlaveEvent::Configured:
+    case SlaveEvent::KeptAlive:
+      onBooted(now);
+      break;
+    case SlaveEvent::BootFailed:
+      f.raise(Fault::SlaveBoot, id_);
+      break;
+    case SlaveEvent::Lost:
+      f.raise(Fault::SensorHeartbeat, id_);
+      break;
+    case SlaveEvent::BootUp:
+    case SlaveEvent::LeftOperational:
+    case SlaveEvent::Stopped:
+      if (active) f.raise(Fault::SensorState, id_);
+      break;
+  }
 }
 
 // The position RPDO of this cycle. A position outside the measuring range (0x2022:01, with 1 % to
@@ -38,7 +59,7 @@ void SensorDriver::onOperational(TimeUs now) noexcept {
 // NaN for it (it holds the last usable one and reports it as not used).
 SensorDriver::Sample SensorDriver::latch(const ParameterSet& ps) const noexcept {
   Sample s;
-  s.fresh = node_.rpdo(1).syncsSinceReception() == 0;
+  s.fresh = node_.rpdo(rpdo_).syncsSinceReception() == 0;
   s.raw = position_.get();
   s.y = scaling_.mm(s.raw);
   const double range = ps.range_steps, margin = 0.01 * range;
@@ -67,9 +88,12 @@ void SensorDriver::checkPlausibility(const Sample& s, double u) noexcept {
   run_u_max_ = std::max(run_u_max_, u);
 }
 
-void SensorDriver::supervise(FaultSupervisor& f, TimeUs now, bool active, bool usable, const ParameterSet& ps,
-                             double Ts) noexcept {
-  const auto& rp = node_.rpdo(1);
+void SensorDriver::supervise(FaultSupervisor& f, const DriverCycle& c) noexcept {
+  const auto& rp = node_.rpdo(rpdo_);
+  const ParameterSet& ps = *c.ps;
+  const TimeUs now = c.now;
+  const bool active = c.active, usable = c.usable;
+  const double Ts = c.Ts;
   const unsigned limit = ps.missing_limit;
   if (active && !usable) ++samples_missing_;
   if (usable) ++positions_;

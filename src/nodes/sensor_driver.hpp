@@ -1,7 +1,8 @@
-// The position sensor as the controller node sees it - a driver in the sense of Lely's coapp Driver:
-// its boot steps (the measuring step read from a CiA 406 device), the position PDO latched at each SYNC
-// (RPDO1 into 0x3000) and its supervision - missing, never come since Operational, two sources, out of
-// the measuring range, stuck while the command moves, the sensor's heartbeat and state - and its scaling.
+// A channel's position input as the controller node sees it - a driver in the sense of Lely's coapp
+// Driver (nodes/driver.hpp): its boot steps (the measuring step read from a CiA 406 device), the
+// position PDO latched at each SYNC (channel 1: RPDO1 into 0x3000; ChannelConfig says which for the
+// others) and its supervision - missing, never come since Operational, two sources, out of the
+// measuring range, stuck while the command moves, the sensor's heartbeat and state - and its scaling.
 #pragma once
 
 #include <atomic>
@@ -10,14 +11,13 @@
 
 #include "canopen/nmt_master.hpp"
 #include "canopen/node.hpp"
-#include "nodes/control_loop.hpp"
-#include "nodes/controller_parameters.hpp"
-#include "nodes/fault_supervisor.hpp"
+#include "nodes/driver.hpp"
+#include "nodes/position_sample.hpp"
 #include "nodes/process_data.hpp"
 
 namespace pamc::nodes {
 
-class SensorDriver {
+class SensorDriver final : public Driver {
  public:
   // The position latched at a SYNC.
   struct Sample {
@@ -30,13 +30,16 @@ class SensorDriver {
     PositionSample forLoop() const noexcept { return PositionSample{y, y_ctrl, usable()}; }
   };
 
+  // rpdo: the controller's RPDO bringing the position into `object` (its entry :00).
   SensorDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
-               double no_position_s);
+               double no_position_s, unsigned rpdo = 1, std::uint16_t object = 0x3000);
   // A boot step of its own: the measuring step read from the device (CiA 406 0x6005:01), after the
   // identity check and before the configuration the master's dictionary holds.
   void readStepAtBoot();
-  void bind() { position_ = node_.od().ref<std::int32_t>(0x3000, 0); }
-  void onOperational(canopen::TimeUs now) noexcept;
+  void bind() { position_ = node_.od().ref<std::int32_t>(object_, 0); }
+  const char* role() const noexcept override { return "sensor"; }
+  void onOperational(canopen::TimeUs now) noexcept override;
+  void onEvent(canopen::SlaveEvent ev, canopen::TimeUs now, FaultSupervisor& f, bool active) noexcept override;
   // Its boot finished: the time for a first position runs from here (a boot may take a while - a
   // keep-alive check, a slow heartbeat - and is supervised by the master itself).
   void onBooted(canopen::TimeUs now) noexcept {
@@ -47,9 +50,9 @@ class SensorDriver {
   // The cycle: latch, plausibility (u: the command in effect), supervision.
   Sample latch(const ParameterSet& ps) const noexcept;
   void checkPlausibility(const Sample& s, double u) noexcept;
-  void supervise(FaultSupervisor& f, canopen::TimeUs now, bool active, bool usable, const ParameterSet& ps, double Ts) noexcept;
+  void supervise(FaultSupervisor& f, const DriverCycle& c) noexcept override;
 
-  std::uint8_t id() const noexcept { return id_; }
+  std::uint8_t id() const noexcept override { return id_; }
   const pd::Scaling& scaling() const noexcept { return scaling_; }
   std::uint32_t cob() const noexcept { return cob_pub_.load(std::memory_order_relaxed); }  // any thread
   double noPositionSeconds() const noexcept { return no_position_s_; }
@@ -60,6 +63,8 @@ class SensorDriver {
   canopen::Node& node_;
   canopen::NmtMaster& master_;
   std::uint8_t id_;
+  unsigned rpdo_;
+  std::uint16_t object_;
   pd::Scaling scaling_;  // the step may be read at the sensor's boot, before it starts
   double no_position_s_;
   canopen::Ref<std::int32_t> position_{nullptr};

@@ -536,10 +536,10 @@ TEST(NmtMasterBoot, TheApplicationsWritesFollowTheConfigurationAndPrecedeTheStar
     const SlaveBoot::Write write{0x6003, 0, 4, [&preset] { return preset; }};
     if (c == Refused) b.config = {write};  // through setBoot, which keeps it
     BootRig r(b);
-    if (c != Refused) r.master.setConfig(2, {write});
+    if (c != Refused) r.master.addConfig(2, {write});
     if (c == Refused)
       r.sensor.od().addValidator(0x6003, 0, [](const Entry&, const std::uint8_t*, std::size_t) { return kAbortValueRange; });
-    preset = 0x01020304;  // after setConfig: taken as the write goes out
+    preset = 0x01020304;  // after addConfig: taken as the write goes out
     r.start(true);
     r.net.bus.advanceTo(400'000);
     Frames seq;

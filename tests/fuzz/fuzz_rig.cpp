@@ -3,6 +3,7 @@
 // line starting with the rig's name; EdsError for a slave EDS, one line starting with that file. An
 // accepted rig must be usable: distinct node-IDs, COB-IDs within 11 bits, a boot plan for each slave.
 #include <cstdint>
+#include <set>
 #include <string>
 
 #include "canopen/eds.hpp"
@@ -24,12 +25,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     pamc::fuzz::checkMessage(e.what(), e.file());
     return 0;
   }
-  if (rig.sensor_id == rig.valve_id || rig.sensor_id == rig.controller_id || rig.valve_id == rig.controller_id)
-    finding("accepted two nodes on one node-ID");
-  for (std::uint32_t cob : {rig.layout.sensor_cob, rig.layout.valve_cob, rig.layout.feedback_cob})
-    if (cob > 0x7FF) finding("accepted a COB-ID beyond 11 bits");
-  if ((rig.sensor_boot.assignment & pamc::canopen::kAssignSlave) == 0 || (rig.valve_boot.assignment & pamc::canopen::kAssignSlave) == 0)
-    finding("accepted a rig without a boot plan");
+  std::set<unsigned> ids = {rig.controller_id};
+  for (const auto& s : rig.slaves) {
+    if (!ids.insert(s.id).second) finding("accepted two nodes on one node-ID");
+    if ((s.boot.assignment & pamc::canopen::kAssignSlave) == 0) finding("accepted a rig without a boot plan");
+  }
+  for (const auto& c : rig.channels)
+    for (std::uint32_t cob : {c.cfg.layout.sensor_cob, c.cfg.layout.valve_cob, c.cfg.layout.feedback_cob})
+      if (cob > 0x7FF) finding("accepted a COB-ID beyond 11 bits");
+  if (rig.channels.empty()) finding("accepted a rig without a channel");
   (void)pamc::nodes::masterValues(rig);
   return 0;
 }

@@ -174,21 +174,28 @@ double trackingRmse(const std::vector<nodes::CycleRecord>& recs, double from_s) 
 
 TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
   const auto rig = nodes::readRigFile(writeTemp("default.ini", rigText()));
-  EXPECT_EQ(rig.sensor_id, 2);
-  EXPECT_EQ(rig.valve_id, 3);
-  EXPECT_EQ(rig.layout.sensor_cob, 0x182u);
-  EXPECT_EQ(rig.layout.valve_cob, 0x203u);
-  EXPECT_EQ(rig.layout.feedback_cob, 0x183u);
-  EXPECT_TRUE(rig.layout.scaling.isDefault());
-  EXPECT_EQ(*rig.sensor_boot.device_type, 0x00080196u);
-  EXPECT_EQ(rig.layout.error_value_index, 0x6444);
+  ASSERT_EQ(rig.channels.size(), 1u);
+  EXPECT_TRUE(rig.one_muscle_form);
+  const auto& ch = rig.channels[0].cfg;
+  EXPECT_EQ(ch.sensor_id, 2);
+  EXPECT_EQ(ch.valve_id, 3);
+  EXPECT_EQ(ch.layout.sensor_cob, 0x182u);
+  EXPECT_EQ(ch.layout.valve_cob, 0x203u);
+  EXPECT_EQ(ch.layout.feedback_cob, 0x183u);
+  EXPECT_EQ(ch.position_rpdo, 1u);
+  EXPECT_EQ(ch.feedback_rpdo, 2u);
+  EXPECT_EQ(ch.command_tpdo, 1u);
+  EXPECT_TRUE(ch.layout.scaling.isDefault());
+  const auto& sensor_boot = rig.slave(2).boot;
+  EXPECT_EQ(*sensor_boot.device_type, 0x00080196u);
+  EXPECT_EQ(ch.layout.error_value_index, 0x6444);
   // 0x1F81: slave, boot, mandatory, not kept alive, 3 retries.
-  EXPECT_EQ(rig.sensor_boot.assignment, 0x0000030Du);
+  EXPECT_EQ(sensor_boot.assignment, 0x0000030Du);
   const auto kept = nodes::readRigFile(writeTemp("kept.ini", rigText({{"mandatory = yes          ; 0x1F81",
                                                                         "keep_alive = yes\nretries = 5\nmandatory = yes ; 0x1F81"}})));
-  EXPECT_EQ(kept.sensor_boot.assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
+  EXPECT_EQ(kept.slave(2).boot.assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
   // The sensor's TPDO1: disabled, synchronous, mapped to 0x6004:00 (32 bits), enabled on 0x182.
-  const auto& w = rig.sensor_boot.writes;
+  const auto& w = sensor_boot.writes;
   auto has = [&](std::uint16_t i, std::uint8_t s, std::uint64_t v, std::size_t n) {
     return std::find(w.begin(), w.end(), canopen::dcfValue(i, s, v, n)) != w.end();
   };
@@ -285,7 +292,7 @@ TEST(RigBoot, SlavesScrambledBeforeTheControllerStartsAreConfigured) {
   };
   {
     nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
-    c.layout = nodes::SlaveLayout{};  // the built-in layout: nothing is configured
+    c.channels[0].layout = nodes::SlaveLayout{};  // the built-in layout: nothing is configured
     c.dictionary.clear();
     rig::VirtualRig rig(c, emulator());
     Tool tool(rig);
@@ -441,7 +448,7 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
   const auto profile = nodes::EmulatorConfig::profileDevices(kOd.substr(0, kOd.size() - 1));
   {
     nodes::ControllerNodeConfig c = controllerFromRig(writeTemp("default.ini", rigText()), nullptr);
-    c.layout = nodes::SlaveLayout{};
+    c.channels[0].layout = nodes::SlaveLayout{};
     c.dictionary.clear();
     rig::VirtualRig rig(c, profile);
     Tool tool(rig);
@@ -572,7 +579,7 @@ TEST(RigMaster, AnSdoUploadOfTheMastersObjectsShowsTheRigsBoot) {
   Tool tool(vr);
   vr.start();
   vr.runFor(0.2);
-  for (const auto& [id, boot] : {std::pair<std::uint8_t, const canopen::SlaveBoot*>{2, &rig.sensor_boot}, {3, &rig.valve_boot}}) {
+  for (const auto& [id, boot] : {std::pair<std::uint8_t, const canopen::SlaveBoot*>{2, &rig.slave(2).boot}, {3, &rig.slave(3).boot}}) {
     const auto bytes = tool.upload(1, 0x1F22, id);
     ASSERT_GT(bytes.size(), 8u) << "node " << int(id) << ": a segmented upload";
     canopen::ConciseDcf back;
@@ -740,7 +747,7 @@ TEST(RigBoot, SlavesAnotherMasterLeftOtherwiseAreConfiguredBeforeTheStart) {
     for (bool configured : {false, true}) {
       std::vector<std::string> log;
       auto cfg = controllerFromRig(writeTemp("default.ini", rigText()), &log);
-      if (!configured) cfg.dictionary.clear(), cfg.layout = nodes::SlaveLayout{};  // pamc's layout assumed
+      if (!configured) cfg.dictionary.clear(), cfg.channels[0].layout = nodes::SlaveLayout{};  // pamc's layout assumed
       rig::VirtualRig vr(cfg, e);
       Tool tool(vr);
       vr.startEmulator();
