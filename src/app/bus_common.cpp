@@ -58,9 +58,27 @@ void printStats(const nodes::CycleStats& s, const TrackingSummary& t) {
               s.latency_us.quantile(0.99), s.latency_us.max());
   std::printf("SYNC period jitter: median %.1f us, p99 %.1f us, max %.1f us\n", s.jitter_us.quantile(0.5),
               s.jitter_us.quantile(0.99), s.jitter_us.max());
-  if (t.n)
-    std::printf("tracking error over %llu cycles: RMSE %.4f mm, max %.4f mm\n", static_cast<unsigned long long>(t.n),
-                std::sqrt(t.acc / static_cast<double>(t.n)), t.max);
+  double acc = 0, max = 0;
+  std::uint64_t n = 0;
+  for (std::size_t c = 0; c < t.channels; ++c) acc += t.ch[c].acc, max = std::max(max, t.ch[c].max), n += t.ch[c].n;
+  if (n)
+    std::printf("tracking error over %llu cycles: RMSE %.4f mm, max %.4f mm\n", static_cast<unsigned long long>(n),
+                std::sqrt(acc / static_cast<double>(n)), max);
+  for (std::size_t c = 0; c < t.channels; ++c) {
+    const auto& x = t.ch[c];
+    if (x.n)
+      std::printf("channel %zu: tracking RMSE %.4f mm, max %.4f mm over %llu cycles\n", c + 1,
+                  std::sqrt(x.acc / static_cast<double>(x.n)), x.max, static_cast<unsigned long long>(x.n));
+    else
+      std::printf("channel %zu: no cycle tracked%s\n", c + 1, t.open_loop_input ? " (--input: open loop)" : "");
+  }
+}
+
+void BusLoad::print() const {
+  const double s = first < 0 ? 0.0 : static_cast<double>(last - first) * 1e-6;
+  std::printf("bus load: %.1f %% of %u kbit/s (%llu frames, %llu bits with stuffing, over %.3f s)\n",
+              100.0 * meter.load(s, bitrate), bitrate / 1000, static_cast<unsigned long long>(meter.frames()),
+              static_cast<unsigned long long>(meter.bits()), s);
 }
 
 

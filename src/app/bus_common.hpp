@@ -5,6 +5,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <array>
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -15,6 +18,7 @@
 
 #include "canopen/candump_log.hpp"
 #include "canopen/event_loop.hpp"
+#include "canopen/frame_bits.hpp"
 #include "canopen/socketcan.hpp"
 #include "nodes/controller_node.hpp"
 #include "nodes/decoder.hpp"
@@ -40,17 +44,40 @@ struct Joiner {
 };
 
 // Tracking error of the cycles in control (no fault), for the summary at the end.
+// Tracking error of each channel over the records (faulted cycles left out).
 struct TrackingSummary {
-  double acc = 0, max = 0;
-  std::uint64_t n = 0;
+  struct Channel {
+    double acc = 0, max = 0;
+    std::uint64_t n = 0;
+  };
+  std::array<Channel, nodes::kMaxChannels> ch{};
+  std::size_t channels = 0;      // the highest channel seen + 1
   bool open_loop_input = false;  // --input: the "setpoint" is the command, there is nothing tracked
   void add(const nodes::CycleRecord& r) {
+    if (r.channel >= ch.size()) return;
+    channels = std::max<std::size_t>(channels, r.channel + 1u);
     if (r.fault != 0 || open_loop_input) return;
+    Channel& c = ch[r.channel];
     const double e = r.yd - r.y;
-    acc += e * e;
-    max = std::max(max, std::fabs(e));
-    ++n;
+    c.acc += e * e;
+    c.max = std::max(c.max, std::fabs(e));
+    ++c.n;
   }
+};
+
+// The bus load from the frames that went over the bus, each with its stuff bits (canopen::frameBits),
+// over the time from the first frame to the last, at the rig's bit rate.
+struct BusLoad {
+  explicit BusLoad(unsigned bitrate) : bitrate(bitrate) {}
+  void add(const canopen::Frame& f, canopen::TimeUs t) {
+    meter.add(f);
+    if (first < 0) first = t;
+    last = t;
+  }
+  void print() const;  // "bus load: 27.9 % of 1000 kbit/s (...)"
+  canopen::BusLoadMeter meter;
+  canopen::TimeUs first = -1, last = 0;
+  unsigned bitrate;
 };
 
 struct LogItem {
@@ -65,14 +92,16 @@ struct LogItem {
 // power failure or a kernel crash in that time would lose it).
 class Logger {
  public:
-  // period_us: how often the files are brought up to date (the SYNC period).
-  Logger(const std::string& candump, const std::string& iface, const std::string& csv, unsigned period_us)
-      : period_(std::chrono::microseconds(period_us ? period_us : 1000)) {
+  // period_us: how often the files are brought up to date (the SYNC period). With several channels the
+  // CSV has a last column `channel` (1-based).
+  Logger(const std::string& candump, const std::string& iface, const std::string& csv, unsigned period_us,
+         std::size_t channels = 1)
+      : period_(std::chrono::microseconds(period_us ? period_us : 1000)), channel_column_(channels > 1) {
     if (!candump.empty()) dump_ = std::make_unique<canopen::CandumpWriter>(candump, iface);
     if (!csv.empty()) {
       csv_ = std::fopen(csv.c_str(), "w");
       if (!csv_) throw std::runtime_error(csv + ": cannot write");
-      std::fprintf(csv_, "t,yd,y,u,u_n,u_c,y_hat,fault,latency_us\n");
+      std::fprintf(csv_, "t,yd,y,u,u_n,u_c,y_hat,fault,latency_us%s\n", channel_column_ ? ",channel" : "");
       std::fflush(csv_);
     }
   }
@@ -114,8 +143,10 @@ class Logger {
       summary.add(r);
       if (measurement) measurement->add(r);
       if (csv_) {
-        std::fprintf(csv_, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%u,%.1f\n", r.t, r.yd, r.y, r.u, r.u_n, r.u_c, r.y_hat,
+        std::fprintf(csv_, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%u,%.1f", r.t, r.yd, r.y, r.u, r.u_n, r.u_c, r.y_hat,
                      r.fault, static_cast<double>(r.latency_us));
+        if (channel_column_) std::fprintf(csv_, ",%u", r.channel + 1u);
+        std::fputc('\n', csv_);
         wrote = true;
       }
     }
@@ -124,6 +155,7 @@ class Logger {
   std::unique_ptr<canopen::CandumpWriter> dump_;
   std::FILE* csv_ = nullptr;
   std::chrono::microseconds period_;
+  bool channel_column_;
   std::thread thread_;
   std::atomic<bool> quit_{false};
 };

@@ -55,12 +55,17 @@ class ControllerCommand final : public Command {
     // On the heap: the record rings are megabytes.
     auto nodep = std::make_unique<nodes::ControllerNode>(c, can, [] { return canopen::monotonicNowUs(); });
     auto& node = *nodep;
-    auto loggerp = std::make_unique<Logger>(candump, iface, csv, c.period_us);
+    auto loggerp = std::make_unique<Logger>(candump, iface, csv, c.period_us, c.channels.size());
     auto& logger = *loggerp;
     logger.records = &node.records();
     MeasurementRecord measurement(c.channels[0].layout.feedback, c.delay_cycles);
     attachMeasurement(logger, measurement, run_);
-    can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) { logger.frames.push({f, t}); });
+    // Every frame on the bus (received, and sent by this node) is logged and counted for the bus load.
+    BusLoad load(rig_.given() ? nodes::readRigFile(rig_.path).bitrate : 1000000u);
+    can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) {
+      logger.frames.push({f, t});
+      load.add(f, t);
+    });
     canopen::EventLoop loop(can, node.node());
     g_loop = &loop;
     installSignals();
@@ -85,6 +90,7 @@ class ControllerCommand final : public Command {
     g_loop = nullptr;
     logger.stop();
     printStats(node.stats(), logger.summary);
+    load.print();
     const auto& st = can.stats();
     std::printf("socket: rx %llu, tx %llu, tx queued %llu, tx dropped %llu, tx expired %llu, error frames %llu\n",
                 static_cast<unsigned long long>(st.rx_frames), static_cast<unsigned long long>(st.tx_frames),

@@ -15,7 +15,9 @@
 #include "io/measurement.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/monitor.hpp"
+#include "nodes/rig_file.hpp"
 #include "rig/fault_rig.hpp"
+#include "rig/rig_emulator.hpp"
 #include "rig/virtual_rig.hpp"
 
 namespace pamc::app {
@@ -28,6 +30,8 @@ class EmulatorCommand final : public Command {
       : Command(app.add_subcommand("emulator", "play the valve and sensor nodes with the emulator physics on SocketCAN")) {
     iface_.add(cmd_, false);
     od_.add(cmd_);
+    cmd_->add_option("--rig", rig_, "play the devices of this rig file (a rig of several channels: an encoder per "
+                                    "channel and the valve module with an output per channel, od/rigs/four_muscles.ini)");
     emu_.add(cmd_);
     cmd_->add_option("--duration", emu_duration, "stop after this many seconds of SYNCs (0: until Ctrl-C)")
         ->capture_default_str()
@@ -37,7 +41,8 @@ class EmulatorCommand final : public Command {
     rt_.add(cmd_, "real time");
   }
   int run() override {
-    const nodes::EmulatorConfig ec = emu_.config(od_.dir, period_us);
+    nodes::EmulatorConfig ec = emu_.config(od_.dir, period_us);
+    if (!rig_.empty()) ec = rig::emulatorOf(nodes::readRigFile(rig_), ec);
     const std::string iface = iface_.resolve("");
     realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
     auto canp = openCan(iface);
@@ -51,8 +56,10 @@ class EmulatorCommand final : public Command {
     g_loop = &loop;
     installSignals();
     logger.start();
-    std::fprintf(stderr, "emulator on %s: sensor node %u, valve node %u; stepped by SYNC\n", iface.c_str(),
-                 emu.sensor().nodeId(), emu.valve().nodeId());
+    std::fprintf(stderr, "emulator on %s: %zu muscle%s, sensor node%s", iface.c_str(), emu.channels(),
+                 emu.channels() > 1 ? "s" : "", emu.channels() > 1 ? "s" : "");
+    for (std::size_t c = 0; c < emu.channels(); ++c) std::fprintf(stderr, "%s%u", c ? ", " : " ", emu.sensor(c).nodeId());
+    std::fprintf(stderr, ", valve node %u; stepped by SYNC\n", emu.valve().nodeId());
     std::thread watch([&] {
       while (!g_stop) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -72,7 +79,7 @@ class EmulatorCommand final : public Command {
   }
 
  private:
-  std::string candump;
+  std::string candump, rig_;
   InterfaceOption iface_;
   double emu_duration = 0.0;
   unsigned period_us = 0;

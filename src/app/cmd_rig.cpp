@@ -16,6 +16,7 @@
 #include "io/text.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/monitor.hpp"
+#include "rig/rig_emulator.hpp"
 #include "rig/fault_rig.hpp"
 #include "rig/virtual_rig.hpp"
 
@@ -54,6 +55,12 @@ class RigCommand final : public Command {
     if (from_ == faults_cmd_ || from_ == guards_cmd_ || (from_ == cmd_ && (faults || sdo_guards))) return runRigChecks();
     const auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, false, &rig_);
     ec = emu_.config(od_.dir, run_.period_us);
+    bitrate_ = 1000000;
+    if (rig_.given()) {
+      const auto rf = nodes::readRigFile(rig_.path);
+      ec = rig::emulatorOf(rf, ec);
+      bitrate_ = rf.bitrate;
+    }
     if (rt_.rt) return runRigRealtime(c);
     return runVirtual(c);
   }
@@ -205,7 +212,7 @@ class RigCommand final : public Command {
 
   int runRigRealtime(const nodes::ControllerNodeConfig& c) {
     auto ring = std::make_unique<nodes::SpscRing<nodes::CycleRecord, 1 << 15>>();
-    auto loggerp = std::make_unique<Logger>(candump, kInProcessBusName, run_.csv, run_.period_us);
+    auto loggerp = std::make_unique<Logger>(candump, kInProcessBusName, run_.csv, run_.period_us, c.channels.size());
     auto& logger = *loggerp;
     logger.records = ring.get();
     MeasurementRecord measurement(c.channels[0].layout.feedback, c.delay_cycles);
@@ -220,7 +227,11 @@ class RigCommand final : public Command {
     const canopen::TimeUs epoch = static_cast<canopen::TimeUs>(wall.tv_sec) * 1000000 + wall.tv_nsec / 1000;
     rig::VirtualRigHooks hooks;
     hooks.realtime = true;
-    hooks.tap = [&](const canopen::Frame& f, canopen::TimeUs t) { logger.frames.push({f, epoch + t}); };
+    BusLoad load(bitrate_);
+    hooks.tap = [&](const canopen::Frame& f, canopen::TimeUs t) {
+      logger.frames.push({f, epoch + t});
+      load.add(f, t);
+    };
     nodes::CycleRecord last{};
     bool fresh = false;
     hooks.on_record = [&](const nodes::CycleRecord& r) {
@@ -251,6 +262,7 @@ class RigCommand final : public Command {
                 static_cast<unsigned long long>(r.faults), r.final_fault == nodes::Fault::None ? "" : ", last: ",
                 r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
     printStats(r.stats, logger.summary);
+    load.print();
     // In-process the SYNC period is exact in bus time; what real time costs is the pacing: how late
     // each 1 ms wake-up came (the node's work runs right after it).
     const auto& w = r.wake_late_us;
@@ -277,6 +289,8 @@ class RigCommand final : public Command {
     t.open_loop_input = run_.openLoopInput();
     std::vector<nodes::CycleRecord> kept;
     MeasurementRecord measurement(c.channels[0].layout.feedback, c.delay_cycles);
+    BusLoad load(bitrate_);
+    hooks.tap = [&](const canopen::Frame& f, canopen::TimeUs t) { load.add(f, t); };
     hooks.on_record = [&](const nodes::CycleRecord& x) {
       t.add(x);
       if (!run_.csv.empty()) kept.push_back(x);
@@ -287,18 +301,22 @@ class RigCommand final : public Command {
                  forever ? "until Ctrl-C" : (std::to_string(run_.duration) + " s run").c_str());
     const auto r = rig::runVirtualRig(c, ec, run_.duration, candump, 1700000000000000, 0, hooks);
     if (!run_.csv.empty()) {
-      std::vector<double> tt, yd, y, u, un, uc, yh, f;
+      std::vector<double> tt, yd, y, u, un, uc, yh, f, ch;
       for (const auto& x : kept) {
         tt.push_back(x.t), yd.push_back(x.yd), y.push_back(x.y), u.push_back(x.u), un.push_back(x.u_n),
-            uc.push_back(x.u_c), yh.push_back(x.y_hat), f.push_back(x.fault);
+            uc.push_back(x.u_c), yh.push_back(x.y_hat), f.push_back(x.fault), ch.push_back(x.channel + 1.0);
       }
-      io::writeCsvAtomic(run_.csv, {"t", "yd", "y", "u", "u_n", "u_c", "y_hat", "fault"}, {&tt, &yd, &y, &u, &un, &uc, &yh, &f});
+      std::vector<std::string> names = {"t", "yd", "y", "u", "u_n", "u_c", "y_hat", "fault"};
+      std::vector<const std::vector<double>*> cols = {&tt, &yd, &y, &u, &un, &uc, &yh, &f};
+      if (c.channels.size() > 1) names.push_back("channel"), cols.push_back(&ch);  // 1-based
+      io::writeCsvAtomic(run_.csv, names, cols);
     }
     std::printf("%s controller: %llu frames on the bus, %llu faults%s%s\n", control::toString(static_cast<control::Kind>(c.kind)),
                 static_cast<unsigned long long>(r.frames),
                 static_cast<unsigned long long>(r.faults), r.final_fault == nodes::Fault::None ? "" : ", last: ",
                 r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
     printStats(r.stats, t);
+    load.print();
     if (!candump.empty()) std::printf("candump log: %s\n", candump.c_str());
     if (!r.failure.empty() && !forever)
       throw std::runtime_error("the loop never started: " + r.failure + "; devices that differ from pamc's own need "
@@ -315,6 +333,7 @@ class RigCommand final : public Command {
   EmulatorOptions emu_;
   RealtimeOptions rt_;
   nodes::EmulatorConfig ec;
+  unsigned bitrate_ = 1000000;  // the rig's
   CLI::App *run_cmd_ = nullptr, *faults_cmd_ = nullptr, *soak_cmd_ = nullptr, *guards_cmd_ = nullptr;
   const CLI::App* from_ = nullptr;  // the subcommand parsed (rig itself for the old forms)
   std::string candump, only, progress;

@@ -9,6 +9,7 @@
 namespace pamc::app {
 
 void MeasurementRecord::add(const nodes::CycleRecord& r) {
+  if (r.channel != 0) return;  // channel 1's (a measurement is one muscle's)
   if (!u_.empty() && r.k != k_last_ + 1) {
     if (gaps_ == 0) gap_at_ = r.t;
     ++gaps_;

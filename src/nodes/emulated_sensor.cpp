@@ -21,9 +21,9 @@ void DelayLine::release(canopen::Transport& to, TimeUs now) {
   }
 }
 
-EmulatedSensor::EmulatedSensor(const EmulatorConfig& cfg, canopen::Transport& bus, Injection& inj)
+EmulatedSensor::EmulatedSensor(const EmulatorConfig& cfg, canopen::Transport& bus, Injection& inj, std::uint8_t id)
     : cfg_(cfg), bus_(bus), inj_(inj), rng_(cfg.seed) {
-  node_ = canopen::Node::fromEds(cfg.sensor_eds, *this, cfg.sensor_id);
+  node_ = canopen::Node::fromEds(cfg.sensor_eds, *this, id);
   position_ = node_->od().ref<std::int32_t>(cfg.position_index, cfg.position_sub);
   pdo_cob_ = node_->od().ref<std::uint32_t>(0x1800, 1).get() & 0x7FFu;
 }

@@ -35,7 +35,8 @@ class DelayLine {
 // The node is the sensor's own transport (send): every frame it sends passes its faults first.
 class EmulatedSensor : private canopen::Transport {
  public:
-  EmulatedSensor(const EmulatorConfig& cfg, canopen::Transport& bus, Injection& inj);
+  // id: its node-ID (0: the EDS's).
+  EmulatedSensor(const EmulatorConfig& cfg, canopen::Transport& bus, Injection& inj, std::uint8_t id);
   void start(canopen::TimeUs now);
 
   // At SYNC k (time t): the position measured over the cycle that just ended, in counts; 0x6004 gets

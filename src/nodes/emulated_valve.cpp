@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace pamc::nodes {
 
@@ -12,11 +14,16 @@ using canopen::TimeUs;
 EmulatedValve::EmulatedValve(const EmulatorConfig& cfg, canopen::Transport& bus, const Injection& inj)
     : cfg_(cfg), bus_(bus), inj_(inj) {
   node_ = canopen::Node::fromEds(cfg.valve_eds, *this, cfg.valve_id);
+  if (cfg.channels() > out_.size()) throw std::invalid_argument("emulator: " + std::to_string(cfg.channels()) + " channels, at most 8");
   auto& od = node_->od();
-  pressure_ = od.ref<std::int16_t>(cfg.pressure_index, cfg.pressure_sub);
-  command_ = od.ref<std::int16_t>(cfg.command_index, cfg.command_sub);
-  error_mode_ = od.ref<std::uint8_t>(0x6443, cfg.command_sub);
-  error_value_ = od.ref<std::int32_t>(0x6444, cfg.command_sub);
+  n_ = std::min(cfg.channels(), out_.size());
+  for (std::size_t c = 0; c < n_; ++c) {
+    const auto cs = static_cast<std::uint8_t>(cfg.command_sub + c), ps = static_cast<std::uint8_t>(cfg.pressure_sub + c);
+    out_[c].pressure = od.ref<std::int16_t>(cfg.pressure_index, ps);
+    out_[c].command = od.ref<std::int16_t>(cfg.command_index, cs);
+    out_[c].error_mode = od.ref<std::uint8_t>(0x6443, cs);
+    out_[c].error_value = od.ref<std::int32_t>(0x6444, cs);
+  }
   master_hb_ = od.find(0x1016, 1);
   monitorSync();
   node_->onReset([this](canopen::NmtCommand, TimeUs) { monitorSync(); });
@@ -40,7 +47,7 @@ std::uint8_t EmulatedValve::masterId() const {
 
 bool EmulatedValve::send(const Frame& f) { return inj_.valve_silent ? true : bus_.send(f); }
 
-void EmulatedValve::reportPressure(double bar) { pressure_.set(cfg_.scaling.pressureCounts(bar)); }
+void EmulatedValve::reportPressure(double bar, std::size_t c) { out_[c].pressure.set(cfg_.scaling.pressureCounts(bar)); }
 
 // The output goes to its error value (CiA 401: 0x6443/0x6444) and says so: an EMCY with the cause
 // and the communication bit of the error register 0x1001, until a fresh synchronous command (RPDO1
@@ -56,14 +63,19 @@ void EmulatedValve::update(TimeUs now) {
   const std::uint16_t cause = master_lost ? canopen::kEmcyHeartbeat : sync_lost ? canopen::kEmcyCommunication : 0;
   if (!ok) enterError(cause);
   else if (error_ && node_->rpdo(1).syncsSinceReception() == 0) leaveError();  // a fresh command
-  const bool error_out = error_ && error_mode_.get() != 0;
+  for (std::size_t c = 0; c < n_; ++c) apply(out_[c], now);
+}
+
+// What one output puts out: its command, or its error value in the error state (with error mode 1).
+void EmulatedValve::apply(Output& o, TimeUs now) {
+  const bool error_out = error_ && o.error_mode.get() != 0;
   const auto& sc = cfg_.scaling;
   const double lo = sc.command_zero_counts, hi = sc.command_zero_counts + sc.command_full_counts;
-  const double u = sc.commandFromCounts(error_out ? std::clamp(static_cast<double>(error_value_.get()), lo, hi)
-                                                  : static_cast<double>(command_.get()));
-  if (u != u_held_) {
-    u_held_ = u;
-    changed_us_ = now;
+  const double u = sc.commandFromCounts(error_out ? std::clamp(static_cast<double>(o.error_value.get()), lo, hi)
+                                                  : static_cast<double>(o.command.get()));
+  if (u != o.u_held) {
+    o.u_held = u;
+    o.changed_us = now;
   }
 }
 

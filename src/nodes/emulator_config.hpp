@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "canopen/frame.hpp"
 #include "nodes/process_data.hpp"
@@ -24,6 +25,14 @@ struct EmulatorConfig {
   std::uint16_t pressure_index = 0x6401;
   std::uint8_t pressure_sub = 1;
   pd::Scaling scaling;
+  // Several muscles (a rig with several channels): channel c is measured by an encoder of its own
+  // (sensor_eds at node sensor_ids[c]) and driven by output command_sub + c of the valve module, its
+  // pressure on input pressure_sub + c (od/profile/analog401.eds has four); each muscle is a plant of
+  // its own - the same physics, its own noise (seed + c). Empty: one channel, the sensor at sensor_id.
+  std::vector<std::uint8_t> sensor_ids;
+  // The channel whose sensor the sensor faults act on (those above and Injection's).
+  std::size_t fault_channel = 0;
+  std::size_t channels() const { return sensor_ids.empty() ? 1 : sensor_ids.size(); }
   // A CiA 406 encoder (node 16, 5 um steps, asynchronous TPDO) and a CiA 401 analog I/O module (node 32,
   // valve on output 2, pressure on input 2, 0..20000 = full scale, no heartbeat) with their makers'
   // defaults (od/profile/): nothing fits pamc's controller until it configures them (od/rigs/profile.ini).

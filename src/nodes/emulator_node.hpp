@@ -1,6 +1,7 @@
 // The plant emulator on the bus: the sensor node (od/sensor.eds, CiA 406; nodes/emulated_sensor.hpp)
 // and the valve node (od/valve.eds, CiA 401; nodes/emulated_valve.hpp) of the rig, played by one
-// process around the emulator physics, with the faults it injects (EmulatorConfig, Injection).
+// process around the emulator physics, with the faults it injects (EmulatorConfig, Injection). With
+// several channels: a sensor node and a plant per muscle, one valve module with an output per muscle.
 // Stepped by the SYNCs it receives: on SYNC k the muscle is advanced over (k-1, k] under the valve
 // command latched at SYNC k-1, the position is put into 0x6004 (sent in the sensor's TPDO after this
 // SYNC) and the pressure into 0x6401:01; then the valve latches the command received during the last
@@ -8,6 +9,8 @@
 #pragma once
 
 #include <atomic>
+#include <memory>
+#include <vector>
 
 #include "canopen/node.hpp"
 #include "nodes/emulated_sensor.hpp"
@@ -27,31 +30,35 @@ class EmulatorNodes : public canopen::BusClient {
   void advance(canopen::TimeUs now) override;
   canopen::TimeUs nextDeadline() const override;
 
-  canopen::Node& sensor() { return sensor_.node(); }
+  std::size_t channels() const { return sensors_.size(); }
+  canopen::Node& sensor(std::size_t c = 0) { return sensors_[c]->node(); }
   canopen::Node& valve() { return valve_.node(); }
-  const plant::Plant& plant() const { return plant_; }
+  const plant::Plant& plant(std::size_t c = 0) const { return plants_[c]; }
   // Safe from another thread.
-  double time() const { return static_cast<double>(syncs_.load(std::memory_order_relaxed)) * plant_.config().Ts; }
-  std::uint64_t pdosDropped() const { return sensor_.pdosDropped(); }
+  double time() const { return static_cast<double>(syncs_.load(std::memory_order_relaxed)) * plants_[0].config().Ts; }
+  std::uint64_t pdosDropped() const { return faulty().pdosDropped(); }
 
   Injection& inject() { return inj_; }
   // The sensor goes off (silent and deaf) for downtime, then comes back through an NMT reset: boot-up
   // and Pre-operational, as after a power cycle.
-  void rebootSensor(canopen::TimeUs downtime_us) { sensor_.reboot(downtime_us); }
+  void rebootSensor(canopen::TimeUs downtime_us) { sensors_[cfg_.fault_channel]->reboot(downtime_us); }
   // What the valve outputs (0..10 V), whether it is at its error value, and when the output last changed.
-  double valveVolts() const { return valve_.volts(); }
+  double valveVolts(std::size_t c = 0) const { return valve_.volts(c); }
   bool valveInError() const { return valve_.inError(); }
-  canopen::TimeUs valveChangedUs() const { return valve_.changedUs(); }
+  canopen::TimeUs valveChangedUs(std::size_t c = 0) const { return valve_.changedUs(c); }
 
  private:
   void scalingFromDevices();
   void onSync();
+  const EmulatedSensor& faulty() const { return *sensors_[cfg_.fault_channel]; }
 
-  EmulatorConfig cfg_;  // before the devices, which keep references to it and to inj_
+  EmulatorConfig cfg_;    // before the devices, which keep references to it and to inj_
+  EmulatorConfig clean_;  // the sensors without faults see this one ...
   Injection inj_;
-  EmulatedSensor sensor_;
+  Injection none_;        // ... and this
+  std::vector<std::unique_ptr<EmulatedSensor>> sensors_;  // one per channel
   EmulatedValve valve_;
-  plant::Plant plant_;
+  std::vector<plant::Plant> plants_;
   std::uint32_t sync_cob_ = 0x80;
   std::atomic<std::uint64_t> syncs_{0};
 };

@@ -1,16 +1,13 @@
 #include "nodes/monitor.hpp"
 
+#include "canopen/frame_bits.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 #include <vector>
 
 namespace pamc::nodes {
-
-double frameBits(const canopen::Frame& f) {
-  const double raw = (f.extended() ? 67.0 : 47.0) + 8.0 * f.len;
-  return raw * 1.1;
-}
 
 static const char* stateName(int s) {
   switch (s) {
@@ -25,7 +22,7 @@ static const char* stateName(int s) {
 
 void Monitor::feed(const canopen::Frame& f, double t) {
   ++total_;
-  frames_.emplace_back(t, frameBits(f));
+  frames_.emplace_back(t, static_cast<double>(canopen::frameBits(f)));  // with its stuff bits
   while (!frames_.empty() && frames_.front().first < t - 10.0) frames_.pop_front();
   const std::uint32_t id = f.id & 0x7FFu;
   if (f.extended()) {

@@ -33,7 +33,4 @@ class Monitor {
   std::uint64_t emcy_count_ = 0, total_ = 0, unknown_ = 0, bad_length_ = 0;
 };
 
-// Bits of a classic base-format CAN frame on the wire (no stuffing; + ~10 % typical stuffing).
-double frameBits(const canopen::Frame& f);
-
 }  // namespace pamc::nodes

@@ -1,0 +1,41 @@
+#include "rig/rig_emulator.hpp"
+
+#include <set>
+#include <stdexcept>
+#include <string>
+
+namespace pamc::rig {
+
+nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig, nodes::EmulatorConfig base) {
+  if (rig.channels.size() < 2) return base;
+  auto fail = [&](const std::string& why) -> void {
+    throw std::invalid_argument(rig.path + ": the emulator cannot play this rig: " + why);
+  };
+  const auto& first = rig.channels[0];
+  base.valve_eds = rig.slave(first.cfg.valve_id).eds;
+  base.valve_id = first.cfg.valve_id;
+  base.sensor_eds = rig.slave(first.cfg.sensor_id).eds;
+  base.command_index = first.command.index;
+  base.command_sub = first.command.sub;
+  base.pressure_index = first.feedback.index != 0 ? first.feedback.index : base.pressure_index;
+  base.pressure_sub = first.feedback.index != 0 ? first.feedback.sub : base.pressure_sub;
+  base.position_index = first.position.index;
+  base.position_sub = first.position.sub;
+  base.sensor_ids.clear();
+  std::set<std::uint8_t> sensors;
+  for (std::size_t c = 0; c < rig.channels.size(); ++c) {
+    const auto& ch = rig.channels[c];
+    if (ch.cfg.valve_id != first.cfg.valve_id) fail("its channels have more than one valve slave");
+    if (!sensors.insert(ch.cfg.sensor_id).second) fail("a sensor serves two channels");
+    if (rig.slave(ch.cfg.sensor_id).eds != base.sensor_eds) fail("its sensors have different EDS files");
+    if (ch.command.index != base.command_index || ch.command.sub != base.command_sub + c)
+      fail("channel " + std::to_string(c + 1) + "'s output is not the one after channel " + std::to_string(c) + "'s");
+    if (ch.feedback.index != 0 && ch.feedback.sub != base.pressure_sub + c)
+      fail("channel " + std::to_string(c + 1) + "'s pressure input is not the one after channel " + std::to_string(c) + "'s");
+    base.sensor_ids.push_back(ch.cfg.sensor_id);
+  }
+  base.scaling = nodes::pd::Scaling{};  // the devices' own dictionaries say how they count
+  return base;
+}
+
+}  // namespace pamc::rig
