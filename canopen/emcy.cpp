@@ -117,13 +117,13 @@ bool Emcy::report(std::uint16_t code, const std::uint8_t* manufacturer, std::uin
   return queue(code, manufacturer);
 }
 
-bool Emcy::clear(std::uint16_t code, std::uint8_t source) {
+bool Emcy::clear(std::uint16_t code, std::uint8_t source, const std::uint8_t* manufacturer) {
   const std::uint32_t key = code | static_cast<std::uint32_t>(source) << 16;
   for (std::size_t i = 0; i < active_count_; ++i) {
     if (active_[i] != key) continue;
     active_[i] = active_[--active_count_];
     updateRegister();
-    return queue(kEmcyNoError, nullptr);
+    return queue(kEmcyNoError, manufacturer);
   }
   return false;
 }

@@ -63,8 +63,9 @@ class Emcy {
   // apart the same error of several parts of a device (a controller's channels): each is active by
   // itself. Returns false if the error was already active or the frame could not be queued.
   bool report(std::uint16_t error_code, const std::uint8_t* manufacturer = nullptr, std::uint8_t source = 0);
-  // The error disappeared: updates the register and sends an "error reset" EMCY (code 0x0000).
-  bool clear(std::uint16_t error_code, std::uint8_t source = 0);
+  // The error disappeared: updates the register and sends an "error reset" EMCY (code 0x0000), with
+  // manufacturer's bytes if given.
+  bool clear(std::uint16_t error_code, std::uint8_t source = 0, const std::uint8_t* manufacturer = nullptr);
   void clearAll();
   bool active(std::uint16_t error_code) const;
   std::uint8_t errorRegister() const { return register_; }

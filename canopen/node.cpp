@@ -132,8 +132,11 @@ void Node::advance(TimeUs now) {
   heartbeat_consumer_.advance(now);
   heartbeat_producer_.advance(now);
   sync_.advance(now);
-  for (auto& p : rpdos_) p->advance(now);
-  for (auto& p : tpdos_) p->advance(now);
+  // Disabled PDOs (a controller's EDS has spares for more channels) are skipped here, not in a call.
+  for (auto& p : rpdos_)
+    if (p->valid()) p->advance(now);
+  for (auto& p : tpdos_)
+    if (p->valid()) p->advance(now);
   emcy_.advance(now);
   sdo_server_.advance(now);
   sdo_client_.advance(now);
@@ -148,17 +151,21 @@ TimeUs Node::nextDeadline() const {
   TimeUs next = std::min({heartbeat_consumer_.nextDeadline(), heartbeat_producer_.nextDeadline(),
                           sync_.nextDeadline(), emcy_.nextDeadline(), sdo_server_.nextDeadline(),
                           sdo_client_.nextDeadline(), timer_at_});
-  for (const auto& p : rpdos_) next = std::min(next, p->nextDeadline());
-  for (const auto& p : tpdos_) next = std::min(next, p->nextDeadline());
+  for (const auto& p : rpdos_)
+    if (p->valid()) next = std::min(next, p->nextDeadline());
+  for (const auto& p : tpdos_)
+    if (p->valid()) next = std::min(next, p->nextDeadline());
   return next;
 }
 
 void Node::handleSync(std::uint8_t counter, TimeUs now) {
   // Cycle order: SYNC -> latch RPDOs -> application callback -> TPDOs, so the application computes
   // from the inputs of the previous cycle and its outputs leave in this one.
-  for (auto& p : rpdos_) p->onSync(now);
+  for (auto& p : rpdos_)
+    if (p->valid()) p->onSync(now);
   if (app_.sync) app_.sync(counter, now);
-  for (auto& p : tpdos_) p->onSync(counter, now);
+  for (auto& p : tpdos_)
+    if (p->valid()) p->onSync(counter, now);
 }
 
 void Node::handleStateChange(NmtState from, NmtState to, TimeUs now) {

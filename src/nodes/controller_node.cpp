@@ -77,11 +77,10 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
     takeCauses(c, now);
   }
   spreadFaults();
-  CycleRecord recs[kMaxChannels];
   for (std::size_t i = 0; i < channels_.size(); ++i) {
     Channel& c = channels_[i];
     if (c.valve->errorValuePending()) c.valve->pushErrorValue(params_->safeCommand());
-    recs[i] = control(c, now);
+    recs_[i] = control(c, now);
   }
   master_->poll(now);  // boot work left waiting for the SDO client
   for (auto& c : channels_) {
@@ -91,7 +90,7 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   const double lat = clock_ ? static_cast<double>(clock_() - now) : 0.0;
   stats_.latency_us.add(lat);
   if (lat > channels_[0].loop->period() * 1e6) ++stats_.overruns;
-  for (std::size_t i = 0; i < channels_.size(); ++i) send(channels_[i], static_cast<std::uint8_t>(i), recs[i], lat);
+  for (std::size_t i = 0; i < channels_.size(); ++i) send(channels_[i], static_cast<std::uint8_t>(i), recs_[i], lat);
 }
 
 // Period jitter and missed SYNCs.

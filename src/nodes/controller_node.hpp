@@ -159,6 +159,7 @@ class ControllerNode {
   std::atomic<std::uint32_t> collision_pub_{0};
   canopen::TimeUs last_sync_ = 0;
   CycleStats stats_;
+  CycleRecord recs_[kMaxChannels];  // this cycle's, one per channel
   SpscRing<CycleRecord, 1 << 15> records_;
 };
 

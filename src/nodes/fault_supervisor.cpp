@@ -14,6 +14,12 @@ constexpr std::uint32_t kBusMask = bit(Fault::BusError) | bit(Fault::SyncLost) |
                                    bit(Fault::SyncLength);
 }  // namespace
 
+// An error reset names the channel too (byte 3, as in the EMCY it resets).
+const std::uint8_t* FaultSupervisor::resetBytes() noexcept {
+  reset_bytes_[2] = channel_;
+  return reset_bytes_;
+}
+
 bool FaultSupervisor::reports(Fault f) const noexcept { return reports_bus_ || (kBusMask & bit(f)) == 0; }
 
 void FaultSupervisor::raise(Fault f, std::uint8_t detail) noexcept {
@@ -55,7 +61,7 @@ bool FaultSupervisor::takeCauses(TimeUs now) noexcept {
 void FaultSupervisor::recover() noexcept {
   for (int i = 1; i < kFaultCount; ++i) {
     const auto f = static_cast<Fault>(i);
-    if ((episode_ & kSafetyMask & bit(f)) != 0 && reports(f)) node_.emcy().clear(emcyCode(f), channel_);
+    if ((episode_ & kSafetyMask & bit(f)) != 0 && reports(f)) node_.emcy().clear(emcyCode(f), channel_, resetBytes());
   }
   episode_ &= kWarnMask;
   if (episode_ == 0) reacted_at_us_ = canopen::kNever;
@@ -67,7 +73,7 @@ void FaultSupervisor::clearWarnings() noexcept {
   if ((episode_ & kWarnMask) == 0 || ++warn_clear_ < recover_cycles_) return;
   for (int i = 1; i < kFaultCount; ++i) {
     const auto w = static_cast<Fault>(i);
-    if (isWarning(w) && (episode_ & bit(w)) != 0 && reports(w)) node_.emcy().clear(emcyCode(w), channel_);
+    if (isWarning(w) && (episode_ & bit(w)) != 0 && reports(w)) node_.emcy().clear(emcyCode(w), channel_, resetBytes());
   }
   episode_ &= ~kWarnMask;
   if (fault_ == Fault::None) reacted_at_us_ = canopen::kNever;

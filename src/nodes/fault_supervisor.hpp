@@ -25,7 +25,8 @@ class FaultSupervisor {
   // reports_bus: it sends the EMCYs of the bus's causes (SYNC, CAN errors, collisions, wrong lengths),
   // which every channel meets at once: one channel of a node reports them, the others only react.
   FaultSupervisor(canopen::Node& node, int recover_cycles, std::uint8_t channel = 0, bool reports_bus = true)
-      : node_(node), recover_cycles_(recover_cycles), channel_(channel), reports_bus_(reports_bus) {}
+      : node_(node), recover_cycles_(recover_cycles), own_clear_cycles_(recover_cycles), channel_(channel),
+        reports_bus_(reports_bus) {}
 
   void raise(Fault f, std::uint8_t detail = 0) noexcept;
   // Sends the EMCY of every cause not yet reported in this episode; true when a safety cause has just
@@ -60,9 +61,12 @@ class FaultSupervisor {
 
  private:
   bool reports(Fault f) const noexcept;
+  const std::uint8_t* resetBytes() noexcept;
+  std::uint8_t reset_bytes_[5] = {};
 
   canopen::Node& node_;
   int recover_cycles_;
+  int own_clear_cycles_;  // cycles in the safe state since a cause of its own (recover_cycles: none yet)
   std::uint8_t channel_;
   bool reports_bus_;
   Fault fault_ = Fault::None;
@@ -70,7 +74,6 @@ class FaultSupervisor {
   std::uint32_t episode_ = 0;   // causes whose EMCY went out in this episode
   std::uint8_t detail_[kFaultCount] = {};
   int clear_cycles_ = 0;
-  int own_clear_cycles_ = 0;
   int warn_clear_ = 0;
   std::uint64_t raised_ = 0;    // episodes begun (faultsRaised)
   canopen::TimeUs reacted_at_us_ = canopen::kNever;

@@ -9,7 +9,9 @@
 
 #include "nodes/controller_node.hpp"
 #include "nodes/emulator_node.hpp"
-#include "nodes/monitor.hpp"
+#include "canopen/frame_bits.hpp"
+#include "nodes/rig_file.hpp"
+#include "rig/rig_emulator.hpp"
 #include "rig/virtual_rig.hpp"
 
 using namespace pamc;
@@ -36,11 +38,23 @@ nodes::EmulatorConfig emuConfig() {
   return e;
 }
 
+// The four-muscle rig (od/rigs/four_muscles.ini): its controller and emulator configurations.
+nodes::ControllerNodeConfig fourMuscles(control::Kind kind, nodes::EmulatorConfig& e) {
+  const auto rf = nodes::readRigFile(kOd + "rigs/four_muscles.ini");
+  auto c = ctrlConfig(kind);
+  nodes::applyRig(rf, c);
+  e = rig::emulatorOf(rf, emuConfig());
+  return c;
+}
+
 // Wall-clock time of the SYNC path of the controller node: SYNC frame in -> RPDOs latched ->
 // estimator and controller -> valve setpoint TPDO handed to the transport. `background` frames of
-// other COB-IDs (higher priority than the position PDO) reach the node each cycle.
-void syncToSetpoint(benchmark::State& state, control::Kind kind, int background) {
-  rig::VirtualRig rig(ctrlConfig(kind), emuConfig());
+// other COB-IDs (higher priority than the position PDO) reach the node each cycle. four: the node of
+// four channels (od/rigs/four_muscles.ini).
+void syncToSetpoint(benchmark::State& state, control::Kind kind, int background, bool four = false) {
+  nodes::EmulatorConfig e = emuConfig();
+  const auto c = four ? fourMuscles(kind, e) : ctrlConfig(kind);
+  rig::VirtualRig rig(c, e);
   rig.setRecordSink([](const nodes::CycleRecord&) {});
   auto& bus = rig.bus();
   auto& ctrl = rig.controller();
@@ -72,6 +86,8 @@ void syncToSetpoint(benchmark::State& state, control::Kind kind, int background)
 void BM_SyncToSetpoint_PI(benchmark::State& s) { syncToSetpoint(s, control::Kind::PI, 0); }
 void BM_SyncToSetpoint_AMC(benchmark::State& s) { syncToSetpoint(s, control::Kind::PiAmc, 0); }
 void BM_SyncToSetpoint_AMC_Traffic(benchmark::State& s) { syncToSetpoint(s, control::Kind::PiAmc, 50); }
+void BM_SyncToSetpoint_PI_FourChannels(benchmark::State& s) { syncToSetpoint(s, control::Kind::PI, 0, true); }
+void BM_SyncToSetpoint_AMC_FourChannels(benchmark::State& s) { syncToSetpoint(s, control::Kind::PiAmc, 0, true); }
 
 // What an SDO commit (0x2003:01 = 1) costs the thread that runs the node: the request frame handled -
 // values checked and, inline, the new controller built - in the time between two cycles. With the
@@ -128,7 +144,7 @@ void BM_BusLoadPerCycle(benchmark::State& state) {
   double bits = 0;
   std::uint64_t frames = 0;
   bus.addTap([&](const canopen::Frame& f, canopen::TimeUs) {
-    bits += nodes::frameBits(f);
+    bits += canopen::frameBits(f);
     ++frames;
   });
   rig.start();
@@ -151,6 +167,8 @@ void BM_BusLoadPerCycle(benchmark::State& state) {
 BENCHMARK(BM_SyncToSetpoint_PI)->Iterations(20000);
 BENCHMARK(BM_SyncToSetpoint_AMC)->Iterations(20000);
 BENCHMARK(BM_SyncToSetpoint_AMC_Traffic)->Iterations(20000);
+BENCHMARK(BM_SyncToSetpoint_PI_FourChannels)->Iterations(20000);
+BENCHMARK(BM_SyncToSetpoint_AMC_FourChannels)->Iterations(20000);
 BENCHMARK(BM_RigCycle);
 BENCHMARK(BM_SdoCommit_OpenLoop_Inline)->UseManualTime()->Iterations(30)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SdoCommit_OpenLoop_OffCycle)->UseManualTime()->Iterations(30)->Unit(benchmark::kMillisecond);

@@ -1,0 +1,265 @@
+// Several channels on one controller node (nodes/controller_node.hpp, od/rigs/four_muscles.ini): four
+// muscles boot and track on one 1 Mbit/s bus within 90 % of it, each channel as one muscle alone; a
+// fault of one channel stops that channel only - with its joint partner, or every channel with
+// faults = all - with an EMCY naming it; rig files of several channels that cannot work are refused
+// with the line.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "canopen/frame_bits.hpp"
+#include "nodes/rig_file.hpp"
+#include "plant/plant.hpp"
+#include "rig/rig_emulator.hpp"
+#include "rig/virtual_rig.hpp"
+
+using namespace pamc;
+
+namespace {
+
+const std::string kOd = std::string(PAMC_SOURCE_DIR) + "/od/";
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const std::string path = ::testing::TempDir() + info->test_suite_name() + "." + info->name() + "." + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+// od/rigs/four_muscles.ini with lines replaced or added, its EDS paths made absolute.
+std::string fourMuscles(const std::vector<std::pair<std::string, std::string>>& edits = {}) {
+  std::ifstream in(kOd + "rigs/four_muscles.ini");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (std::string::size_type at; (at = text.find("= ../")) != std::string::npos;) text.replace(at, 5, "= " + kOd);
+  for (const auto& [from, to] : edits) {
+    const auto at = text.find(from);
+    if (at == std::string::npos) {
+      ADD_FAILURE() << "no '" << from << "' in the rig";
+      continue;
+    }
+    text.replace(at, from.size(), to);
+  }
+  return text;
+}
+
+nodes::ControllerNodeConfig controllerOf(const nodes::RigFile& rig, std::vector<std::string>* log = nullptr) {
+  nodes::ControllerNodeConfig c;
+  nodes::applyRig(rig, c);
+  c.kind = static_cast<int>(control::Kind::PI);
+  c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
+  c.has_trajectory = true;
+  c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
+  c.preroll_s = 0.5;
+  if (log) c.log = [log](const std::string& m) { log->push_back(m); };
+  return c;
+}
+
+nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig) {
+  nodes::EmulatorConfig e;
+  e.sensor_eds = kOd + "sensor.eds";
+  e.valve_eds = kOd + "valve.eds";
+  return rig::emulatorOf(rig, e);
+}
+
+struct ChannelTrack {
+  double acc = 0, max = 0;
+  int n = 0;
+  double rmse() const { return n ? std::sqrt(acc / n) : INFINITY; }
+};
+
+// Tracking per channel from from_s to to_s of trajectory time, faulted cycles included (a channel in its
+// safe state does not track).
+std::vector<ChannelTrack> tracking(const std::vector<nodes::CycleRecord>& recs, std::size_t channels, double from_s,
+                                   double to_s = 1e9) {
+  std::vector<ChannelTrack> t(channels);
+  for (const auto& r : recs) {
+    if (r.t < from_s || r.t > to_s || r.channel >= channels) continue;
+    auto& c = t[r.channel];
+    const double e = r.y - r.yd;
+    c.acc += e * e, c.max = std::max(c.max, std::fabs(e)), ++c.n;
+  }
+  return t;
+}
+
+// The EMCYs the controller sent: error code and the channel it names (byte 3 of the manufacturer bytes).
+struct Emcy {
+  std::uint16_t code;
+  std::uint8_t fault, detail, channel;
+};
+
+}  // namespace
+
+TEST(Channels, FourMusclesBootAndTrackOnOneBusAsOneMuscleAlone) {
+  const auto rig_file = nodes::readRigFile(writeTemp("four.ini", fourMuscles()));
+  ASSERT_EQ(rig_file.channels.size(), 4u);
+  std::vector<std::string> log;
+  rig::VirtualRig rig(controllerOf(rig_file, &log), emulatorOf(rig_file));
+  canopen::BusLoadMeter meter;
+  canopen::TimeUs first = -1, last = 0;
+  rig.addTap([&](const canopen::Frame& f, canopen::TimeUs t) {
+    meter.add(f);
+    if (first < 0) first = t;
+    last = t;
+  });
+  rig.start();
+  rig.runFor(20.5);
+  int configured = 0;
+  for (const auto& l : log) configured += l.find("configuration written and read back") != std::string::npos;
+  EXPECT_EQ(configured, 5) << "four encoders and the valve module booted";
+  const auto four = tracking(rig.records(), 4, 5.0);
+  // The one-muscle rig, the same trajectory and plant.
+  const auto one_file = nodes::readRigFile(kOd + "rigs/default.ini");
+  rig::VirtualRig one(controllerOf(one_file), emulatorOf(one_file));
+  one.start();
+  one.runFor(20.5);
+  const auto alone = tracking(one.records(), 1, 5.0);
+  ASSERT_GT(alone[0].n, 10000);
+  for (std::size_t c = 0; c < 4; ++c) {
+    EXPECT_GT(four[c].n, 10000) << "channel " << c + 1;
+    EXPECT_NEAR(four[c].rmse(), alone[0].rmse(), 0.1 * alone[0].rmse()) << "channel " << c + 1;
+  }
+  const double load = meter.load(static_cast<double>(last - first) * 1e-6, rig_file.bitrate);
+  EXPECT_LT(load, 0.90) << "four muscles at 1 kHz within 90 % of 1 Mbit/s";
+  EXPECT_GT(load, 0.40) << "SYNC + 6 frames of the cycle per millisecond";
+  EXPECT_EQ(rig.controller().faultCounters().episodes, 0u);
+}
+
+namespace {
+
+// Four muscles with the sensor of channel `faulty` (0-based) going silent at 8 s of bus time for 2 s.
+struct SilentSensorRun {
+  explicit SilentSensorRun(const std::string& text, std::size_t faulty) {
+    const auto rf = nodes::readRigFile(text);
+    auto e = emulatorOf(rf);
+    e.fault_channel = faulty;
+    e.sensor_silent_at_s = 8.0;
+    e.sensor_silent_for_s = 2.0;
+    rig = std::make_unique<rig::VirtualRig>(controllerOf(rf), e);
+    rig->addTap([this](const canopen::Frame& f, canopen::TimeUs) {
+      if (f.id == 0x81 && f.len == 8)
+        emcy.push_back(Emcy{canopen::getU16(f.data), f.data[3], f.data[4], f.data[5]});
+    });
+    rig->start();
+    rig->runFor(9.0);  // 8.0 + 1 s: the fault is on
+    for (std::size_t c = 0; c < 4; ++c) during.push_back(rig->controller().channelFault(c));
+    safe_volts = nodes::pd::valveVolts(rig->controller().safeCommand());
+    for (std::size_t c = 0; c < 4; ++c) volts.push_back(rig->emulator().valveVolts(c));
+    rig->runFor(6.0);  // back at 10 s; recovered 0.5 s later
+    for (std::size_t c = 0; c < 4; ++c) after.push_back(rig->controller().channelFault(c));
+  }
+  bool named(nodes::Fault f, std::uint8_t channel) const {
+    for (const auto& e : emcy)
+      if (e.fault == static_cast<std::uint8_t>(f) && e.channel == channel) return true;
+    return false;
+  }
+  std::unique_ptr<rig::VirtualRig> rig;
+  std::vector<Emcy> emcy;
+  std::vector<nodes::Fault> during, after;
+  std::vector<double> volts;
+  double safe_volts = 0;
+};
+
+}  // namespace
+
+TEST(Channels, ASilentSensorStopsItsChannelOnly) {
+  SilentSensorRun r(writeTemp("four.ini", fourMuscles()), 1);
+  EXPECT_NE(r.during[1], nodes::Fault::None);
+  EXPECT_NEAR(r.volts[1], r.safe_volts, 1e-3) << "channel 2's valve at the safe value";
+  for (std::size_t c : {0u, 2u, 3u}) {
+    EXPECT_EQ(r.during[c], nodes::Fault::None) << "channel " << c + 1;
+    EXPECT_GT(r.volts[c], r.safe_volts + 0.5) << "channel " << c + 1 << " still driven";
+  }
+  EXPECT_TRUE(r.named(nodes::Fault::PositionMissing, 2)) << "an EMCY naming channel 2";
+  for (const auto& e : r.emcy) EXPECT_EQ(e.channel, 2) << "EMCY 0x" << std::hex << e.code << " of another channel";
+  // The others tracked through it as before; channel 2 came back.
+  const auto t = tracking(r.rig->records(), 4, 5.0);
+  for (std::size_t c : {0u, 2u, 3u}) EXPECT_LT(t[c].max, 1.5) << "channel " << c + 1;
+  for (std::size_t c = 0; c < 4; ++c) EXPECT_EQ(r.after[c], nodes::Fault::None) << "channel " << c + 1;
+}
+
+TEST(Channels, AJointPartnerGoesToItsSafeValueWithIt) {
+  const auto text = fourMuscles({{"feedback = 0x6401:01", "feedback = 0x6401:01\npartner = 2"},
+                                 {"feedback = 0x6401:02", "feedback = 0x6401:02\npartner = 1"}});
+  SilentSensorRun r(writeTemp("pair.ini", text), 0);
+  EXPECT_NE(r.during[0], nodes::Fault::None);
+  EXPECT_EQ(r.during[1], nodes::Fault::OtherChannel) << "channel 2 follows its partner";
+  EXPECT_NEAR(r.volts[0], r.safe_volts, 1e-3);
+  EXPECT_NEAR(r.volts[1], r.safe_volts, 1e-3);
+  EXPECT_EQ(r.during[2], nodes::Fault::None);
+  EXPECT_EQ(r.during[3], nodes::Fault::None);
+  EXPECT_TRUE(r.named(nodes::Fault::PositionMissing, 1));
+  EXPECT_TRUE(r.named(nodes::Fault::OtherChannel, 2));
+  for (const auto& e : r.emcy)
+    if (e.fault == static_cast<std::uint8_t>(nodes::Fault::OtherChannel)) EXPECT_EQ(e.detail, 1) << "whose fault it follows";
+  for (std::size_t c = 0; c < 4; ++c) EXPECT_EQ(r.after[c], nodes::Fault::None) << "channel " << c + 1 << " recovered";
+}
+
+TEST(Channels, WithFaultsAllEveryChannelGoesToItsSafeValue) {
+  SilentSensorRun r(writeTemp("all.ini", fourMuscles({{"faults = channel", "faults = all"}})), 2);
+  EXPECT_EQ(r.during[2], nodes::Fault::PositionMissing);
+  for (std::size_t c : {0u, 1u, 3u}) {
+    EXPECT_EQ(r.during[c], nodes::Fault::OtherChannel) << "channel " << c + 1;
+    EXPECT_NEAR(r.volts[c], r.safe_volts, 1e-3) << "channel " << c + 1;
+  }
+  for (std::size_t c = 0; c < 4; ++c) EXPECT_EQ(r.after[c], nodes::Fault::None) << "channel " << c + 1 << " recovered";
+}
+
+TEST(Channels, ARigFileOfSeveralChannelsThatCannotWorkIsRefusedWithItsLine) {
+  struct Case {
+    std::vector<std::pair<std::string, std::string>> edits;
+    std::string expect;
+  };
+  const std::vector<Case> cases = {
+      {{{"sensor = enc2", "sensor = enc9"}}, "sensor 'enc9': no [slave.enc9] section"},
+      {{{"feedback = 0x6401:01", "feedback = 0x6401:01\npartner = 2"}}, "channel 2 does not name channel 1 back"},
+      {{{"feedback = 0x6401:01", "feedback = 0x6401:01\npartner = 1"}}, "a channel is not its own partner"},
+      {{{"sensor = enc2", "sensor = io"}}, "its sensor and valve are one slave"},
+      {{{"faults = channel", "faults = some"}}, "faults 'some' is not channel or all"},
+      {{{"feedback = 0x6401:03", "feedback = 0x6401:03\ncontroller = fuzzy"}}, "controller: "},
+      {{{"feedback = 0x6401:03", "feedback = 0x6401:03\ntrajectory = zigzag:1"}}, "trajectory: "},
+      {{{"[channel.1]", "[sensor]\n[channel.1]"}}, "write one form"},
+      {{{"command = 0x6411:02", "command = 0x6411:05"}}, "has no object 0x6411:05"},
+      {{{"position = 0x6004:00\nvalve = io\ncommand = 0x6411:02", "position = 0x6004:00\nvalve = io\ncommand = 0x6411:02\nbogus = 1"}},
+       "unknown key 'bogus' in [channel.2]"},
+      {{{"feedback = 0x6401:04", "feedback = 0x6401:04\n[channel.9]\nsensor = enc1"}}, ""},  // beyond the numbered run: unused
+  };
+  for (const auto& c : cases) {
+    const std::string path = writeTemp("rig.ini", fourMuscles(c.edits));
+    if (c.expect.empty()) {
+      EXPECT_NO_THROW((void)nodes::readRigFile(path));
+      continue;
+    }
+    try {
+      (void)nodes::readRigFile(path);
+      ADD_FAILURE() << "accepted: " << c.expect;
+    } catch (const nodes::RigError& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find(c.expect), std::string::npos) << m;
+      EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+      EXPECT_EQ(m.rfind(path, 0), 0u) << m;
+    }
+  }
+}
+
+TEST(Channels, TheOneMuscleFormAndTheFormOfChannelsMakeTheSameNode) {
+  // default.ini written in the form of channels: the same dictionary values, the same channel.
+  const std::string text = "[bus]\nperiod_us = 1000\n[controller]\nnode_id = 1\neds = " + kOd +
+                           "controller.eds\n"
+                           "[slave.sensor]\nnode_id = 2\neds = " + kOd +
+                           "sensor.eds\ndevice_type = 0x00080196\nvendor_id = 0\nproduct_code = 2\n"
+                           "position_step_mm = 0.001\ntpdo = 1\nheartbeat_ms = 100\n"
+                           "[slave.valve]\nnode_id = 3\neds = " + kOd +
+                           "valve.eds\ndevice_type = 0x000C0191\nvendor_id = 0\nproduct_code = 3\n"
+                           "command_full_counts = 32767\ncommand_zero_counts = 0\nrpdo = 1\nfeedback_tpdo = 1\n"
+                           "heartbeat_ms = 100\nmaster_heartbeat_ms = 250\n"
+                           "[channel.1]\nsensor = sensor\nposition = 0x6004:00\nvalve = valve\ncommand = 0x6411:01\n"
+                           "feedback = 0x6401:01\n";
+  const auto channels = nodes::readRigFile(writeTemp("channels.ini", text));
+  const auto one = nodes::readRigFile(kOd + "rigs/default.ini");
+  EXPECT_TRUE(one.one_muscle_form);
+  EXPECT_FALSE(channels.one_muscle_form);
+  EXPECT_EQ(nodes::masterValues(channels), nodes::masterValues(one));
+}
