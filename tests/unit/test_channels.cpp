@@ -192,8 +192,11 @@ TEST(Channels, AJointPartnerGoesToItsSafeValueWithIt) {
   EXPECT_EQ(r.during[3], nodes::Fault::None);
   EXPECT_TRUE(r.named(nodes::Fault::PositionMissing, 1));
   EXPECT_TRUE(r.named(nodes::Fault::OtherChannel, 2));
-  for (const auto& e : r.emcy)
-    if (e.fault == static_cast<std::uint8_t>(nodes::Fault::OtherChannel)) EXPECT_EQ(e.detail, 1) << "whose fault it follows";
+  for (const auto& e : r.emcy) {
+    if (e.fault == static_cast<std::uint8_t>(nodes::Fault::OtherChannel)) {
+      EXPECT_EQ(e.detail, 1) << "whose fault it follows";
+    }
+  }
   for (std::size_t c = 0; c < 4; ++c) EXPECT_EQ(r.after[c], nodes::Fault::None) << "channel " << c + 1 << " recovered";
 }
 
