@@ -74,6 +74,16 @@ void printStats(const nodes::CycleStats& s, const TrackingSummary& t) {
   }
 }
 
+void printJoints(const std::vector<nodes::RigJoint>& joints, const TrackingSummary& t) {
+  for (std::size_t j = 0; j < joints.size(); ++j) {
+    const auto& x = t.ch[joints[j].flexor];
+    if (x.n == 0) continue;
+    const double deg_per_mm = 180.0 / M_PI / joints[j].lever_mm;
+    std::printf("joint %zu (channels %zu, %zu): angle tracking RMSE %.3f deg, max %.3f deg\n", j + 1, joints[j].flexor + 1,
+                joints[j].extensor + 1, std::sqrt(x.acc / static_cast<double>(x.n)) * deg_per_mm, x.max * deg_per_mm);
+  }
+}
+
 void BusLoad::print() const {
   const double s = first < 0 ? 0.0 : static_cast<double>(last - first) * 1e-6;
   std::printf("bus load: %.1f %% of %u kbit/s (%llu frames, %llu bits with stuffing, over %.3f s)\n",

@@ -23,6 +23,7 @@
 #include "nodes/controller_node.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/emulator_node.hpp"
+#include "nodes/rig_file.hpp"
 #include "app/command.hpp"
 #include "app/measurement_record.hpp"
 
@@ -162,6 +163,8 @@ class Logger {
 
 
 void printStats(const nodes::CycleStats& s, const TrackingSummary& t);
+// A line per joint: its angle's tracking, from its flexor's (channel's) tracking through the lever.
+void printJoints(const std::vector<nodes::RigJoint>& joints, const TrackingSummary& t);
 
 // Opens the interface with a hint on what to do when it is not there.
 std::unique_ptr<canopen::SocketCanTransport> openCan(const std::string& iface);

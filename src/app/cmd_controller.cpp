@@ -90,6 +90,7 @@ class ControllerCommand final : public Command {
     g_loop = nullptr;
     logger.stop();
     printStats(node.stats(), logger.summary);
+    printJoints(nodes::readRigFile(rig_.path).joints, logger.summary);
     load.print();
     const auto& st = can.stats();
     std::printf("socket: rx %llu, tx %llu, tx queued %llu, tx dropped %llu, tx expired %llu, error frames %llu\n",

@@ -57,9 +57,11 @@ class EmulatorCommand final : public Command {
     installSignals();
     logger.start();
     std::fprintf(stderr, "emulator on %s: %zu muscle%s, sensor node%s", iface.c_str(), emu.channels(),
-                 emu.channels() > 1 ? "s" : "", emu.channels() > 1 ? "s" : "");
-    for (std::size_t c = 0; c < emu.channels(); ++c) std::fprintf(stderr, "%s%u", c ? ", " : " ", emu.sensor(c).nodeId());
-    std::fprintf(stderr, ", valve node %u; stepped by SYNC\n", emu.valve().nodeId());
+                 emu.channels() > 1 ? "s" : "", emu.sensors() > 1 ? "s" : "");
+    for (std::size_t s = 0; s < emu.sensors(); ++s) std::fprintf(stderr, "%s%u", s ? ", " : " ", emu.sensor(s).nodeId());
+    std::fprintf(stderr, ", valve node%s", emu.valveModules() > 1 ? "s" : "");
+    for (std::size_t m = 0; m < emu.valveModules(); ++m) std::fprintf(stderr, "%s%u", m ? ", " : " ", emu.valve(m).nodeId());
+    std::fprintf(stderr, "; stepped by SYNC\n");
     std::thread watch([&] {
       while (!g_stop) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));

@@ -16,6 +16,7 @@
 #include "io/text.hpp"
 #include "nodes/decoder.hpp"
 #include "nodes/monitor.hpp"
+#include "app/run_figure.hpp"
 #include "rig/rig_emulator.hpp"
 #include "rig/fault_rig.hpp"
 #include "rig/virtual_rig.hpp"
@@ -60,6 +61,7 @@ class RigCommand final : public Command {
       const auto rf = nodes::readRigFile(rig_.path);
       ec = rig::emulatorOf(rf, ec);
       bitrate_ = rf.bitrate;
+      joints_ = rf.joints;
     }
     if (rt_.rt) return runRigRealtime(c);
     return runVirtual(c);
@@ -83,6 +85,8 @@ class RigCommand final : public Command {
     run_.add(a);
     emu_.add(a);
     a->add_option("--log", candump, "write every frame to this file as a candump -l log");
+    a->add_option("--figure", figure_, "draw the run into this PNG: each joint's angle, each channel's position and "
+                                       "command against its setpoint (gnuplot; the data beside it as FILE.csv)");
     rt_.add(a, "pace the rig to the wall clock (1 ms of bus time per ms) like a live node: --log and --csv "
                "(t,yd,y,u,u_n,u_c,y_hat,fault,latency_us) are streamed by a logger thread and on disk within a "
                "millisecond, the log's times are wall-clock times",
@@ -262,6 +266,7 @@ class RigCommand final : public Command {
                 static_cast<unsigned long long>(r.faults), r.final_fault == nodes::Fault::None ? "" : ", last: ",
                 r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
     printStats(r.stats, logger.summary);
+    printJoints(joints_, logger.summary);
     load.print();
     // In-process the SYNC period is exact in bus time; what real time costs is the pacing: how late
     // each 1 ms wake-up came (the node's work runs right after it).
@@ -293,7 +298,7 @@ class RigCommand final : public Command {
     hooks.tap = [&](const canopen::Frame& f, canopen::TimeUs t) { load.add(f, t); };
     hooks.on_record = [&](const nodes::CycleRecord& x) {
       t.add(x);
-      if (!run_.csv.empty()) kept.push_back(x);
+      if (!run_.csv.empty() || !figure_.empty()) kept.push_back(x);
       if (!run_.out.empty()) measurement.add(x);
     };
     std::fprintf(stderr, "in-process bus: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
@@ -316,7 +321,9 @@ class RigCommand final : public Command {
                 static_cast<unsigned long long>(r.faults), r.final_fault == nodes::Fault::None ? "" : ", last: ",
                 r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
     printStats(r.stats, t);
+    printJoints(joints_, t);
     load.print();
+    if (!figure_.empty()) writeRunFigure(figure_, kept, c.channels.size(), joints_);
     if (!candump.empty()) std::printf("candump log: %s\n", candump.c_str());
     if (!r.failure.empty() && !forever)
       throw std::runtime_error("the loop never started: " + r.failure + "; devices that differ from pamc's own need "
@@ -334,6 +341,8 @@ class RigCommand final : public Command {
   RealtimeOptions rt_;
   nodes::EmulatorConfig ec;
   unsigned bitrate_ = 1000000;  // the rig's
+  std::vector<nodes::RigJoint> joints_;
+  std::string figure_;
   CLI::App *run_cmd_ = nullptr, *faults_cmd_ = nullptr, *soak_cmd_ = nullptr, *guards_cmd_ = nullptr;
   const CLI::App* from_ = nullptr;  // the subcommand parsed (rig itself for the old forms)
   std::string candump, only, progress;

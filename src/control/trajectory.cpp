@@ -21,7 +21,14 @@ std::size_t multisineLines(double f0, double f1) {
 }  // namespace
 
 
-double Trajectory::at(double t) const noexcept {
+Trajectory Trajectory::mapped(double scale, double offset) const {
+  Trajectory m = *this;
+  m.map_offset = offset + scale * map_offset;
+  m.map_scale = scale * map_scale;
+  return m;
+}
+
+double Trajectory::shapeAt(double t) const noexcept {
   const double ph = freq_hz * t - std::floor(freq_hz * t);  // phase in [0,1)
   switch (shape) {
     case Shape::Constant: return offset;
@@ -93,7 +100,10 @@ std::string Trajectory::describe() const {
                     static_cast<unsigned long long>(seed));
       break;
   }
-  return b;
+  if (map_scale == 1.0 && map_offset == 0.0) return b;
+  char m[64];
+  std::snprintf(m, sizeof m, ", mapped to %g + %g x", map_offset, map_scale);
+  return std::string(b) + m;
 }
 
 Trajectory Trajectory::constant(double v) {

@@ -26,8 +26,13 @@ struct Trajectory {
   // (knot_t increasing, from 0 to the period): RandomRampHold's ramps and holds, Multisine's samples,
   // Aprbs's levels (a jump is two knots at one time). Built at construction; at() only reads them.
   std::vector<double> knot_t, knot_v;
+  // The shape seen through a linear map, value = map_offset + map_scale * shape (mapped()): a joint's
+  // angle in degrees as one muscle's contraction in mm.
+  double map_scale = 1.0, map_offset = 0.0;
 
-  double at(double t) const noexcept;
+  double at(double t) const noexcept { return map_offset + map_scale * shapeAt(t); }
+  double shapeAt(double t) const noexcept;  // before the map
+  Trajectory mapped(double scale, double offset) const;
   std::string describe() const;
   double uniformTable(double t) const noexcept;  // Multisine: knot_v at an even step over `duration`
 

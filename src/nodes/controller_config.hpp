@@ -54,6 +54,15 @@ struct ChannelConfig {
   std::optional<control::Trajectory> trajectory;
   // Its joint partner (0-based; -1: none): a fault of either puts both at their safe values.
   int partner = -1;
+  // A muscle of an antagonistic joint: its position is the joint's angle seen through the lever (the
+  // scaling's step and offset), received into this object of the controller (0: its own,
+  // positionObject(c); the joint's second muscle reads the first's); and its command gets the joint's
+  // co-contraction on top of its loop's [V].
+  std::uint16_t position_object = 0;
+  double command_offset_v = 0.0;
+  // Its setpoint: its trajectory (its own or the node's) seen through setpoint = offset + scale x value -
+  // a joint's angle in degrees as this muscle's contraction in mm.
+  double setpoint_scale = 1.0, setpoint_offset = 0.0;
 };
 
 struct ControllerNodeConfig {

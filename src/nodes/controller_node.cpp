@@ -2,11 +2,19 @@
 // drivers, fault supervisor and control loop. Set-up and hooks are in controller_node_setup.cpp.
 #include "nodes/controller_node.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace pamc::nodes {
 
 using canopen::TimeUs;
+
+// The loop's command, with a joint's co-contraction on top while the loop runs (not the safe value).
+double ControllerNode::Channel::command() const noexcept {
+  const double u = loop->command();
+  if (offset_v == 0.0 || faults->fault() != Fault::None || !loop->active()) return u;
+  return std::clamp(u + offset_v, pd::kCommandMin, pd::kCommandMax);
+}
 
 // ---- Faults ----------------------------------------------------------------------------------------
 
@@ -85,7 +93,7 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   master_->poll(now);  // boot work left waiting for the SDO client
   for (auto& c : channels_) {
     c.faults->clearWarnings();
-    c.valve->command(c.loop->command());  // each valve written once, into this cycle's TPDO
+    c.valve->command(c.command());  // each valve written once, into this cycle's TPDO
   }
   const double lat = clock_ ? static_cast<double>(clock_() - now) : 0.0;
   stats_.latency_us.add(lat);
@@ -139,7 +147,7 @@ void ControllerNode::send(Channel& c, std::uint8_t number, CycleRecord rec, doub
   c.faults->publish();
   c.loop->publishTime(rec.t);
   if (c.loop->active() && c.loop->running()) {
-    rec.u = c.loop->command();
+    rec.u = c.command();
     rec.fault = static_cast<std::uint8_t>(c.faults->fault());
     rec.latency_us = static_cast<float>(latency_us);
     rec.p = c.valve->pressureBar();

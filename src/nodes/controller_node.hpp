@@ -116,7 +116,9 @@ class ControllerNode {
     std::unique_ptr<FaultSupervisor> faults;
     std::unique_ptr<ControlLoop> loop;
     int partner = -1;
+    double offset_v = 0.0;        // a joint's co-contraction on the loop's command
     SensorDriver::Sample sample;  // latched at this SYNC
+    double command() const noexcept;  // what the valve gets
   };
   const Channel& ch(std::size_t c) const noexcept { return channels_[c]; }
   void addChannel(const ControllerNodeConfig& cfg, std::size_t c);

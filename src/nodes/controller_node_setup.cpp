@@ -46,7 +46,7 @@ void ControllerNode::addChannel(const ControllerNodeConfig& cfg, std::size_t c) 
   const auto& lay = cc.layout;
   Channel ch;
   ch.sensor = std::make_unique<SensorDriver>(*node_, *master_, cc.sensor_id, lay.scaling, cfg.no_position_s,
-                                             cc.position_rpdo, positionObject(c));
+                                             cc.position_rpdo, cc.position_object ? cc.position_object : positionObject(c));
   ch.valve = std::make_unique<ValveDriver>(*node_, *master_, cc.valve_id, lay.scaling, lay.feedback, lay.error_value_index,
                                            lay.error_value_sub, cc.feedback_rpdo, commandObject(c), pressureObject(c));
   if (lay.position_step_from_device) ch.sensor->readStepAtBoot();
@@ -55,6 +55,7 @@ void ControllerNode::addChannel(const ControllerNodeConfig& cfg, std::size_t c) 
   ch.faults = std::make_unique<FaultSupervisor>(*node_, cfg.recover_cycles, number, c == 0);
   ch.loop = std::make_unique<ControlLoop>(cfg.ramp_mm_per_s, cfg.ramp_slew_v);
   ch.partner = cc.partner;
+  ch.offset_v = cc.command_offset_v;
   ch.sensor->bind();
   ch.valve->bind();
   channels_.push_back(std::move(ch));
@@ -208,8 +209,8 @@ void ControllerNode::configureFromOd() {
     if (k == control::Kind::Mbc && !ranges[c].known && log_)
       log_("mbc: the model records no range it was identified on (model.json without 'range'): its feedforward is "
            "used everywhere, with no fallback to the PI");
-    channels_[c].loop->configure(std::move(fresh[c]), k, cc.trajectory ? *cc.trajectory : traj, Ts, cfg.preroll_s,
-                                 params_->safeCommand());
+    const control::Trajectory own = (cc.trajectory ? *cc.trajectory : traj).mapped(cc.setpoint_scale, cc.setpoint_offset);
+    channels_[c].loop->configure(std::move(fresh[c]), k, own, Ts, cfg.preroll_s, params_->safeCommand());
     channels_[c].loop->watchRange(ranges[c]);
     channels_[c].valve->zero();
   }

@@ -11,12 +11,14 @@ using canopen::Frame;
 using canopen::NmtState;
 using canopen::TimeUs;
 
-EmulatedValve::EmulatedValve(const EmulatorConfig& cfg, canopen::Transport& bus, const Injection& inj)
+EmulatedValve::EmulatedValve(const EmulatorConfig& cfg, canopen::Transport& bus, const Injection& inj, std::uint8_t id,
+                             std::size_t outputs)
     : cfg_(cfg), bus_(bus), inj_(inj) {
-  node_ = canopen::Node::fromEds(cfg.valve_eds, *this, cfg.valve_id);
-  if (cfg.channels() > out_.size()) throw std::invalid_argument("emulator: " + std::to_string(cfg.channels()) + " channels, at most 8");
+  node_ = canopen::Node::fromEds(cfg.valve_eds, *this, id);
+  if (outputs < 1 || outputs > out_.size())
+    throw std::invalid_argument("emulator: a valve module of " + std::to_string(outputs) + " outputs (1..8)");
   auto& od = node_->od();
-  n_ = std::min(cfg.channels(), out_.size());
+  n_ = outputs;
   for (std::size_t c = 0; c < n_; ++c) {
     const auto cs = static_cast<std::uint8_t>(cfg.command_sub + c), ps = static_cast<std::uint8_t>(cfg.pressure_sub + c);
     out_[c].pressure = od.ref<std::int16_t>(cfg.pressure_index, ps);

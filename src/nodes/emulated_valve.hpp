@@ -19,7 +19,9 @@ namespace pamc::nodes {
 // The node is the valve's own transport (send), so an injected silence swallows what it sends.
 class EmulatedValve : private canopen::Transport {
  public:
-  EmulatedValve(const EmulatorConfig& cfg, canopen::Transport& bus, const Injection& inj);
+  // id: its node-ID (0: the EDS's); outputs: the channels it drives (command_sub, command_sub + 1, ...).
+  EmulatedValve(const EmulatorConfig& cfg, canopen::Transport& bus, const Injection& inj, std::uint8_t id,
+                std::size_t outputs);
 
   canopen::Node& node() { return *node_; }
   const canopen::Node& node() const { return *node_; }

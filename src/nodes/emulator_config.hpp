@@ -8,6 +8,7 @@
 
 #include "canopen/frame.hpp"
 #include "nodes/process_data.hpp"
+#include "plant/joint.hpp"
 #include "plant/plant.hpp"
 
 namespace pamc::nodes {
@@ -30,6 +31,18 @@ struct EmulatorConfig {
   // pressure on input pressure_sub + c (od/profile/analog401.eds has four); each muscle is a plant of
   // its own - the same physics, its own noise (seed + c). Empty: one channel, the sensor at sensor_id.
   std::vector<std::uint8_t> sensor_ids;
+  // The valve module of each channel (empty: all on valve_id): a rig of more muscles than one module
+  // has outputs drives them from several modules (valve_eds each), a channel on the module's next
+  // output after the channel before it on the same module.
+  std::vector<std::uint8_t> valve_ids;
+  // Antagonistic joints: two channels' muscles on one joint (plant/joint.hpp), its angle measured by
+  // the sensor both channels name in sensor_ids, in counts of angle_step_deg from angle_zero_counts at 0.
+  struct Joint {
+    std::size_t flexor = 0, extensor = 1;
+    plant::JointConfig mech;
+    double angle_step_deg = 0.001, angle_zero_counts = 0.0;
+  };
+  std::vector<Joint> joints;
   // The channel whose sensor the sensor faults act on (those above and Injection's).
   std::size_t fault_channel = 0;
   std::size_t channels() const { return sensor_ids.empty() ? 1 : sensor_ids.size(); }

@@ -30,35 +30,49 @@ class EmulatorNodes : public canopen::BusClient {
   void advance(canopen::TimeUs now) override;
   canopen::TimeUs nextDeadline() const override;
 
-  std::size_t channels() const { return sensors_.size(); }
-  canopen::Node& sensor(std::size_t c = 0) { return sensors_[c]->node(); }
-  canopen::Node& valve() { return valve_.node(); }
-  const plant::Plant& plant(std::size_t c = 0) const { return plants_[c]; }
+  std::size_t channels() const { return plant_of_.size(); }
+  std::size_t sensors() const { return sensors_.size(); }
+  canopen::Node& sensor(std::size_t s = 0) { return sensors_[s]->node(); }
+  canopen::Node& valve(std::size_t module = 0) { return valves_[module]->node(); }
+  std::size_t valveModules() const { return valves_.size(); }
+  const plant::Plant& plant(std::size_t c = 0) const { return *plant_of_[c]; }
+  const plant::AntagonisticJoint& joint(std::size_t j) const { return *joints_[j]; }
   // Safe from another thread.
-  double time() const { return static_cast<double>(syncs_.load(std::memory_order_relaxed)) * plants_[0].config().Ts; }
+  double time() const { return static_cast<double>(syncs_.load(std::memory_order_relaxed)) * cfg_.plant.Ts; }
   std::uint64_t pdosDropped() const { return faulty().pdosDropped(); }
 
   Injection& inject() { return inj_; }
   // The sensor goes off (silent and deaf) for downtime, then comes back through an NMT reset: boot-up
   // and Pre-operational, as after a power cycle.
-  void rebootSensor(canopen::TimeUs downtime_us) { sensors_[cfg_.fault_channel]->reboot(downtime_us); }
+  void rebootSensor(canopen::TimeUs downtime_us) { sensors_[sensor_of_[cfg_.fault_channel]]->reboot(downtime_us); }
   // What the valve outputs (0..10 V), whether it is at its error value, and when the output last changed.
-  double valveVolts(std::size_t c = 0) const { return valve_.volts(c); }
-  bool valveInError() const { return valve_.inError(); }
-  canopen::TimeUs valveChangedUs(std::size_t c = 0) const { return valve_.changedUs(c); }
+  double valveVolts(std::size_t c = 0) const { return valves_[module_[c]]->volts(output_[c]); }
+  bool valveInError(std::size_t c = 0) const { return valves_[module_[c]]->inError(); }
+  canopen::TimeUs valveChangedUs(std::size_t c = 0) const { return valves_[module_[c]]->changedUs(output_[c]); }
 
  private:
+  void addValves(canopen::Transport& transport);
   void scalingFromDevices();
   void onSync();
-  const EmulatedSensor& faulty() const { return *sensors_[cfg_.fault_channel]; }
+  const EmulatedSensor& faulty() const { return *sensors_[sensor_of_[cfg_.fault_channel]]; }
+  void addPlants();
+  void addSensors(canopen::Transport& transport);
+  std::int32_t counts(std::size_t sensor, bool measured = true) noexcept;  // what the sensor measures now
 
   EmulatorConfig cfg_;    // before the devices, which keep references to it and to inj_
   EmulatorConfig clean_;  // the sensors without faults see this one ...
   Injection inj_;
   Injection none_;        // ... and this
-  std::vector<std::unique_ptr<EmulatedSensor>> sensors_;  // one per channel
-  EmulatedValve valve_;
-  std::vector<plant::Plant> plants_;
+  std::vector<std::unique_ptr<EmulatedSensor>> sensors_;  // one per sensor node (a joint's two channels share one)
+  std::vector<std::size_t> sensor_of_;                     // each channel's
+  std::vector<int> sensor_joint_;                          // each sensor's joint (-1: a muscle's own)
+  std::vector<std::size_t> sensor_channel_;                // ... else its channel
+  std::vector<std::unique_ptr<EmulatedValve>> valves_;  // the modules
+  std::vector<std::size_t> module_, output_;             // each channel's module and output
+  std::vector<std::unique_ptr<plant::Plant>> plants_;               // the muscles in no joint
+  std::vector<std::unique_ptr<plant::AntagonisticJoint>> joints_;  // the pairs
+  std::vector<plant::Plant*> plant_of_;                            // each channel's
+  std::vector<int> joint_of_;                                      // each channel's joint (-1: none)
   std::uint32_t sync_cob_ = 0x80;
   std::atomic<std::uint64_t> syncs_{0};
 };

@@ -48,11 +48,12 @@ constexpr double countsToBar(double counts) { return counts * kPressureFullScale
 // the defaults are the constants above.
 struct Scaling {
   double position_step_mm = kPositionStep_mm;                                  // mm per position count
+  double position_offset_mm = 0.0;  // mm at 0 counts (a joint's angle as a muscle's contraction)
   double command_full_counts = kAnalogFullScaleCounts;  // valve counts at full scale (10 V) above the zero
   double command_zero_counts = 0.0;                     // counts for 0 V
   double pressure_full_counts = kAnalogFullScaleCounts; // pressure feedback counts at full scale (10 bar)
 
-  double mm(double counts) const noexcept { return counts * position_step_mm; }
+  double mm(double counts) const noexcept { return position_offset_mm + counts * position_step_mm; }
   // Command u [V relative to mid-range] -> the valve's counts (clamped to 0..10 V and to 16 bits).
   std::int16_t commandCounts(double u) const noexcept {
     const double v = std::clamp(valveVolts(u), 0.0, kValveFullScale_V);
@@ -65,7 +66,7 @@ struct Scaling {
   }
   // The sensor's counts for a position, the valve's feedback counts for a pressure (clamped as above).
   std::int32_t positionCounts(double y_mm) const noexcept {
-    return static_cast<std::int32_t>(std::lround(std::clamp(y_mm, -2.0e6, 2.0e6) / position_step_mm));
+    return static_cast<std::int32_t>(std::lround(std::clamp((y_mm - position_offset_mm) / position_step_mm, -2.0e9, 2.0e9)));
   }
   std::int16_t pressureCounts(double bar) const noexcept {
     return static_cast<std::int16_t>(
@@ -73,7 +74,8 @@ struct Scaling {
   }
   double bar(double counts) const noexcept { return counts * kPressureFullScale_bar / pressure_full_counts; }
   bool isDefault() const noexcept {
-    return position_step_mm == kPositionStep_mm && command_full_counts == kAnalogFullScaleCounts && command_zero_counts == 0.0;
+    return position_step_mm == kPositionStep_mm && position_offset_mm == 0.0 && command_full_counts == kAnalogFullScaleCounts &&
+           command_zero_counts == 0.0;
   }
 };
 

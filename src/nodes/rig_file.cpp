@@ -3,6 +3,8 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <cmath>
+#include <tuple>
 #include <cstdio>
 #include <set>
 #include <stdexcept>
@@ -46,6 +48,8 @@ const std::set<std::string> kSlaveKeys = {"position_step_mm", "tpdo", "cob_id", 
                                           "rpdo", "feedback_full_counts", "feedback_tpdo", "feedback_cob_id"};
 const std::set<std::string> kChannelKeys = {"sensor", "position", "valve", "command", "feedback",
                                             "partner", "controller", "model", "trajectory"};
+const std::set<std::string> kJointKeys = {"muscles", "sensor", "angle", "angle_step_deg", "angle_zero_counts",
+                                          "lever_mm", "rest_mm", "stiffness_v", "trajectory"};
 
 class Reader {
  public:
@@ -296,6 +300,9 @@ namespace {
 // One channel while the file is read: its slaves (indices into the builds), its objects in them.
 struct ChannelBuild {
   int line = 0;
+  std::size_t index = 0;
+  bool joint_scaling = false;  // a joint's muscle: its position from the angle (step and offset below)
+  double step_mm = 0.0, offset_mm = 0.0;
   std::size_t sensor = 0, valve = 0;
   const canopen::Entry* position = nullptr;
   const canopen::Entry* command = nullptr;
@@ -306,6 +313,9 @@ struct ChannelBuild {
 struct FileBuild {
   std::vector<SlaveBuild> slaves;
   std::vector<ChannelBuild> channels;
+  std::vector<RigJoint> joints;
+  std::vector<const IniSection*> joint_sections;
+  std::vector<const canopen::Entry*> joint_angles;
 };
 
 std::string lower(std::string n) {
@@ -404,6 +414,73 @@ void channelOwn(const Reader& r, const IniSection& sec, std::size_t count, std::
   }
 }
 
+// The channel numbers of a joint's `muscles = 1, 2` (flexor, extensor).
+std::pair<std::size_t, std::size_t> jointMuscles(const Reader& r, const IniKey& k, std::size_t count) {
+  unsigned a = 0, b = 0;
+  char extra = 0;
+  if (std::sscanf(k.value.c_str(), " %u , %u %c", &a, &b, &extra) != 2 || a < 1 || b < 1 || a > count || b > count || a == b)
+    r.fail(k.line, "muscles '" + k.value + "' is not two channels (flexor, extensor), e.g. 1, 2");
+  return {a - 1, b - 1};
+}
+
+// [joint.1] ... [joint.M]: two channels each, their angle encoder and lever.
+void readJoints(const Reader& r, const canopen::IniFile& ini, std::size_t count, FileBuild& fb) {
+  for (std::size_t j = 1; const IniSection* sec = ini.find("joint." + std::to_string(j)); ++j) {
+    r.knownKeys(*sec, kJointKeys);
+    RigJoint jt;
+    std::tie(jt.flexor, jt.extensor) = jointMuscles(r, r.needKey(*sec, "muscles"), count);
+    for (const auto& other : fb.joints)
+      for (std::size_t m : {other.flexor, other.extensor})
+        if (m == jt.flexor || m == jt.extensor) r.fail(sec->find("muscles")->line, "muscles: channel " + std::to_string(m + 1) + " is in two joints");
+    const std::size_t sensor = slaveNamed(r, fb, r.needKey(*sec, "sensor"));
+    fb.joint_angles.push_back(&channelObject(r, fb.slaves[sensor], r.needKey(*sec, "angle"), "position"));
+    jt.sensor_id = fb.slaves[sensor].id;
+    jt.angle_step_deg = r.doubleKey(*sec, "angle_step_deg", jt.angle_step_deg, 1e-9, 360.0);
+    jt.angle_zero_counts = r.doubleKey(*sec, "angle_zero_counts", 0.0, -2.0e9, 2.0e9);
+    jt.lever_mm = r.doubleKey(*sec, "lever_mm", jt.lever_mm, 0.1, 1000.0);
+    jt.rest_mm = r.doubleKey(*sec, "rest_mm", jt.rest_mm, 0.0, 1000.0);
+    jt.stiffness_v = r.doubleKey(*sec, "stiffness_v", 0.0, 0.0, 10.0);
+    fb.joints.push_back(jt);
+    fb.joint_sections.push_back(sec);
+  }
+}
+
+// A joint's muscle takes its position from the joint's angle: contraction = rest + sign x lever x angle
+// (the flexor +, the extensor -), its partner is the other muscle, the co-contraction on its command,
+// the trajectory the angle in degrees. False for a channel in no joint.
+bool jointMuscle(const Reader& r, const IniSection& sec, std::size_t c, const FileBuild& fb, ChannelBuild& b) {
+  for (std::size_t j = 0; j < fb.joints.size(); ++j) {
+    const RigJoint& jt = fb.joints[j];
+    if (c != jt.flexor && c != jt.extensor) continue;
+    for (const char* key : {"sensor", "position", "partner", "trajectory"})
+      if (const IniKey* k = sec.find(key))
+        r.fail(k->line, std::string(key) + ": channel " + std::to_string(c + 1) + " is a muscle of [joint." + std::to_string(j + 1) +
+                            "], whose angle and pair say it");
+    const double sign = c == jt.flexor ? 1.0 : -1.0;
+    const double mm_per_deg = sign * jt.lever_mm * M_PI / 180.0;
+    for (std::size_t s = 0; s < fb.slaves.size(); ++s)
+      if (fb.slaves[s].id == jt.sensor_id) b.sensor = s;
+    b.position = fb.joint_angles[j];
+    b.joint_scaling = true;
+    b.step_mm = mm_per_deg * jt.angle_step_deg;
+    b.offset_mm = jt.rest_mm - b.step_mm * jt.angle_zero_counts;
+    ChannelConfig& cc = b.out.cfg;
+    cc.partner = static_cast<int>(c == jt.flexor ? jt.extensor : jt.flexor);
+    cc.command_offset_v = jt.stiffness_v;
+    cc.setpoint_scale = mm_per_deg;
+    cc.setpoint_offset = jt.rest_mm;
+    if (const IniKey* k = fb.joint_sections[j]->find("trajectory")) {
+      try {
+        cc.trajectory = control::Trajectory::parse(k->value);
+      } catch (const std::exception& e) {
+        r.fail(k->line, std::string("trajectory: ") + e.what());
+      }
+    }
+    return true;
+  }
+  return false;
+}
+
 // The form of several muscles: [slave.NAME] sections, then [channel.1] ... [channel.N].
 void readSlavesAndChannels(const Reader& r, const canopen::IniFile& ini, RigFile& rig, FileBuild& fb) {
   for (const auto& sec : ini.sections) {
@@ -419,15 +496,20 @@ void readSlavesAndChannels(const Reader& r, const canopen::IniFile& ini, RigFile
   while (ini.find("channel." + std::to_string(count + 1)) != nullptr) ++count;
   if (count == 0) r.fail(0, "no [channel.1] section (or [sensor] and [valve] for one muscle)");
   if (count > kMaxChannels) r.fail(0, std::to_string(count) + " channels: the controller runs at most " + std::to_string(kMaxChannels));
+  readJoints(r, ini, count, fb);
   for (std::size_t c = 0; c < count; ++c) {
     const IniSection& sec = *ini.find("channel." + std::to_string(c + 1));
     r.knownKeys(sec, kChannelKeys);
     ChannelBuild b;
     b.line = sec.line;
-    b.sensor = slaveNamed(r, fb, r.needKey(sec, "sensor"));
+    b.index = c;
     b.valve = slaveNamed(r, fb, r.needKey(sec, "valve"));
+    if (!jointMuscle(r, sec, c, fb, b)) {
+      b.sensor = slaveNamed(r, fb, r.needKey(sec, "sensor"));
+      if (b.sensor == b.valve) r.fail(sec.line, "[" + sec.name + "]: its sensor and valve are one slave");
+      b.position = &channelObject(r, fb.slaves[b.sensor], r.needKey(sec, "position"), "position");
+    }
     if (b.sensor == b.valve) r.fail(sec.line, "[" + sec.name + "]: its sensor and valve are one slave");
-    b.position = &channelObject(r, fb.slaves[b.sensor], r.needKey(sec, "position"), "position");
     b.command = &channelObject(r, fb.slaves[b.valve], r.needKey(sec, "command"), "command");
     if (const IniKey* k = sec.find("feedback")) b.feedback = &channelObject(r, fb.slaves[b.valve], *k, "feedback");
     channelOwn(r, sec, count, c, b.out.cfg, dir);
@@ -454,8 +536,10 @@ void sensorSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*
   const unsigned tpdo = static_cast<unsigned>(r.unsignedKey(ss, "tpdo", 1, 1, 512));
   const int tpdo_line = ss.find("tpdo") ? ss.find("tpdo")->line : chans[0]->line;
   const auto cob = static_cast<std::uint32_t>(r.unsignedKey(ss, "cob_id", defaultPdoCob(r, tpdo_line, true, tpdo, s.id), 1, 0x7FF));
+  // Each object once: the two muscles of a joint read one angle.
   std::vector<const canopen::Entry*> mapped;
-  for (const ChannelBuild* c : chans) mapped.push_back(c->position);
+  for (const ChannelBuild* c : chans)
+    if (std::find(mapped.begin(), mapped.end(), c->position) == mapped.end()) mapped.push_back(c->position);
   otherTpdosOff(s, tpdo);
   pdoWrites(r, s, tpdo_line, true, tpdo, cob, mapped);
   pd::Scaling sc;
@@ -471,16 +555,26 @@ void sensorSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*
       if (!(sc.position_step_mm > 0)) r.fail(k->line, "position_step_mm must be above 0");
     }
   }
-  unsigned offset = 0;
   for (ChannelBuild* c : chans) {
     auto& lay = c->out.cfg.layout;
     c->out.cfg.sensor_id = s.id;
     lay.sensor_cob = cob;
-    lay.scaling.position_step_mm = sc.position_step_mm;
-    lay.position_step_from_device = from_device;
+    lay.scaling.position_step_mm = c->joint_scaling ? c->step_mm : sc.position_step_mm;
+    lay.scaling.position_offset_mm = c->joint_scaling ? c->offset_mm : 0.0;
+    lay.position_step_from_device = from_device && !c->joint_scaling;
     c->out.position = RigObject{c->position->index(), c->position->subIndex(), c->position->dataType()};
+    unsigned offset = 0;
+    for (const canopen::Entry* e : mapped) {
+      if (e == c->position) break;
+      offset += static_cast<unsigned>(e->size());
+    }
     c->out.position_offset = offset;
-    offset += static_cast<unsigned>(c->position->size());
+    // The first channel reading the object receives it; the others read that channel's object.
+    for (const ChannelBuild* first : chans)
+      if (first->position == c->position) {
+        if (first != c) c->out.cfg.position_object = positionObject(first->index);
+        break;
+      }
   }
   if (from_device) s.boot.assignment |= canopen::kAssignBoot;  // the step is read at boot
 }
@@ -609,9 +703,9 @@ RigFile fromIni(const canopen::IniFile& ini) {
   for (const auto& s : ini.sections) {
     static const std::set<std::string> known = {"bus", "controller", "sensor", "valve", "sensor.sdo", "valve.sdo"};
     const std::string n = lower(s.name);
-    const bool named = n.rfind("slave.", 0) == 0 || n.rfind("channel.", 0) == 0;
+    const bool named = n.rfind("slave.", 0) == 0 || n.rfind("channel.", 0) == 0 || n.rfind("joint.", 0) == 0;
     if (known.count(n) == 0 && !named)
-      r.fail(s.line, "unknown section [" + s.name + "] (known: bus, controller, sensor, valve, sensor.sdo, valve.sdo, slave.NAME, slave.NAME.sdo, channel.N)");
+      r.fail(s.line, "unknown section [" + s.name + "] (known: bus, controller, sensor, valve, sensor.sdo, valve.sdo, slave.NAME, slave.NAME.sdo, channel.N, joint.N)");
     one = one || n == "sensor" || n == "valve";
     several = several || named;
   }
@@ -635,6 +729,7 @@ RigFile fromIni(const canopen::IniFile& ini) {
   controllerPdos(r, rig, fb);
   for (auto& s : fb.slaves) rig.slaves.push_back(RigSlave{s.name, s.id, s.eds, std::move(s.boot), s.heartbeat_ms});
   for (auto& c : fb.channels) rig.channels.push_back(std::move(c.out));
+  rig.joints = fb.joints;
   return rig;
 }
 }  // namespace
@@ -706,7 +801,7 @@ canopen::ConciseDcf masterValues(const RigFile& rig) {
   for (std::size_t c = 0; c < rig.channels.size(); ++c) {
     const ChannelConfig& cc = rig.channels[c].cfg;
     rcob[cc.position_rpdo] = cc.layout.sensor_cob;
-    rmap[cc.position_rpdo].push_back(ownEntry(positionObject(c), 32));
+    if (cc.position_object == 0) rmap[cc.position_rpdo].push_back(ownEntry(positionObject(c), 32));
     tcob[cc.command_tpdo] = cc.layout.valve_cob;
     tmap[cc.command_tpdo].push_back(ownEntry(commandObject(c), 16));
     if (cc.layout.feedback) {

@@ -59,6 +59,18 @@ struct RigChannel {
   unsigned position_offset = 0, command_offset = 0, feedback_offset = 0;  // bytes into the PDO
 };
 
+// An antagonistic joint: two channels' muscles on one joint, its angle measured by one encoder. The
+// flexor contracts as the angle grows: contraction = rest + lever x angle, the extensor's rest - lever x angle.
+struct RigJoint {
+  std::size_t flexor = 0, extensor = 1;  // channels (0-based)
+  std::uint8_t sensor_id = 0;            // the angle encoder
+  double angle_step_deg = 0.001;         // degrees per count
+  double angle_zero_counts = 0.0;        // counts at angle 0
+  double lever_mm = 25.0;                // pulley radius: mm of contraction per radian
+  double rest_mm = 15.0;                 // each muscle's contraction at angle 0
+  double stiffness_v = 0.0;              // co-contraction: on both muscles' commands [V]
+};
+
 struct RigFile {
   std::string path;
   std::string interface = kDefaultInterface;
@@ -74,6 +86,7 @@ struct RigFile {
   bool one_muscle_form = false;
   std::vector<RigSlave> slaves;      // in the file's order
   std::vector<RigChannel> channels;  // channel 1 first
+  std::vector<RigJoint> joints;
   unsigned controller_rpdos = 0, controller_tpdos = 0;  // the PDOs of the controller's EDS
 
   const RigSlave& slave(std::uint8_t id) const;  // throws std::out_of_range for a node-ID not in the file

@@ -1,5 +1,6 @@
 #include "rig/rig_emulator.hpp"
 
+#include <map>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -7,7 +8,7 @@
 namespace pamc::rig {
 
 nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig, nodes::EmulatorConfig base) {
-  if (rig.channels.size() < 2) return base;
+  if (rig.channels.size() < 2 && rig.joints.empty()) return base;
   auto fail = [&](const std::string& why) -> void {
     throw std::invalid_argument(rig.path + ": the emulator cannot play this rig: " + why);
   };
@@ -22,17 +23,31 @@ nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig, nodes::EmulatorConfi
   base.position_index = first.position.index;
   base.position_sub = first.position.sub;
   base.sensor_ids.clear();
+  base.valve_ids.clear();
   std::set<std::uint8_t> sensors;
+  std::map<std::uint8_t, std::size_t> outputs;  // per valve slave: the outputs taken so far
   for (std::size_t c = 0; c < rig.channels.size(); ++c) {
     const auto& ch = rig.channels[c];
-    if (ch.cfg.valve_id != first.cfg.valve_id) fail("its channels have more than one valve slave");
-    if (!sensors.insert(ch.cfg.sensor_id).second) fail("a sensor serves two channels");
+    const std::size_t o = outputs[ch.cfg.valve_id]++;
+    if (!sensors.insert(ch.cfg.sensor_id).second && ch.cfg.position_object == 0) fail("a sensor serves two channels");
     if (rig.slave(ch.cfg.sensor_id).eds != base.sensor_eds) fail("its sensors have different EDS files");
-    if (ch.command.index != base.command_index || ch.command.sub != base.command_sub + c)
-      fail("channel " + std::to_string(c + 1) + "'s output is not the one after channel " + std::to_string(c) + "'s");
-    if (ch.feedback.index != 0 && ch.feedback.sub != base.pressure_sub + c)
-      fail("channel " + std::to_string(c + 1) + "'s pressure input is not the one after channel " + std::to_string(c) + "'s");
+    if (rig.slave(ch.cfg.valve_id).eds != base.valve_eds) fail("its valve modules have different EDS files");
+    if (ch.command.index != base.command_index || ch.command.sub != base.command_sub + o)
+      fail("channel " + std::to_string(c + 1) + " is not on the output after its module's last channel's");
+    if (ch.feedback.index != 0 && ch.feedback.sub != base.pressure_sub + o)
+      fail("channel " + std::to_string(c + 1) + "'s pressure input is not the one after its module's last channel's");
     base.sensor_ids.push_back(ch.cfg.sensor_id);
+    base.valve_ids.push_back(ch.cfg.valve_id);
+  }
+  base.joints.clear();
+  for (const auto& j : rig.joints) {
+    nodes::EmulatorConfig::Joint e;
+    e.flexor = j.flexor, e.extensor = j.extensor;
+    e.mech.lever_mm = j.lever_mm;
+    e.mech.rest_mm = j.rest_mm;
+    e.angle_step_deg = j.angle_step_deg;
+    e.angle_zero_counts = j.angle_zero_counts;
+    base.joints.push_back(e);
   }
   base.scaling = nodes::pd::Scaling{};  // the devices' own dictionaries say how they count
   return base;

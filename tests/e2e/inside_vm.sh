@@ -84,6 +84,12 @@ rig_run scrambled "--od $OD" "" 000#0100 \
 # started: they run with live heartbeats, so the controller must not reset them.
 sed -e "s|^eds = \.\./|eds = $OD/|" -e 's|^mandatory = yes.*|&\nkeep_alive = yes|' "$OD/rigs/default.ini" > "$W/keep_alive.ini"
 rig_run keepalive "--rig $W/keep_alive.ini --iface vcan0" "" 000#0100
+# Four muscles on one bus (od/rigs/four_muscles.ini): the emulator plays four encoders and the valve
+# module; another master started them and left them scrambled - encoder 5's position PDO off, encoder
+# 6's moved to 0x190, the module's setpoint PDO off - before the controller comes.
+sed -e "s|^eds = \.\./|eds = $OD/|" "$OD/rigs/four_muscles.ini" > "$W/four.ini"
+rig_run four "--rig $W/four.ini --iface vcan0" "--rig $W/four.ini" 000#0100 \
+  605#2300180185010080 606#2300180186010080 606#2300180190010000 603#2300140103020080
 
 # Kernel-level faults (the in-process rig covers the rest, `pamc rig faults`): a full transmit
 # queue - the interface rate-limited by a tbf qdisc and flooded by higher-priority frames, so writes

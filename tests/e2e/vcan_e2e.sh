@@ -106,6 +106,19 @@ nmt_after_bootup() {
   awk -v re="^000#($2)($1|00)$" '$3 == "701#00" { up = 1 } up && $3 ~ re { n++ } END { print n + 0 }' "$W/$3_bus.log" 2>/dev/null
 }
 rig_checks scrambled "no options, slaves scrambled by cansend" "configuration written and read back"
+# Four muscles: all five slaves configured, every channel tracking (its rows of the CSV, column 10).
+echo "--- controller: four muscles"; cat "$W/four_controller.txt" 2>/dev/null
+check "four muscles: the module and the four encoders configured" \
+  test "$(grep -c "configuration written and read back" "$W/four_controller.txt" 2>/dev/null)" = 5
+check "four muscles: the controller exited 0" test "$(cat "$W/four_rc.txt" 2>/dev/null)" = 0
+for ch in 1 2 3 4; do
+  rmse=$(awk -F, -v ch=$ch 'NR > 1 && $10 == ch && $1 >= 1 && $8 == 0 { s += ($2 - $3) ^ 2; n++ }
+    END { if (n > 100) printf "%d\n", sqrt(s / n) * 1000; else print 999999 }' "$W/four_controller.csv" 2>/dev/null)
+  echo "four muscles, channel $ch: tracking RMSE ${rmse:-?} um after the first second"
+  check "four muscles: channel $ch in control, tracking within 2 mm RMSE" test "${rmse:-999999}" -lt 2000
+  check "four muscles: a line for channel $ch" grep -q "^channel $ch: tracking" "$W/four_controller.txt"
+done
+check "four muscles: the bus load counted" grep -q "^bus load: " "$W/four_controller.txt"
 # The scramble reached the slaves (their SDO write confirmations, 60 = download response), and the
 # controller reset them and booted them from its dictionary.
 check "scrambled: the slaves took the cansend writes (4 SDO confirmations before the controller)" \

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -265,4 +266,113 @@ TEST(Channels, TheOneMuscleFormAndTheFormOfChannelsMakeTheSameNode) {
   EXPECT_TRUE(one.one_muscle_form);
   EXPECT_FALSE(channels.one_muscle_form);
   EXPECT_EQ(nodes::masterValues(channels), nodes::masterValues(one));
+}
+
+namespace {
+
+// od/rigs/antagonistic.ini with edits, on the in-process bus for `seconds` of trajectory.
+struct JointRun {
+  JointRun(const std::string& path, double seconds, control::Kind kind = control::Kind::PI, double silent_at = -1) {
+    rf = nodes::readRigFile(path);
+    auto c = controllerOf(rf);
+    c.kind = static_cast<int>(kind);
+    auto e = emulatorOf(rf);
+    e.sensor_silent_at_s = silent_at;
+    e.sensor_silent_for_s = 1.0;
+    rig = std::make_unique<rig::VirtualRig>(c, e);
+    rig->start();
+    for (double t = 0; t < seconds + 0.5; t += 1e-3) {
+      rig->step();
+      tension += rig->emulator().joint(0).tensionN(), ++n;
+      if (silent_at >= 0 && std::fabs(rig->now() * 1e-6 - (silent_at + 0.5)) < 0.5e-3)
+        for (std::size_t ch = 0; ch < 2; ++ch) during.push_back(rig->controller().channelFault(ch));
+    }
+  }
+  // The angle's tracking from the flexor's records (y = rest + lever x angle) [deg].
+  ChannelTrack angle(double from_s) const {
+    auto t = tracking(rig->records(), 2, from_s)[rf.joints[0].flexor];
+    const double k = 180.0 / M_PI / rf.joints[0].lever_mm;
+    t.acc *= k * k, t.max *= k;
+    return t;
+  }
+  nodes::RigFile rf;
+  std::unique_ptr<rig::VirtualRig> rig;
+  double tension = 0;
+  long n = 0;
+  std::vector<nodes::Fault> during;
+};
+
+std::string antagonistic(const std::vector<std::pair<std::string, std::string>>& edits = {}) {
+  std::ifstream in(kOd + "rigs/antagonistic.ini");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (std::string::size_type at; (at = text.find("= ../")) != std::string::npos;) text.replace(at, 5, "= " + kOd);
+  for (const auto& [from, to] : edits) {
+    const auto at = text.find(from);
+    if (at == std::string::npos) ADD_FAILURE() << "no '" << from << "' in the rig";
+    else text.replace(at, from.size(), to);
+  }
+  return text;
+}
+
+}  // namespace
+
+// Two muscles of the physics plant on one joint (a 25 mm lever, a cable over the pulley), the angle
+// from one encoder: the joint tracks the rig file's +-15 deg triangle with each muscle's own PI - and
+// with each muscle's own AMC (its model and UKF) - the muscles moving against each other.
+TEST(Joint, AnAntagonisticPairTracksAnAngleTriangle) {
+  for (auto kind : {control::Kind::PI, control::Kind::PiAmc}) {
+    JointRun r(writeTemp("joint.ini", antagonistic()), 25.0, kind);
+    const auto a = r.angle(5.0);
+    EXPECT_GT(a.n, 15000);
+    EXPECT_LT(a.rmse(), 1.0) << control::toString(kind) << ": angle RMSE [deg]";
+    EXPECT_LT(a.max, 3.0) << control::toString(kind) << ": angle max error [deg]";
+    EXPECT_EQ(r.rig->controller().faultCounters().episodes, 0u);
+    // The flexor contracts as the angle grows, the extensor lengthens: their positions move against each other.
+    double s1 = 0, s2 = 0, s12 = 0, s11 = 0, s22 = 0;
+    int m = 0;
+    std::vector<double> y[2];
+    for (const auto& x : r.rig->records())
+      if (x.t >= 5.0 && x.channel < 2) y[x.channel].push_back(x.y);
+    for (std::size_t i = 0; i < std::min(y[0].size(), y[1].size()); ++i, ++m)
+      s1 += y[0][i], s2 += y[1][i], s12 += y[0][i] * y[1][i], s11 += y[0][i] * y[0][i], s22 += y[1][i] * y[1][i];
+    const double cov = s12 / m - s1 / m * s2 / m;
+    const double corr = cov / std::sqrt((s11 / m - s1 / m * s1 / m) * (s22 / m - s2 / m * s2 / m));
+    EXPECT_LT(corr, -0.99) << "the two muscles' positions";
+  }
+}
+
+// Co-contraction: the same angle triangle with more of it on both commands tenses the cable more.
+TEST(Joint, CoContractionRaisesTheCableTension) {
+  JointRun low(writeTemp("low.ini", antagonistic({{"stiffness_v = 0.5", "stiffness_v = 0"}})), 15.0);
+  JointRun high(writeTemp("high.ini", antagonistic({{"stiffness_v = 0.5", "stiffness_v = 1.5"}})), 15.0);
+  EXPECT_GT(high.tension / high.n, 1.2 * low.tension / low.n) << "mean cable tension [N]";
+  EXPECT_LT(high.angle(5.0).rmse(), 1.0);
+}
+
+// The angle encoder falling silent takes both muscles to their safe values.
+TEST(Joint, ALostAngleStopsBothMuscles) {
+  JointRun r(writeTemp("joint.ini", antagonistic()), 12.0, control::Kind::PI, 8.0);
+  ASSERT_EQ(r.during.size(), 2u);
+  EXPECT_NE(r.during[0], nodes::Fault::None);
+  EXPECT_NE(r.during[1], nodes::Fault::None);
+  EXPECT_EQ(r.rig->controller().channelFault(0), nodes::Fault::None) << "recovered after the encoder came back";
+}
+
+TEST(Joint, AJointThatCannotWorkIsRefusedWithItsLine) {
+  const std::vector<std::pair<std::pair<std::string, std::string>, std::string>> cases = {
+      {{"muscles = 1, 2", "muscles = 1, 1"}, "is not two channels"},
+      {{"muscles = 1, 2", "muscles = 1, 3"}, "is not two channels"},
+      {{"[channel.1]               ; the flexor\n", "[channel.1]\nsensor = angle\n"}, "whose angle and pair say it"},
+      {{"lever_mm = 25", "lever_mm = 0"}, "lever_mm 0 is outside"},
+      {{"trajectory = triangle:0.05:-15:15", "trajectory = wobble"}, "trajectory: "},
+  };
+  for (const auto& [edit, expect] : cases) {
+    const std::string path = writeTemp("bad.ini", antagonistic({edit}));
+    try {
+      (void)nodes::readRigFile(path);
+      ADD_FAILURE() << "accepted: " << expect;
+    } catch (const nodes::RigError& e) {
+      EXPECT_NE(std::string(e.what()).find(expect), std::string::npos) << e.what();
+    }
+  }
 }
