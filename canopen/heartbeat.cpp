@@ -70,6 +70,7 @@ void HeartbeatConsumer::registerHooks() {
 }
 
 void HeartbeatConsumer::configure() {
+  stale_ = true;
   for (Slot& s : slots_) {
     if (s.status != Status::Unused) ctx_.dispatcher.unsubscribe(kHeartbeatCobIdBase + s.node_id, this);
     s = Slot{};
@@ -113,6 +114,7 @@ const HeartbeatConsumer::Slot* HeartbeatConsumer::slotFor(std::uint8_t node_id) 
 }
 
 void HeartbeatConsumer::onFrame(const Frame& f, TimeUs now) {
+  stale_ = true;
   if (f.len != 1) {
     ++ctx_.counters.wrong_length;
     return;
@@ -140,6 +142,8 @@ void HeartbeatConsumer::onFrame(const Frame& f, TimeUs now) {
 }
 
 void HeartbeatConsumer::advance(TimeUs now) {
+  if (now < nextDeadline()) return;
+  stale_ = true;
   for (Slot& s : slots_) {
     if (s.status == Status::Active && s.timeout_us > 0 && now >= s.last_us + s.timeout_us) {
       s.status = Status::TimedOut;
@@ -149,10 +153,13 @@ void HeartbeatConsumer::advance(TimeUs now) {
 }
 
 TimeUs HeartbeatConsumer::nextDeadline() const {
+  if (!stale_) return next_;
   TimeUs next = kNever;
   for (const Slot& s : slots_) {
     if (s.status == Status::Active && s.timeout_us > 0 && s.last_us + s.timeout_us < next) next = s.last_us + s.timeout_us;
   }
+  next_ = next;
+  stale_ = false;
   return next;
 }
 

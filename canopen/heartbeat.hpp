@@ -82,6 +82,10 @@ class HeartbeatConsumer {
   NodeContext& ctx_;
   EventHook hook_;
   std::vector<Slot> slots_;  // one per 0x1016 sub-index, then one per watched node; sized at configuration
+  // The earliest timeout, kept until a slot changes: advance() in every cycle looks at it, not at every
+  // slot (a master's 0x1016 has room for many slaves).
+  mutable TimeUs next_ = kNever;
+  mutable bool stale_ = true;
   std::size_t consumer_slots_ = 0;
   std::vector<std::uint8_t> watched_;
 };

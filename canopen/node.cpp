@@ -33,6 +33,8 @@ Node::Node(ObjectDictionary od, std::uint8_t node_id, Transport& transport, Node
     if (!od_.hasObject(map)) throw OdError("TPDO" + std::to_string(i + 1) + ": mapping object missing");
     tpdos_.push_back(std::make_unique<Tpdo>(ctx_, i + 1, comm, map, options.tpdo_change_of_state));
   }
+  live_rpdos_.reserve(rpdos_.size());
+  live_tpdos_.reserve(tpdos_.size());
 
   nmt_.setHooks([this](NmtState from, NmtState to, TimeUs now) { handleStateChange(from, to, now); },
                 [this](NmtCommand cmd, TimeUs now) { handleReset(cmd, now); });
@@ -132,11 +134,9 @@ void Node::advance(TimeUs now) {
   heartbeat_consumer_.advance(now);
   heartbeat_producer_.advance(now);
   sync_.advance(now);
-  // Disabled PDOs (a controller's EDS has spares for more channels) are skipped here, not in a call.
-  for (auto& p : rpdos_)
-    if (p->valid()) p->advance(now);
-  for (auto& p : tpdos_)
-    if (p->valid()) p->advance(now);
+  refreshLive();
+  for (Rpdo* p : live_rpdos_) p->advance(now);
+  for (Tpdo* p : live_tpdos_) p->advance(now);
   emcy_.advance(now);
   sdo_server_.advance(now);
   sdo_client_.advance(now);
@@ -158,14 +158,25 @@ TimeUs Node::nextDeadline() const {
   return next;
 }
 
+void Node::refreshLive() noexcept {
+  if (live_epoch_ == ctx_.pdo_epoch) return;
+  live_epoch_ = ctx_.pdo_epoch;
+  live_rpdos_.clear();
+  live_tpdos_.clear();
+  for (auto& p : rpdos_)
+    if (p->valid()) live_rpdos_.push_back(p.get());
+  for (auto& p : tpdos_)
+    if (p->valid()) live_tpdos_.push_back(p.get());
+}
+
 void Node::handleSync(std::uint8_t counter, TimeUs now) {
   // Cycle order: SYNC -> latch RPDOs -> application callback -> TPDOs, so the application computes
   // from the inputs of the previous cycle and its outputs leave in this one.
-  for (auto& p : rpdos_)
-    if (p->valid()) p->onSync(now);
+  refreshLive();
+  for (Rpdo* p : live_rpdos_) p->onSync(now);
   if (app_.sync) app_.sync(counter, now);
-  for (auto& p : tpdos_)
-    if (p->valid()) p->onSync(counter, now);
+  refreshLive();  // the application may have reconfigured a TPDO
+  for (Tpdo* p : live_tpdos_) p->onSync(counter, now);
 }
 
 void Node::handleStateChange(NmtState from, NmtState to, TimeUs now) {

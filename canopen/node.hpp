@@ -128,6 +128,12 @@ class Node : public BusClient {
   SdoClient sdo_client_;
   std::vector<std::unique_ptr<Rpdo>> rpdos_;
   std::vector<std::unique_ptr<Tpdo>> tpdos_;
+  // The enabled ones, which the cycle walks (an EDS may have spare PDOs for more channels): rebuilt
+  // when a PDO was reconfigured, within the capacity reserved at construction (nothing allocated).
+  void refreshLive() noexcept;
+  std::vector<Rpdo*> live_rpdos_;
+  std::vector<Tpdo*> live_tpdos_;
+  std::uint32_t live_epoch_ = ~0u;
   // What the application registered (onSync, onStateChange, ...); each may be empty.
   struct AppCallbacks {
     SyncCallback sync;

@@ -191,6 +191,7 @@ std::uint32_t PdoBase::readCommParameters() {
   type_ = static_cast<std::uint8_t>(readOr(ctx_.od, comm_, kTypeSub, kPdoEventManufacturer));
   event_timer_us_ = static_cast<TimeUs>(readOr(ctx_.od, comm_, kEventTimerSub, 0)) * 1000;
   valid_ = false;
+  ++ctx_.pdo_epoch;  // valid_ may change: the node's list of live PDOs is due again
   return v;
 }
 

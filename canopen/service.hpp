@@ -47,6 +47,7 @@ struct NodeContext {
   TimeUs now = 0;  // the last time the node was told (onFrame/advance); services never read a clock
   TimeUs last_sync_us = kNever;  // last SYNC produced or consumed (kNever: none since configuration)
   TimeUs sync_window_us = 0;     // 0x1007 synchronous window length (0: not used)
+  std::uint32_t pdo_epoch = 0;   // counts the PDOs' reconfigurations (the node's list of live ones follows)
 
   bool send(const Frame& f) {
     if (transport.send(f)) {

@@ -169,8 +169,8 @@ nodes::EmulatorConfig EmulatorOptions::config(const std::string& od_dir, unsigne
     const auto c = payload.find(':');
     if (c == std::string::npos) throw std::invalid_argument("--payload: expected TIME:NEWTONS, got '" + payload + "'");
     try {
-      e.payload_at_s = std::stod(payload.substr(0, c));
-      e.payload_N = std::stod(payload.substr(c + 1));
+      e.payload.at_s = std::stod(payload.substr(0, c));
+      e.payload.N = std::stod(payload.substr(c + 1));
     } catch (const std::exception&) {
       throw std::invalid_argument("--payload: expected TIME:NEWTONS with numbers, got '" + payload + "'");
     }

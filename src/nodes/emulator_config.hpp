@@ -26,26 +26,30 @@ struct EmulatorConfig {
   std::uint16_t pressure_index = 0x6401;
   std::uint8_t pressure_sub = 1;
   pd::Scaling scaling;
-  // Several muscles (a rig with several channels): channel c is measured by an encoder of its own
-  // (sensor_eds at node sensor_ids[c]) and driven by output command_sub + c of the valve module, its
-  // pressure on input pressure_sub + c (od/profile/analog401.eds has four); each muscle is a plant of
-  // its own - the same physics, its own noise (seed + c). Empty: one channel, the sensor at sensor_id.
-  std::vector<std::uint8_t> sensor_ids;
-  // The valve module of each channel (empty: all on valve_id): a rig of more muscles than one module
-  // has outputs drives them from several modules (valve_eds each), a channel on the module's next
-  // output after the channel before it on the same module.
-  std::vector<std::uint8_t> valve_ids;
-  // Antagonistic joints: two channels' muscles on one joint (plant/joint.hpp), its angle measured by
-  // the sensor both channels name in sensor_ids, in counts of angle_step_deg from angle_zero_counts at 0.
-  struct Joint {
-    std::size_t flexor = 0, extensor = 1;
-    plant::JointConfig mech;
-    double angle_step_deg = 0.001, angle_zero_counts = 0.0;
-  };
-  std::vector<Joint> joints;
+  // Several muscles (a rig with several channels), empty for one: the sensor at sensor_id, the valve at
+  // valve_id.
+  struct Muscles {
+    // Channel c is measured by an encoder of its own (sensor_eds at node sensor_ids[c]) and driven by
+    // output command_sub + c of the valve module, its pressure on input pressure_sub + c
+    // (od/profile/analog401.eds has four); each muscle is a plant of its own - the same physics, its own
+    // noise (seed + c).
+    std::vector<std::uint8_t> sensor_ids;
+    // The valve module of each channel (empty: all on valve_id): a rig of more muscles than one module
+    // has outputs drives them from several modules (valve_eds each), a channel on the module's next
+    // output after the channel before it on the same module.
+    std::vector<std::uint8_t> valve_ids;
+    // Antagonistic joints: two channels' muscles on one joint (plant/joint.hpp), its angle measured by
+    // the sensor both channels name in sensor_ids, in counts of angle_step_deg from angle_zero_counts at 0.
+    struct Joint {
+      std::size_t flexor = 0, extensor = 1;
+      plant::JointConfig mech;
+      double angle_step_deg = 0.001, angle_zero_counts = 0.0;
+    };
+    std::vector<Joint> joints;
+  } muscles;
   // The channel whose sensor the sensor faults act on (those above and Injection's).
   std::size_t fault_channel = 0;
-  std::size_t channels() const { return sensor_ids.empty() ? 1 : sensor_ids.size(); }
+  std::size_t channels() const { return muscles.sensor_ids.empty() ? 1 : muscles.sensor_ids.size(); }
   // A CiA 406 encoder (node 16, 5 um steps, asynchronous TPDO) and a CiA 401 analog I/O module (node 32,
   // valve on output 2, pressure on input 2, 0..20000 = full scale, no heartbeat) with their makers'
   // defaults (od/profile/): nothing fits pamc's controller until it configures them (od/rigs/profile.ini).
@@ -56,8 +60,10 @@ struct EmulatorConfig {
   double sensor_silent_for_s = 1e9;
   double drop_pdo_prob = 0.0;       // probability of dropping a position PDO
   int late_pdo_cycles = 0;          // position reported this many cycles late
-  double payload_at_s = -1;         // < 0: no payload step
-  double payload_N = 40.0;
+  struct PayloadStep {
+    double at_s = -1;  // < 0: no payload step
+    double N = 40.0;
+  } payload;
   std::uint64_t seed = 7;
 };
 

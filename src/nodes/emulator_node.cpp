@@ -35,8 +35,8 @@ void EmulatorNodes::addPlants() {
     pc.physics.seed += c;
     return pc;
   };
-  for (std::size_t j = 0; j < cfg_.joints.size(); ++j) {
-    const auto& jc = cfg_.joints[j];
+  for (std::size_t j = 0; j < cfg_.muscles.joints.size(); ++j) {
+    const auto& jc = cfg_.muscles.joints[j];
     if (jc.flexor >= n || jc.extensor >= n || jc.flexor == jc.extensor || joint_of_[jc.flexor] >= 0 || joint_of_[jc.extensor] >= 0)
       throw std::invalid_argument("emulator: joint " + std::to_string(j + 1) + " is not two channels of no other joint");
     joints_.push_back(std::make_unique<plant::AntagonisticJoint>(jc.mech, own(jc.flexor), own(jc.extensor)));
@@ -55,7 +55,7 @@ void EmulatorNodes::addPlants() {
 void EmulatorNodes::addSensors(canopen::Transport& transport) {
   std::vector<std::uint8_t> ids;
   for (std::size_t c = 0; c < cfg_.channels(); ++c) {
-    const std::uint8_t id = cfg_.sensor_ids.empty() ? cfg_.sensor_id : cfg_.sensor_ids[c];
+    const std::uint8_t id = cfg_.muscles.sensor_ids.empty() ? cfg_.sensor_id : cfg_.muscles.sensor_ids[c];
     const auto at = std::find(ids.begin(), ids.end(), id);
     sensor_of_.push_back(static_cast<std::size_t>(at - ids.begin()));
     if (at != ids.end()) continue;
@@ -73,7 +73,7 @@ void EmulatorNodes::addSensors(canopen::Transport& transport) {
 std::int32_t EmulatorNodes::counts(std::size_t s, bool measured) noexcept {
   auto at = [measured](plant::Plant& p) { return measured ? p.measure() : p.position(); };
   if (sensor_joint_[s] < 0) return cfg_.scaling.positionCounts(at(*plant_of_[sensor_channel_[s]]));
-  const auto& jc = cfg_.joints[static_cast<std::size_t>(sensor_joint_[s])];
+  const auto& jc = cfg_.muscles.joints[static_cast<std::size_t>(sensor_joint_[s])];
   auto& j = *joints_[static_cast<std::size_t>(sensor_joint_[s])];
   const double deg = (at(j.flexor()) - at(j.extensor())) / (2.0 * jc.mech.lever_mm) * 180.0 / M_PI;
   return static_cast<std::int32_t>(std::lround(jc.angle_zero_counts + deg / jc.angle_step_deg));
@@ -83,7 +83,7 @@ std::int32_t EmulatorNodes::counts(std::size_t s, bool measured) noexcept {
 void EmulatorNodes::addValves(canopen::Transport& transport) {
   std::vector<std::uint8_t> ids, outputs;
   for (std::size_t c = 0; c < cfg_.channels(); ++c) {
-    const std::uint8_t id = cfg_.valve_ids.empty() ? cfg_.valve_id : cfg_.valve_ids.at(c);
+    const std::uint8_t id = cfg_.muscles.valve_ids.empty() ? cfg_.valve_id : cfg_.muscles.valve_ids.at(c);
     const auto at = std::find(ids.begin(), ids.end(), id);
     module_.push_back(static_cast<std::size_t>(at - ids.begin()));
     if (at == ids.end()) ids.push_back(id), outputs.push_back(0);
@@ -134,9 +134,9 @@ void EmulatorNodes::start(TimeUs now) {
 void EmulatorNodes::onSync() {
   const std::uint64_t k = ++syncs_;
   const double t = time();
-  const double F = cfg_.payload_at_s >= 0 && t >= cfg_.payload_at_s ? cfg_.payload_N : 0.0;
+  const double F = cfg_.payload.at_s >= 0 && t >= cfg_.payload.at_s ? cfg_.payload.N : 0.0;
   auto held = [this](std::size_t c) { return valves_[module_[c]]->held(output_[c]); };
-  for (std::size_t j = 0; j < joints_.size(); ++j) joints_[j]->step(held(cfg_.joints[j].flexor), held(cfg_.joints[j].extensor));
+  for (std::size_t j = 0; j < joints_.size(); ++j) joints_[j]->step(held(cfg_.muscles.joints[j].flexor), held(cfg_.muscles.joints[j].extensor));
   for (std::size_t c = 0; c < plant_of_.size(); ++c)
     if (joint_of_[c] < 0) plant_of_[c]->step(held(c), F);
   for (std::size_t s = 0; s < sensors_.size(); ++s) sensors_[s]->measured(k, t, counts(s));

@@ -82,28 +82,28 @@ void FaultSupervisor::clearWarnings() noexcept {
 void FaultSupervisor::pollBus() noexcept {
   // Frames this node could not send (transmit queue full, ENOBUFS beyond the queue): overrun.
   const auto& c = node_.counters();
-  if (c.tx_dropped != tx_dropped_seen_) {
-    tx_dropped_seen_ = c.tx_dropped;
+  if (c.tx_dropped != bus_.tx_dropped) {
+    bus_.tx_dropped = c.tx_dropped;
     raise(Fault::CanOverrun);
   }
   // Frames that missed their deadline, or more than two cycles of frames waiting: this node's frames
   // are not getting onto the bus.
-  if (node_.txExpired() != tx_expired_seen_) {
-    tx_expired_seen_ = node_.txExpired();
+  if (node_.txExpired() != bus_.tx_expired) {
+    bus_.tx_expired = node_.txExpired();
     raise(Fault::CanOverrun);
   }
   if (node_.txBacklog() > 4) raise(Fault::CanOverrun);
   std::uint64_t len = 0;
   for (const auto& p : node_.rpdos()) len += p->wrongLength();
-  if (len != pdo_length_seen_) {
-    pdo_length_seen_ = len;
+  if (len != bus_.pdo_length) {
+    bus_.pdo_length = len;
     raise(Fault::PdoLength);
   }
-  if (node_.sync().wrongLength() != sync_length_seen_) {
-    sync_length_seen_ = node_.sync().wrongLength();
+  if (node_.sync().wrongLength() != bus_.sync_length) {
+    bus_.sync_length = node_.sync().wrongLength();
     raise(Fault::SyncLength);
   }
-  if (bus_off_) raise(Fault::BusOff);
+  if (bus_.off) raise(Fault::BusOff);
 }
 
 void FaultSupervisor::onErrorFrame(const canopen::Frame& f) noexcept {
@@ -111,11 +111,11 @@ void FaultSupervisor::onErrorFrame(const canopen::Frame& f) noexcept {
   // overflow, 0x10/0x20 rx/tx error passive), bus off 0x40, restarted after bus off 0x100.
   const bool crtl = (f.id & 0x04u) != 0;
   if ((f.id & 0x40u) != 0) {
-    bus_off_ = true;
+    bus_.off = true;
     raise(Fault::BusOff);
   }
-  if ((f.id & 0x100u) != 0 && bus_off_) {
-    bus_off_ = false;
+  if ((f.id & 0x100u) != 0 && bus_.off) {
+    bus_.off = false;
     // Back on the bus: now the EMCY can go out.
     const std::uint8_t m[5] = {static_cast<std::uint8_t>(Fault::BusOff), 0, channel_, 0, 0};
     if (reports_bus_) node_.emcy().report(emcyCode(Fault::BusOff), m, channel_);

@@ -77,8 +77,11 @@ class FaultSupervisor {
   int warn_clear_ = 0;
   std::uint64_t raised_ = 0;    // episodes begun (faultsRaised)
   canopen::TimeUs reacted_at_us_ = canopen::kNever;
-  bool bus_off_ = false;
-  std::uint64_t tx_dropped_seen_ = 0, tx_expired_seen_ = 0, pdo_length_seen_ = 0, sync_length_seen_ = 0;
+  // What pollBus() saw of the node's counters last time, and whether the controller is bus off.
+  struct BusSeen {
+    bool off = false;
+    std::uint64_t tx_dropped = 0, tx_expired = 0, pdo_length = 0, sync_length = 0;
+  } bus_;
   Counters counters_;
   std::atomic<Fault> pub_{Fault::None};
 };

@@ -485,7 +485,7 @@ bool jointMuscle(const Reader& r, const IniSection& sec, std::size_t c, const Fi
 void readSlavesAndChannels(const Reader& r, const canopen::IniFile& ini, RigFile& rig, FileBuild& fb) {
   for (const auto& sec : ini.sections) {
     const std::string n = lower(sec.name);
-    if (n.rfind("slave.", 0) != 0 || n.size() > 4 && n.compare(n.size() - 4, 4, ".sdo") == 0) continue;
+    if (n.rfind("slave.", 0) != 0 || (n.size() > 4 && n.compare(n.size() - 4, 4, ".sdo") == 0)) continue;
     r.knownKeys(sec, kSlaveCommon, kSlaveKeys);
     fb.slaves.push_back(slaveCommon(r, sec, rig.controller_id));
     fb.slaves.back().name = sec.name.substr(6);

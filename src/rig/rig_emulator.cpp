@@ -8,7 +8,7 @@
 namespace pamc::rig {
 
 nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig, nodes::EmulatorConfig base) {
-  if (rig.channels.size() < 2 && rig.joints.empty()) return base;
+  if (rig.one_muscle_form) return base;  // its devices are pamc's own, or --profile-defaults's
   auto fail = [&](const std::string& why) -> void {
     throw std::invalid_argument(rig.path + ": the emulator cannot play this rig: " + why);
   };
@@ -22,8 +22,8 @@ nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig, nodes::EmulatorConfi
   base.pressure_sub = first.feedback.index != 0 ? first.feedback.sub : base.pressure_sub;
   base.position_index = first.position.index;
   base.position_sub = first.position.sub;
-  base.sensor_ids.clear();
-  base.valve_ids.clear();
+  base.muscles.sensor_ids.clear();
+  base.muscles.valve_ids.clear();
   std::set<std::uint8_t> sensors;
   std::map<std::uint8_t, std::size_t> outputs;  // per valve slave: the outputs taken so far
   for (std::size_t c = 0; c < rig.channels.size(); ++c) {
@@ -36,18 +36,18 @@ nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig, nodes::EmulatorConfi
       fail("channel " + std::to_string(c + 1) + " is not on the output after its module's last channel's");
     if (ch.feedback.index != 0 && ch.feedback.sub != base.pressure_sub + o)
       fail("channel " + std::to_string(c + 1) + "'s pressure input is not the one after its module's last channel's");
-    base.sensor_ids.push_back(ch.cfg.sensor_id);
-    base.valve_ids.push_back(ch.cfg.valve_id);
+    base.muscles.sensor_ids.push_back(ch.cfg.sensor_id);
+    base.muscles.valve_ids.push_back(ch.cfg.valve_id);
   }
-  base.joints.clear();
+  base.muscles.joints.clear();
   for (const auto& j : rig.joints) {
-    nodes::EmulatorConfig::Joint e;
+    nodes::EmulatorConfig::Muscles::Joint e;
     e.flexor = j.flexor, e.extensor = j.extensor;
     e.mech.lever_mm = j.lever_mm;
     e.mech.rest_mm = j.rest_mm;
     e.angle_step_deg = j.angle_step_deg;
     e.angle_zero_counts = j.angle_zero_counts;
-    base.joints.push_back(e);
+    base.muscles.joints.push_back(e);
   }
   base.scaling = nodes::pd::Scaling{};  // the devices' own dictionaries say how they count
   return base;

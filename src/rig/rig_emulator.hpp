@@ -9,7 +9,7 @@
 
 namespace pamc::rig {
 
-// base with the devices of rig (a one-channel rig: base as it is). Throws std::invalid_argument for a
+// base with the devices of rig (a rig in the one-muscle form: base as it is). Throws std::invalid_argument for a
 // rig the emulator cannot play (a sensor serving two channels, devices of different EDS files, gaps in a
 // module's outputs), naming the rig file.
 nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig, nodes::EmulatorConfig base);

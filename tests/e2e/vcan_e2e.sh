@@ -119,6 +119,8 @@ for ch in 1 2 3 4; do
   check "four muscles: a line for channel $ch" grep -q "^channel $ch: tracking" "$W/four_controller.txt"
 done
 check "four muscles: the bus load counted" grep -q "^bus load: " "$W/four_controller.txt"
+check "four muscles: the slaves took the cansend writes (4 SDO confirmations before the controller)" \
+  test "$(awk '$3 == "701#00" { exit } $3 ~ /^58[3-6]#60/ { n++ } END { print n + 0 }' "$W/four_bus.log" 2>/dev/null)" -ge 4
 # The scramble reached the slaves (their SDO write confirmations, 60 = download response), and the
 # controller reset them and booted them from its dictionary.
 check "scrambled: the slaves took the cansend writes (4 SDO confirmations before the controller)" \

@@ -149,7 +149,7 @@ TEST(Allocation, RigCyclesOnTheBusAllocateNothing) {
   c.trajectory = control::Trajectory::triangle(0.5, 5.0, 25.0);
   c.preroll_s = 0.2;
   auto e = emulatorWithSilentSensor(od);
-  e.payload_at_s = 5.0;
+  e.payload.at_s = 5.0;
   EXPECT_EQ(rigAllocations(c, e), 0);
 }
 
