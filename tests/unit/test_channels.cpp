@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/rig_text.hpp"
 #include "canopen/frame_bits.hpp"
 #include "nodes/rig_file.hpp"
 #include "plant/plant.hpp"
@@ -21,49 +22,17 @@ using namespace pamc;
 
 namespace {
 
-const std::string kOd = std::string(PAMC_SOURCE_DIR) + "/od/";
-
-std::string writeTemp(const std::string& name, const std::string& text) {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const std::string path = ::testing::TempDir() + info->test_suite_name() + "." + info->name() + "." + name;
-  std::ofstream(path) << text;
-  return path;
-}
+using test::kOd;
+using test::writeTemp;
 
 // od/rigs/four_muscles.ini with lines replaced or added, its EDS paths made absolute.
-std::string fourMuscles(const std::vector<std::pair<std::string, std::string>>& edits = {}) {
-  std::ifstream in(kOd + "rigs/four_muscles.ini");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  for (std::string::size_type at; (at = text.find("= ../")) != std::string::npos;) text.replace(at, 5, "= " + kOd);
-  for (const auto& [from, to] : edits) {
-    const auto at = text.find(from);
-    if (at == std::string::npos) {
-      ADD_FAILURE() << "no '" << from << "' in the rig";
-      continue;
-    }
-    text.replace(at, from.size(), to);
-  }
-  return text;
-}
+std::string fourMuscles(const test::Edits& edits = {}) { return test::shippedRig("four_muscles.ini", edits); }
 
 nodes::ControllerNodeConfig controllerOf(const nodes::RigFile& rig, std::vector<std::string>* log = nullptr) {
-  nodes::ControllerNodeConfig c;
-  nodes::applyRig(rig, c);
-  c.kind = static_cast<int>(control::Kind::PI);
-  c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
-  c.has_trajectory = true;
-  c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
-  c.preroll_s = 0.5;
-  if (log) c.log = [log](const std::string& m) { log->push_back(m); };
-  return c;
+  return test::rigController(rig, log);
 }
 
-nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig) {
-  nodes::EmulatorConfig e;
-  e.sensor_eds = kOd + "sensor.eds";
-  e.valve_eds = kOd + "valve.eds";
-  return rig::emulatorOf(rig, e);
-}
+nodes::EmulatorConfig emulatorOf(const nodes::RigFile& rig) { return rig::emulatorOf(rig, test::pamcEmulator()); }
 
 struct ChannelTrack {
   double acc = 0, max = 0;
@@ -302,17 +271,7 @@ struct JointRun {
   std::vector<nodes::Fault> during;
 };
 
-std::string antagonistic(const std::vector<std::pair<std::string, std::string>>& edits = {}) {
-  std::ifstream in(kOd + "rigs/antagonistic.ini");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  for (std::string::size_type at; (at = text.find("= ../")) != std::string::npos;) text.replace(at, 5, "= " + kOd);
-  for (const auto& [from, to] : edits) {
-    const auto at = text.find(from);
-    if (at == std::string::npos) ADD_FAILURE() << "no '" << from << "' in the rig";
-    else text.replace(at, from.size(), to);
-  }
-  return text;
-}
+std::string antagonistic(const test::Edits& edits = {}) { return test::shippedRig("antagonistic.ini", edits); }
 
 }  // namespace
 

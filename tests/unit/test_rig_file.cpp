@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/rig_text.hpp"
 #include "canopen/bus.hpp"
 #include "canopen/candump_log.hpp"
 #include "canopen/dcf.hpp"
@@ -26,53 +27,17 @@ using canopen::Frame;
 
 namespace {
 
-const std::string kOd = std::string(PAMC_SOURCE_DIR) + "/od/";
-
-// In the temporary directory, named after the test too: ctest runs the tests of this file at once.
-std::string writeTemp(const std::string& name, const std::string& text) {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const std::string path = ::testing::TempDir() + info->test_suite_name() + "." + info->name() + "." + name;
-  std::ofstream(path) << text;
-  return path;
-}
+using test::kOd;
+using test::writeTemp;
 
 // The shipped rig with some lines replaced or added (the EDS paths made absolute).
-std::string rigText(const std::vector<std::pair<std::string, std::string>>& edits = {}) {
-  std::ifstream in(kOd + "rigs/default.ini");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  for (const char* eds : {"controller", "sensor", "valve"}) {
-    const std::string from = std::string("../") + eds + ".eds", to = kOd + eds + ".eds";
-    text.replace(text.find(from), from.size(), to);
-  }
-  for (const auto& [from, to] : edits) {
-    const auto at = text.find(from);
-    if (at == std::string::npos) {
-      ADD_FAILURE() << "no '" << from << "' in the rig";
-      continue;
-    }
-    text.replace(at, from.size(), to);
-  }
-  return text;
-}
+std::string rigText(const test::Edits& edits = {}) { return test::shippedRig("default.ini", edits); }
 
 nodes::ControllerNodeConfig controllerFromRig(const std::string& rig_path, std::vector<std::string>* log) {
-  nodes::ControllerNodeConfig c;
-  nodes::applyRig(nodes::readRigFile(rig_path), c);
-  c.kind = static_cast<int>(control::Kind::PI);
-  c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
-  c.has_trajectory = true;
-  c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
-  c.preroll_s = 0.5;
-  if (log) c.log = [log](const std::string& m) { log->push_back(m); };
-  return c;
+  return test::rigController(nodes::readRigFile(rig_path), log);
 }
 
-nodes::EmulatorConfig emulator() {
-  nodes::EmulatorConfig e;
-  e.sensor_eds = kOd + "sensor.eds";
-  e.valve_eds = kOd + "valve.eds";
-  return e;
-}
+nodes::EmulatorConfig emulator() { return test::pamcEmulator(); }
 
 // A tool port: SDO requests to a node and NMT, answered on the ideal bus at once.
 struct Tool {
@@ -134,15 +99,7 @@ struct Tool {
 };
 
 // od/rigs/profile.ini with its EDS paths made absolute.
-std::string profileRig() {
-  std::ifstream in(kOd + "rigs/profile.ini");
-  std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  for (const char* eds : {"controller.eds", "profile/encoder406.eds", "profile/analog401.eds"}) {
-    const std::string from = std::string("../") + eds;
-    t.replace(t.find(from), from.size(), kOd + eds);
-  }
-  return t;
-}
+std::string profileRig() { return test::shippedRig("profile.ini"); }
 
 // One of od/'s EDS files with some DefaultValues changed ({section, value}): a device whose configuration
 // another master changed and stored (CiA 301 0x1010), so that a reset communication brings back that,
