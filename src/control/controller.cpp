@@ -251,6 +251,12 @@ class PiAmc final : public Controller {
     const auto est = am_.update(hist_.get(cfg_.delay_cycles), y, load);
     o.y_hat = est.y_post;
     o.estimator_reset = est.status == estimation::UkfStatus::Reset;
+    // A model used outside the range it was identified on (model.json's `range`) may lose its estimator
+    // there: a restart outside it is not a fault of this loop - the filter starts over on the position
+    // and the loop runs on. Inside the range, or with a model that records no range, a restart stays a
+    // fault (the run goes to its safe state), as in the paper's form. (The lockstep experiments never
+    // stop on a restart: for them nothing changes.)
+    if (o.estimator_reset && outsideRange(y, hist_.get(0))) o.estimator_reset = false;
     // A position the UKF did not use (not finite, or an outlier) is not used by the PI either: it
     // works with the last usable position and holds its integral. (Not with the UKF's prediction: with
     // a model whose output dynamics the filter cannot follow, that can be far off.)
@@ -302,6 +308,14 @@ class PiAmc final : public Controller {
   const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
 
  private:
+  // The position (or, not finite, the last command) outside the model's range; never for a model
+  // that records none.
+  bool outsideRange(double y, double u) const noexcept {
+    const auto& r = cfg_.model.range();
+    if (!r.known) return false;
+    return !std::isfinite(y) || !r.output.contains(y) || !r.input.contains(u);
+  }
+
   // The commands still on their way (delay_cycles of them), the oldest first.
   std::array<double, 8> inFlight() const noexcept {
     std::array<double, 8> c{};
