@@ -8,6 +8,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <set>
 
 #include "nodes/rig_file.hpp"
 #include "plant/plant.hpp"
@@ -74,6 +75,15 @@ void printStats(const nodes::CycleStats& s, const TrackingSummary& t) {
   }
 }
 
+nodes::RigFile readRig(const std::string& path) {
+  nodes::RigFile rig = nodes::readRigFile(path);
+  static std::set<std::string> told;
+  if (rig.one_muscle_form && told.insert(path).second)
+    std::fprintf(stderr, "notice: %s is in the one-muscle form ([sensor], [valve]): read as channel 1; the form of slaves "
+                 "and channels ([slave.NAME], [channel.N]) replaces it (docs/RIG.md, od/rigs/default.ini)\n", path.c_str());
+  return rig;
+}
+
 void printJoints(const std::vector<nodes::RigJoint>& joints, const TrackingSummary& t) {
   for (std::size_t j = 0; j < joints.size(); ++j) {
     const auto& x = t.ch[joints[j].flexor];
@@ -134,7 +144,7 @@ nodes::BusDictionary BusDictionaryOptions::load(const OdOption& od) const {
     paths.insert(paths.begin(), od.dir);
     return nodes::loadBusDictionary(paths);
   }
-  nodes::BusDictionary d = nodes::busDictionaryFromRig(nodes::readRigFile(rig));
+  nodes::BusDictionary d = nodes::busDictionaryFromRig(readRig(rig));
   if (eds.empty()) return d;
   const nodes::BusDictionary more = nodes::loadBusDictionary(eds);
   d.pdos.insert(more.pdos.begin(), more.pdos.end());  // the rig's COB-IDs win
@@ -194,7 +204,7 @@ void InterfaceOption::add(CLI::App* a, bool with_rig) {
 
 std::string InterfaceOption::resolve(const std::string& rig_file) const {
   if (!name.empty()) return name;
-  return rig_file.empty() ? std::string(nodes::kDefaultInterface) : nodes::readRigFile(rig_file).interface;
+  return rig_file.empty() ? std::string(nodes::kDefaultInterface) : readRig(rig_file).interface;
 }
 
 }  // namespace pamc::app

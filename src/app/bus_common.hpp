@@ -162,6 +162,11 @@ class Logger {
 };
 
 
+// A rig file as the commands read it (nodes::readRigFile): a file in the one-muscle form ([sensor],
+// [valve]) gets one notice on stderr per run that it reads as one channel and the form of slaves and
+// channels replaces it.
+nodes::RigFile readRig(const std::string& path);
+
 void printStats(const nodes::CycleStats& s, const TrackingSummary& t);
 // A line per joint: its angle's tracking, from its flexor's (channel's) tracking through the lever.
 void printJoints(const std::vector<nodes::RigJoint>& joints, const TrackingSummary& t);

@@ -61,7 +61,7 @@ class ControllerCommand final : public Command {
     MeasurementRecord measurement(c.channels[0].layout.feedback, c.delay_cycles);
     attachMeasurement(logger, measurement, run_);
     // Every frame on the bus (received, and sent by this node) is logged and counted for the bus load.
-    BusLoad load(rig_.given() ? nodes::readRigFile(rig_.path).bitrate : 1000000u);
+    BusLoad load(rig_.given() ? readRig(rig_.path).bitrate : 1000000u);
     can.setTap([&](const canopen::Frame& f, canopen::TimeUs t, bool) {
       logger.frames.push({f, t});
       load.add(f, t);
@@ -90,7 +90,7 @@ class ControllerCommand final : public Command {
     g_loop = nullptr;
     logger.stop();
     printStats(node.stats(), logger.summary);
-    printJoints(nodes::readRigFile(rig_.path).joints, logger.summary);
+    printJoints(readRig(rig_.path).joints, logger.summary);
     load.print();
     const auto& st = can.stats();
     std::printf("socket: rx %llu, tx %llu, tx queued %llu, tx dropped %llu, tx expired %llu, error frames %llu\n",

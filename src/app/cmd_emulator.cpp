@@ -42,7 +42,7 @@ class EmulatorCommand final : public Command {
   }
   int run() override {
     nodes::EmulatorConfig ec = emu_.config(od_.dir, period_us);
-    if (!rig_.empty()) ec = rig::emulatorOf(nodes::readRigFile(rig_), ec);
+    if (!rig_.empty()) ec = rig::emulatorOf(readRig(rig_), ec);
     const std::string iface = iface_.resolve("");
     realtimeSetup(rt_.rt, rt_.cpu, rt_.priority);
     auto canp = openCan(iface);

@@ -58,7 +58,7 @@ class RigCommand final : public Command {
     ec = emu_.config(od_.dir, run_.period_us);
     bitrate_ = 1000000;
     if (rig_.given()) {
-      const auto rf = nodes::readRigFile(rig_.path);
+      const auto rf = readRig(rig_.path);
       ec = rig::emulatorOf(rf, ec);
       bitrate_ = rf.bitrate;
       joints_ = rf.joints;

@@ -88,7 +88,7 @@ inline nodes::ControllerNodeConfig controllerNodeConfig(const OdOption& od, cons
   c.produce_sync = !consume_sync;
   c.period_us = run.period_us;
   if (rig != nullptr && rig->given()) {
-    nodes::applyRig(nodes::readRigFile(rig->path), c);
+    nodes::applyRig(readRig(rig->path), c);
     if (run.period_us) c.period_us = run.period_us;
   }
   c.log = [](const std::string& m) { std::fprintf(stderr, "%s\n", m.c_str()); };

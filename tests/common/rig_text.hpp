@@ -30,9 +30,11 @@ inline std::string writeTemp(const std::string& name, const std::string& text) {
   return path;
 }
 
-// od/rigs/<name> with each edit's first text replaced by its second (a missing one fails the test).
-inline std::string shippedRig(const std::string& name, const Edits& edits = {}) {
-  std::ifstream in(kOd + "rigs/" + name);
+// A rig file of the source tree (a path from its root) whose EDS paths are written as from od/rigs/,
+// with each edit's first text replaced by its second (a missing one fails the test).
+inline std::string rigText(const std::string& file, const Edits& edits = {}) {
+  const std::string name = file;
+  std::ifstream in(std::string(PAMC_SOURCE_DIR) + "/" + file);
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   for (std::string::size_type at; (at = text.find("= ../")) != std::string::npos;) text.replace(at, 5, "= " + kOd);
   for (const auto& [from, to] : edits) {
@@ -45,6 +47,12 @@ inline std::string shippedRig(const std::string& name, const Edits& edits = {}) 
   }
   return text;
 }
+
+// od/rigs/<name>, edited.
+inline std::string shippedRig(const std::string& name, const Edits& edits = {}) { return rigText("od/rigs/" + name, edits); }
+
+// The one-muscle form ([sensor], [valve]) of od/rigs/default.ini, edited: tests/data/rigs/one_muscle.ini.
+inline std::string oneMuscleRig(const Edits& edits = {}) { return rigText("tests/data/rigs/one_muscle.ini", edits); }
 
 // The node rig makes, running PI (the emulator's true model) on a 0.2 Hz sine of 10-20 mm after 0.5 s;
 // its boot reports into log.

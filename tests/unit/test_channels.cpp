@@ -218,23 +218,17 @@ TEST(Channels, ARigFileOfSeveralChannelsThatCannotWorkIsRefusedWithItsLine) {
 }
 
 TEST(Channels, TheOneMuscleFormAndTheFormOfChannelsMakeTheSameNode) {
-  // default.ini written in the form of channels: the same dictionary values, the same channel.
-  const std::string text = "[bus]\nperiod_us = 1000\n[controller]\nnode_id = 1\neds = " + kOd +
-                           "controller.eds\n"
-                           "[slave.sensor]\nnode_id = 2\neds = " + kOd +
-                           "sensor.eds\ndevice_type = 0x00080196\nvendor_id = 0\nproduct_code = 2\n"
-                           "position_step_mm = 0.001\ntpdo = 1\nheartbeat_ms = 100\n"
-                           "[slave.valve]\nnode_id = 3\neds = " + kOd +
-                           "valve.eds\ndevice_type = 0x000C0191\nvendor_id = 0\nproduct_code = 3\n"
-                           "command_full_counts = 32767\ncommand_zero_counts = 0\nrpdo = 1\nfeedback_tpdo = 1\n"
-                           "heartbeat_ms = 100\nmaster_heartbeat_ms = 250\n"
-                           "[channel.1]\nsensor = sensor\nposition = 0x6004:00\nvalve = valve\ncommand = 0x6411:01\n"
-                           "feedback = 0x6401:01\n";
-  const auto channels = nodes::readRigFile(writeTemp("channels.ini", text));
-  const auto one = nodes::readRigFile(kOd + "rigs/default.ini");
+  // od/rigs/default.ini (slaves and a channel) and the same rig in the one-muscle form: the same
+  // dictionary values, the same channel.
+  const auto channels = nodes::readRigFile(kOd + "rigs/default.ini");
+  const auto one = nodes::readRigFile(writeTemp("one.ini", test::oneMuscleRig()));
   EXPECT_TRUE(one.one_muscle_form);
   EXPECT_FALSE(channels.one_muscle_form);
   EXPECT_EQ(nodes::masterValues(channels), nodes::masterValues(one));
+  ASSERT_EQ(channels.channels.size(), 1u);
+  ASSERT_EQ(one.channels.size(), 1u);
+  EXPECT_EQ(channels.channels[0].cfg.layout.sensor_cob, one.channels[0].cfg.layout.sensor_cob);
+  EXPECT_EQ(channels.channels[0].cfg.layout.feedback_cob, one.channels[0].cfg.layout.feedback_cob);
 }
 
 namespace {

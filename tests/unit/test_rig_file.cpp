@@ -30,8 +30,9 @@ namespace {
 using test::kOd;
 using test::writeTemp;
 
-// The shipped rig with some lines replaced or added (the EDS paths made absolute).
-std::string rigText(const test::Edits& edits = {}) { return test::shippedRig("default.ini", edits); }
+// The shipped rig in the one-muscle form with some lines replaced or added (the EDS paths made
+// absolute): the form most of these tests edit.
+std::string rigText(const test::Edits& edits = {}) { return test::oneMuscleRig(edits); }
 
 nodes::ControllerNodeConfig controllerFromRig(const std::string& rig_path, std::vector<std::string>* log) {
   return test::rigController(nodes::readRigFile(rig_path), log);
@@ -130,9 +131,9 @@ double trackingRmse(const std::vector<nodes::CycleRecord>& recs, double from_s) 
 }  // namespace
 
 TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
-  const auto rig = nodes::readRigFile(writeTemp("default.ini", rigText()));
+  const auto rig = nodes::readRigFile(writeTemp("default.ini", test::shippedRig("default.ini")));
   ASSERT_EQ(rig.channels.size(), 1u);
-  EXPECT_TRUE(rig.one_muscle_form);
+  EXPECT_FALSE(rig.one_muscle_form);
   const auto& ch = rig.channels[0].cfg;
   EXPECT_EQ(ch.sensor_id, 2);
   EXPECT_EQ(ch.valve_id, 3);
@@ -148,7 +149,7 @@ TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
   EXPECT_EQ(ch.layout.error_value_index, 0x6444);
   // 0x1F81: slave, boot, mandatory, not kept alive, 3 retries.
   EXPECT_EQ(sensor_boot.assignment, 0x0000030Du);
-  const auto kept = nodes::readRigFile(writeTemp("kept.ini", rigText({{"mandatory = yes          ; 0x1F81",
+  const auto kept = nodes::readRigFile(writeTemp("kept.ini", test::shippedRig("default.ini", {{"mandatory = yes          ; 0x1F81",
                                                                         "keep_alive = yes\nretries = 5\nmandatory = yes ; 0x1F81"}})));
   EXPECT_EQ(kept.slave(2).boot.assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
   // The sensor's TPDO1: disabled, synchronous, mapped to 0x6004:00 (32 bits), enabled on 0x182.
