@@ -129,8 +129,8 @@ class VirtualBus {
   std::uint32_t bitrate_ = 0;
   std::size_t port_queue_ = 256;
   bool in_flight_ = false;
-  Queued wire_{};            // the frame on the bus
-  TimeUs wire_done_ = 0;     // when it has been sent
+  Queued wire_{};         // the frame on the bus
+  TimeUs wire_done_ = 0;  // when it has been sent
   TimeUs busy_total_us_ = 0;
 };
 

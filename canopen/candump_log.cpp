@@ -158,7 +158,8 @@ bool parseCandumpLine(std::string_view line, CandumpRecord& out, std::string* er
   return true;
 }
 
-std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& name, std::vector<std::string>* warnings) {
+std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& name,
+                                          std::vector<std::string>* warnings) {
   std::vector<CandumpRecord> records;
   std::string line;
   int lineno = 0;
@@ -169,7 +170,8 @@ std::vector<CandumpRecord> readCandumpLog(std::istream& in, const std::string& n
     // may still parse (a frame cut in its data bytes), so it is dropped whatever it holds.
     if (in.eof()) {
       if (line.find_first_not_of(" \t\r") != std::string::npos && warnings != nullptr)
-        warnings->push_back(name + ":" + std::to_string(lineno) + ": truncated last line ignored (no newline at the end)");
+        warnings->push_back(name + ":" + std::to_string(lineno) +
+                            ": truncated last line ignored (no newline at the end)");
       break;
     }
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -191,7 +193,8 @@ std::vector<CandumpRecord> readCandumpLog(const std::string& path, std::vector<s
 }
 
 CandumpWriter::CandumpWriter(const std::string& path, std::string interface)
-    : owned_(std::make_unique<std::ofstream>(path, std::ios::trunc)), out_(owned_.get()),
+    : owned_(std::make_unique<std::ofstream>(path, std::ios::trunc)),
+      out_(owned_.get()),
       interface_(std::move(interface)) {
   if (!*owned_) throw std::runtime_error(path + ": cannot create candump log");
 }

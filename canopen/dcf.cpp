@@ -29,7 +29,8 @@ DcfValue checked(const EdsFile& dcf, const EdsFile& device, std::uint8_t node_id
   if (!problem.empty()) fail(problem);
   if (!isNumeric(d->data_type)) return v;
   bool unordered = false;
-  for (const auto& [text, below] : {std::pair<const std::string*, bool>{&d->low_limit, true}, {&d->high_limit, false}}) {
+  for (const auto& [text, below] :
+       {std::pair<const std::string*, bool>{&d->low_limit, true}, {&d->high_limit, false}}) {
     std::vector<std::uint8_t> limit;
     if (text->empty() || !encodeEdsValue(*text, d->data_type, node_id, limit).empty()) continue;
     const int c = compareValues(d->data_type, v.entry.data.data(), limit.data(), unordered);

@@ -95,13 +95,20 @@ class Checker {
     e.data_type = static_cast<DataType>(code);
     const IniKey& at = require(s, "accesstype", "AccessType");
     std::string a = lower(trim(at.value));
-    if (a == "ro") e.access = Access::ReadOnly;
-    else if (a == "wo") e.access = Access::WriteOnly;
-    else if (a == "rw") e.access = Access::ReadWrite;
-    else if (a == "rwr") e.access = Access::ReadWriteRead;
-    else if (a == "rww") e.access = Access::ReadWriteWrite;
-    else if (a == "const") e.access = Access::Const;
-    else fail(s, at, quoted(at.value) + " is not one of ro, wo, rw, rwr, rww, const");
+    if (a == "ro")
+      e.access = Access::ReadOnly;
+    else if (a == "wo")
+      e.access = Access::WriteOnly;
+    else if (a == "rw")
+      e.access = Access::ReadWrite;
+    else if (a == "rwr")
+      e.access = Access::ReadWriteRead;
+    else if (a == "rww")
+      e.access = Access::ReadWriteWrite;
+    else if (a == "const")
+      e.access = Access::Const;
+    else
+      fail(s, at, quoted(at.value) + " is not one of ro, wo, rw, rwr, rww, const");
     if (const IniKey* k = s.find("pdomapping")) e.pdo_mapping = number(s, *k, 1) != 0;
 
     // DCF files carry the configured value in ParameterValue; it wins over DefaultValue. A DOMAIN's
@@ -209,10 +216,13 @@ void compactList(const Checker& c, const IniSection& s, EdsObject& obj, bool val
     std::vector<std::uint8_t> bytes;
     c.check(s, k, e.data_type, bytes);
   }
-  if (seen != n) c.fail(s, count, "NrOfEntries is " + std::to_string(n) + " but " + std::to_string(seen) + " entries follow");
+  if (seen != n)
+    c.fail(s, count, "NrOfEntries is " + std::to_string(n) + " but " + std::to_string(seen) + " entries follow");
 }
 
-bool startsWithHex4(const std::string& lname) { return lname.size() >= 4 && isHex(std::string_view(lname).substr(0, 4)); }
+bool startsWithHex4(const std::string& lname) {
+  return lname.size() >= 4 && isHex(std::string_view(lname).substr(0, 4));
+}
 
 void buildFile(const IniFile& ini, EdsFile& eds) {
   Checker c(ini.path);
@@ -261,7 +271,8 @@ void buildFile(const IniFile& ini, EdsFile& eds) {
   }
   for (const auto* list : {&name_sections, &value_sections}) {
     for (const auto& kv : *list) {
-      const IniKey* compact = object_sections.count(kv.first) ? object_sections[kv.first]->find("compactsubobj") : nullptr;
+      const IniKey* compact =
+          object_sections.count(kv.first) ? object_sections[kv.first]->find("compactsubobj") : nullptr;
       if (compact == nullptr) c.fail(*kv.second, "names or values of sub-objects need an object with CompactSubObj");
     }
   }
@@ -307,18 +318,20 @@ void buildFile(const IniFile& ini, EdsFile& eds) {
           obj.subs.push_back(e);
         }
         if (auto it = name_sections.find(obj.index); it != name_sections.end()) compactList(c, *it->second, obj, false);
-        if (auto it = value_sections.find(obj.index); it != value_sections.end()) compactList(c, *it->second, obj, true);
+        if (auto it = value_sections.find(obj.index); it != value_sections.end())
+          compactList(c, *it->second, obj, true);
       } else {
         const IniKey& sn = c.require(s, "subnumber", "SubNumber");
         std::uint64_t count = c.number(s, sn, 255);
         auto it = sub_sections.find(obj.index);
         std::size_t present = it == sub_sections.end() ? 0 : it->second.size();
         if (count != present) {
-          c.fail(s, sn, "SubNumber is " + std::to_string(count) + " but " + std::to_string(present) +
-                            " sub-object sections exist");
+          c.fail(s, sn,
+                 "SubNumber is " + std::to_string(count) + " but " + std::to_string(present) +
+                     " sub-object sections exist");
         }
-        if (present == 0 || it->second.begin()->first != 0) c.fail(s, "missing sub-object section [" +
-                                                                          s.name + "sub0]");
+        if (present == 0 || it->second.begin()->first != 0)
+          c.fail(s, "missing sub-object section [" + s.name + "sub0]");
         for (const auto& sk : it->second) {
           EdsSubObject e;
           e.sub_index = sk.first;
@@ -330,8 +343,8 @@ void buildFile(const IniFile& ini, EdsFile& eds) {
         }
       }
     } else {
-      c.fail(s, *s.find("objecttype"), quoted(s.find("objecttype")->value) +
-                                         " is not a supported ObjectType (0x7 VAR, 0x8 ARRAY, 0x9 RECORD)");
+      c.fail(s, *s.find("objecttype"),
+             quoted(s.find("objecttype")->value) + " is not a supported ObjectType (0x7 VAR, 0x8 ARRAY, 0x9 RECORD)");
     }
     eds.objects.push_back(std::move(obj));
   }
@@ -415,15 +428,12 @@ const EdsObject* EdsFile::find(std::uint16_t index) const {
   return it == objects.end() || it->index != index ? nullptr : &*it;
 }
 
-std::string encodeEdsValue(std::string_view raw, DataType type, std::uint8_t node_id,
-                           std::vector<std::uint8_t>& out) {
+std::string encodeEdsValue(std::string_view raw, DataType type, std::uint8_t node_id, std::vector<std::uint8_t>& out) {
   out.clear();
   std::string_view text = trim(raw);
   const char* tname = dataTypeName(type);
   switch (type) {
-    case DataType::VisibleString:
-      out.assign(text.begin(), text.end());
-      return "";
+    case DataType::VisibleString: out.assign(text.begin(), text.end()); return "";
     case DataType::OctetString:
     case DataType::Domain: {
       std::string hex;
@@ -458,8 +468,7 @@ std::string encodeEdsValue(std::string_view raw, DataType type, std::uint8_t nod
       }
       return "";
     }
-    default:
-      break;
+    default: break;
   }
 
   // Integers: "<number>", "$NODEID", "$NODEID+<number>" or "<number>+$NODEID".
@@ -519,8 +528,8 @@ std::string encodeEdsValue(std::string_view raw, DataType type, std::uint8_t nod
       std::int64_t raw_hi = hex_literal && !value_negative ? (std::int64_t{1} << width) - 1 : hi;
       ok = v >= lo && v <= raw_hi;
     } else {
-      ok = value_negative || bits <= static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()) ||
-           hex_literal;
+      ok =
+          value_negative || bits <= static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()) || hex_literal;
     }
   } else {
     ok = !value_negative && (width == 64 || bits < (std::uint64_t{1} << width));

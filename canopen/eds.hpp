@@ -74,7 +74,6 @@ class EdsFile {
 // Encodes an EDS value (DefaultValue, LowLimit, HighLimit) as little-endian bytes of the data type.
 // Integers: decimal, 0x hex or leading-0 octal (CiA 306), optionally "$NODEID+<n>"; reals: decimal;
 // VISIBLE_STRING: the text; OCTET_STRING/DOMAIN: hex digits. Returns "" or a description of the problem.
-std::string encodeEdsValue(std::string_view text, DataType type, std::uint8_t node_id,
-                           std::vector<std::uint8_t>& out);
+std::string encodeEdsValue(std::string_view text, DataType type, std::uint8_t node_id, std::vector<std::uint8_t>& out);
 
 }  // namespace pamc::canopen

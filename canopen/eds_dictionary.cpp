@@ -33,8 +33,10 @@ ObjectDictionary dictionaryFromEds(const EdsFile& eds, std::uint8_t node_id, con
     }
   }
   for (const DcfEntry& v : values) {
-    auto it = std::find_if(specs.begin(), specs.end(), [&](const EntrySpec& s) { return s.index == v.index && s.sub == v.sub; });
-    if (it == specs.end()) throw OdError(eds.file + " has no entry " + entryName(v.index, v.sub) + " for the value given");
+    auto it = std::find_if(specs.begin(), specs.end(),
+                           [&](const EntrySpec& s) { return s.index == v.index && s.sub == v.sub; });
+    if (it == specs.end())
+      throw OdError(eds.file + " has no entry " + entryName(v.index, v.sub) + " for the value given");
     const std::size_t fixed = dataTypeSize(it->type);
     if (fixed != 0 && v.data.size() != fixed)
       throw OdError(entryName(v.index, v.sub) + ": a value of " + std::to_string(v.data.size()) + " bytes for " +

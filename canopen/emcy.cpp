@@ -53,7 +53,8 @@ void Emcy::configure() {
   const Entry* inhibit = ctx_.od.find(kEmcyInhibit, 0);
   inhibit_us_ = inhibit != nullptr ? static_cast<TimeUs>(inhibit->asUnsigned()) * 100 : 0;
 
-  for (std::uint32_t cob = kEmcyCobIdBase + 1; cob <= kEmcyCobIdBase + 127; ++cob) ctx_.dispatcher.unsubscribe(cob, this);
+  for (std::uint32_t cob = kEmcyCobIdBase + 1; cob <= kEmcyCobIdBase + 127; ++cob)
+    ctx_.dispatcher.unsubscribe(cob, this);
   if (const ObjectInfo* consumer = ctx_.od.object(kEmcyConsumer)) {
     for (std::size_t i = 1; i < consumer->count; ++i) {
       const Entry& e = ctx_.od.entries()[consumer->first + i];
@@ -73,7 +74,8 @@ void Emcy::configure() {
 
 void Emcy::updateRegister() {
   std::uint8_t reg = 0;
-  for (std::size_t i = 0; i < active_count_; ++i) reg |= kErrRegGeneric | errorRegisterBit(static_cast<std::uint16_t>(active_[i] & 0xFFFFu));
+  for (std::size_t i = 0; i < active_count_; ++i)
+    reg |= kErrRegGeneric | errorRegisterBit(static_cast<std::uint16_t>(active_[i] & 0xFFFFu));
   register_ = reg;
   if (Entry* e = ctx_.od.find(kErrorRegister, 0)) e->set<std::uint8_t>(reg);
 }
@@ -108,11 +110,12 @@ bool Emcy::report(std::uint16_t code, const std::uint8_t* manufacturer, std::uin
     }
     if (Entry* first = ctx_.od.find(kErrorHistory, 1)) {
       std::uint32_t v = code;
-      if (manufacturer != nullptr) v |= static_cast<std::uint32_t>(manufacturer[0]) << 16 |
-                                        static_cast<std::uint32_t>(manufacturer[1]) << 24;
+      if (manufacturer != nullptr)
+        v |= static_cast<std::uint32_t>(manufacturer[0]) << 16 | static_cast<std::uint32_t>(manufacturer[1]) << 24;
       first->set<std::uint32_t>(v);
     }
-    if (count != nullptr && count->get<std::uint8_t>() < slots) count->set<std::uint8_t>(count->get<std::uint8_t>() + 1);
+    if (count != nullptr && count->get<std::uint8_t>() < slots)
+      count->set<std::uint8_t>(count->get<std::uint8_t>() + 1);
   }
   return queue(code, manufacturer);
 }

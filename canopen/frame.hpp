@@ -54,9 +54,7 @@ inline Frame makeFrame(std::uint32_t id, std::uint8_t len, const std::uint8_t* b
 }
 
 // Little-endian helpers: CANopen puts every multi-byte value on the wire LSB first.
-inline std::uint16_t getU16(const std::uint8_t* p) {
-  return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
-}
+inline std::uint16_t getU16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
 inline std::uint32_t getU32(const std::uint8_t* p) {
   return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
          (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);

@@ -156,7 +156,8 @@ TimeUs HeartbeatConsumer::nextDeadline() const {
   if (!stale_) return next_;
   TimeUs next = kNever;
   for (const Slot& s : slots_) {
-    if (s.status == Status::Active && s.timeout_us > 0 && s.last_us + s.timeout_us < next) next = s.last_us + s.timeout_us;
+    if (s.status == Status::Active && s.timeout_us > 0 && s.last_us + s.timeout_us < next)
+      next = s.last_us + s.timeout_us;
   }
   next_ = next;
   stale_ = false;

@@ -111,7 +111,8 @@ int onKey(void* user, const char* section, const char* name, const char* value) 
     return 0;
   }
   std::string v = value;
-  if (v == kLongValue && !st->long_values.empty() && st->long_values.back().first == st->lineno) v = st->long_values.back().second;
+  if (v == kLongValue && !st->long_values.empty() && st->long_values.back().first == st->lineno)
+    v = st->long_values.back().second;
   s.keys.push_back(IniKey{name, std::move(v), st->lineno});
   return 1;
 }
@@ -161,7 +162,8 @@ IniFile readIni(const std::string& path) {
 }
 
 bool parseIniUnsigned(const std::string& text, std::uint64_t& out) {
-  if (text.empty() || text[0] == '-' || text[0] == '+' || std::isspace(static_cast<unsigned char>(text[0]))) return false;
+  if (text.empty() || text[0] == '-' || text[0] == '+' || std::isspace(static_cast<unsigned char>(text[0])))
+    return false;
   char* end = nullptr;
   errno = 0;
   const unsigned long long v = std::strtoull(text.c_str(), &end, 0);

@@ -53,9 +53,7 @@ void Nmt::apply(NmtCommand cmd, TimeUs now) {
   }
 }
 
-bool Nmt::sendCommand(NmtCommand cmd, std::uint8_t target_node) {
-  return ctx_.send(nmtCommandFrame(cmd, target_node));
-}
+bool Nmt::sendCommand(NmtCommand cmd, std::uint8_t target_node) { return ctx_.send(nmtCommandFrame(cmd, target_node)); }
 
 void Nmt::onFrame(const Frame& f, TimeUs now) {
   if (f.len != 2) {
@@ -69,12 +67,8 @@ void Nmt::onFrame(const Frame& f, TimeUs now) {
     case 0x02:
     case 0x80:
     case 0x81:
-    case 0x82:
-      apply(static_cast<NmtCommand>(f.data[0]), now);
-      break;
-    default:
-      ++ctx_.counters.nmt_invalid_command;
-      break;
+    case 0x82: apply(static_cast<NmtCommand>(f.data[0]), now); break;
+    default: ++ctx_.counters.nmt_invalid_command; break;
   }
 }
 

@@ -229,8 +229,10 @@ void NmtMaster::done(Slave& s, TimeUs now) noexcept {
   s.state = Boot::Done;
   s.deadline = kNever;
   s.start.due = true;
-  if (s.kept) ++counters_.kept_alive;
-  else ++counters_.boots;
+  if (s.kept)
+    ++counters_.kept_alive;
+  else
+    ++counters_.boots;
   emit(s.id, s.kept ? SlaveEvent::KeptAlive : SlaveEvent::Configured, now);
   startReady(now);
   poll(now);  // the next slave waiting for its boot
@@ -274,19 +276,28 @@ void NmtMaster::onTimer(TimeUs now) noexcept {
     if (s.state == Boot::Checking) {
       resetAfterCheck(s, now);  // no heartbeat within its consumer time: not running
     } else if (s.state == Boot::Resetting) {
-      if (again) reset(s, now);
-      else bootFailed(s, BootStep::Reset, 0, "no boot-up within " + std::to_string(kBootUpTimeoutUs / 1000) + " ms of NMT reset communication");
+      if (again)
+        reset(s, now);
+      else
+        bootFailed(s, BootStep::Reset, 0,
+                   "no boot-up within " + std::to_string(kBootUpTimeoutUs / 1000) + " ms of NMT reset communication");
     } else if (s.state == Boot::Heartbeat) {
       const TimeUs t = node_.heartbeatConsumer().timeoutUs(s.id);
-      if (again) s.deadline = now + t;
-      else bootFailed(s, BootStep::Heartbeat, 0, "no heartbeat within " + std::to_string(t / 1000) + " ms (its consumer time, 0x1016) of its configuration");
+      if (again)
+        s.deadline = now + t;
+      else
+        bootFailed(
+            s, BootStep::Heartbeat, 0,
+            "no heartbeat within " + std::to_string(t / 1000) + " ms (its consumer time, 0x1016) of its configuration");
     }
   }
   if (boot_deadline_ != kNever && now >= boot_deadline_) {
     boot_deadline_ = kNever;
     for (auto& s : slaves_)
-      if (bootable(s) && (s.boot.assignment & kAssignMandatory) != 0 && s.state != Boot::Done && s.state != Boot::Failed)
-        bootFailed(s, BootStep::BootTime, 0, "not booted within the boot time 0x1F89 of " + std::to_string(boot_time_ms_) + " ms");
+      if (bootable(s) && (s.boot.assignment & kAssignMandatory) != 0 && s.state != Boot::Done &&
+          s.state != Boot::Failed)
+        bootFailed(s, BootStep::BootTime, 0,
+                   "not booted within the boot time 0x1F89 of " + std::to_string(boot_time_ms_) + " ms");
   }
   arm();
 }

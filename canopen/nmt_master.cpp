@@ -58,22 +58,27 @@ bool bootFromDictionary(const ObjectDictionary& od, std::uint8_t id, SlaveBoot& 
 void bootToDictionary(ObjectDictionary& od, std::uint8_t id, const SlaveBoot& boot) {
   od.entry(kObjAssignment, id).set<std::uint32_t>(boot.assignment);
   for (std::size_t k = 0; k < std::size(kIdentity); ++k)
-    od.entry(static_cast<std::uint16_t>(kObjDeviceType + k), id).set<std::uint32_t>((boot.*kIdentity[k].field).value_or(0));
+    od.entry(static_cast<std::uint16_t>(kObjDeviceType + k), id)
+        .set<std::uint32_t>((boot.*kIdentity[k].field).value_or(0));
   const auto bytes = encodeConciseDcf(boot.writes);
   Entry& dcf = od.entry(kObjConciseDcf, id);
   if (!dcf.write(bytes.data(), bytes.size()))
-    throw OdError(entryName(kObjConciseDcf, id) + ": a concise DCF of " + std::to_string(bytes.size()) + " bytes does not fit");
+    throw OdError(entryName(kObjConciseDcf, id) + ": a concise DCF of " + std::to_string(bytes.size()) +
+                  " bytes does not fit");
 }
 
 std::string checkMasterEntry(const DcfEntry& e) {
   if (e.index != kObjConciseDcf || e.sub == 0 || e.data.empty()) return "";
   ConciseDcf dcf;
   std::string why;
-  return decodeConciseDcf(e.data.data(), e.data.size(), dcf, &why) ? "" : entryName(e.index, e.sub) + " is not a concise DCF: " + why;
+  return decodeConciseDcf(e.data.data(), e.data.size(), dcf, &why)
+             ? ""
+             : entryName(e.index, e.sub) + " is not a concise DCF: " + why;
 }
 
 NmtMaster::NmtMaster(Node& node) : node_(node) {
-  node_.onHeartbeat([this](std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) { onHeartbeat(id, ev, st, now); });
+  node_.onHeartbeat(
+      [this](std::uint8_t id, HeartbeatEvent ev, NmtState st, TimeUs now) { onHeartbeat(id, ev, st, now); });
   node_.onTimer([this](TimeUs now) { onTimer(now); });
   // A concise DCF written over SDO must decode: the next boot runs it.
   if (node_.od().hasObject(kObjConciseDcf))
@@ -84,8 +89,10 @@ NmtMaster::NmtMaster(Node& node) : node_(node) {
 }
 
 void NmtMaster::addSlave(std::uint8_t id) {
-  if (id < 1 || id > 127) throw std::invalid_argument("NMT master: slave node-ID " + std::to_string(id) + " is not 1..127");
-  if (id == node_.nodeId()) throw std::invalid_argument("NMT master: slave node-ID " + std::to_string(id) + " is the master's own");
+  if (id < 1 || id > 127)
+    throw std::invalid_argument("NMT master: slave node-ID " + std::to_string(id) + " is not 1..127");
+  if (id == node_.nodeId())
+    throw std::invalid_argument("NMT master: slave node-ID " + std::to_string(id) + " is the master's own");
   if (find(id) != nullptr) return;
   slaves_.push_back(Slave{});
   slaves_.back().id = id;
@@ -123,8 +130,10 @@ void NmtMaster::loadPlan(Slave& s) {
   // CiA 302-2: the boot's first step reads 0x1000 whether a device type is expected or not - it also
   // proves the slave is there.
   for (const auto& k : kIdentity) {
-    if (const auto& value = boot.*k.field) s.ops.push_back(Op{OpKind::Expect, k.index, k.sub, *value, 0});
-    else if (k.index == kDeviceTypeIndex) s.ops.push_back(Op{OpKind::Present, k.index, k.sub, 0, 0});
+    if (const auto& value = boot.*k.field)
+      s.ops.push_back(Op{OpKind::Expect, k.index, k.sub, *value, 0});
+    else if (k.index == kDeviceTypeIndex)
+      s.ops.push_back(Op{OpKind::Present, k.index, k.sub, 0, 0});
   }
   for (std::size_t i = 0; i < boot.reads.size(); ++i)
     s.ops.push_back(Op{OpKind::Read, boot.reads[i].index, boot.reads[i].sub, 0, i});
@@ -256,7 +265,8 @@ void NmtMaster::end() noexcept {
   boot_deadline_ = kNever;
   for (auto& s : slaves_) {
     s.deadline = kNever;
-    if (s.state == Boot::Checking || s.state == Boot::Resetting || s.state == Boot::Heartbeat || s.state == Boot::Waiting)
+    if (s.state == Boot::Checking || s.state == Boot::Resetting || s.state == Boot::Heartbeat ||
+        s.state == Boot::Waiting)
       s.state = Boot::Idle;
   }
   arm();
@@ -388,8 +398,10 @@ void NmtMaster::onHeartbeat(std::uint8_t id, HeartbeatEvent ev, NmtState st, Tim
         onBootEvent(*s, ev, st, now);
         break;
       }
-      if (st == NmtState::Operational) s->start.sent = kNever;
-      else if (st == NmtState::PreOperational && mayStart(*s)) startSlave(*s, now);
+      if (st == NmtState::Operational)
+        s->start.sent = kNever;
+      else if (st == NmtState::PreOperational && mayStart(*s))
+        startSlave(*s, now);
       break;
     case HeartbeatEvent::StateChanged:
       if (booting(id)) {

@@ -53,9 +53,9 @@ enum class SlaveEvent : std::uint8_t {
   BootUp,           // it sent a boot-up: it lost its state (the master boots and starts it unless held)
   LeftOperational,  // it reported Pre-operational while not held (the master starts it again)
   Stopped,          // it reported Stopped while not held
-  Configured,       // the boot finished: identity checked, configuration written and read back, the application's written
-  KeptAlive,        // kept alive and Operational at the master's start: identity checked, left as it is (not configured)
-  BootFailed,       // the boot failed (bootError()); the slave is sent NMT stop
+  Configured,  // the boot finished: identity checked, configuration written and read back, the application's written
+  KeptAlive,   // kept alive and Operational at the master's start: identity checked, left as it is (not configured)
+  BootFailed,  // the boot failed (bootError()); the slave is sent NMT stop
 };
 const char* slaveEventName(SlaveEvent e);
 
@@ -219,7 +219,7 @@ class NmtMaster {
     KeepRtr,  // a PDO COB-ID read: its bit 30 into the writes of the entry
     Write,
     Verify,
-    Config    // the application's write
+    Config  // the application's write
   };
   struct Op {
     OpKind kind;
@@ -230,33 +230,33 @@ class NmtMaster {
   };
   // A slave's NMT start: owed, sent, held back.
   struct Start {
-    TimeUs sent = kNever;          // NMT start sent, no Operational heartbeat yet
-    bool due = false;              // booted (or not to be booted), hold released: an NMT start is owed
+    TimeUs sent = kNever;                  // NMT start sent, no Operational heartbeat yet
+    bool due = false;                      // booted (or not to be booted), hold released: an NMT start is owed
     TimeUs grace_us = kStartGraceFloorUs;  // for a start to show Operational
-    std::uint8_t hold = 0;         // reasons to keep it in Pre-operational
+    std::uint8_t hold = 0;                 // reasons to keep it in Pre-operational
   };
   struct Slave {
     std::uint8_t id = 0;
-    bool lost = false;             // heartbeat timed out: re-boot it when it is back
+    bool lost = false;  // heartbeat timed out: re-boot it when it is back
     Start start;
-    SlaveBoot boot;                // from the dictionary at begin(), with reads
+    SlaveBoot boot;                        // from the dictionary at begin(), with reads
     std::vector<SlaveBoot::Read> reads;    // the application's (addReads)
     std::vector<SlaveBoot::Write> config;  // the application's (addConfig)
-    std::vector<Op> ops;           // the boot, flattened: identity, reads, writes, read-backs, the application's writes
-    std::size_t config_op = 0;     // the first write (a kept-alive slave's state is checked before it)
-    std::string plan_error;        // 0x1F22:id did not decode: the boot fails with this
+    std::vector<Op> ops;        // the boot, flattened: identity, reads, writes, read-backs, the application's writes
+    std::size_t config_op = 0;  // the first write (a kept-alive slave's state is checked before it)
+    std::string plan_error;     // 0x1F22:id did not decode: the boot fails with this
     Boot state = Boot::Idle;
-    bool checking = false;         // kept alive: the ops up to config_op, then its state decides (step 4)
-    bool identified = false;       // reset by the keep-alive check: its boot-up goes on at the configuration
-    bool kept = false;             // kept alive and Operational: left as it is
+    bool checking = false;    // kept alive: the ops up to config_op, then its state decides (step 4)
+    bool identified = false;  // reset by the keep-alive check: its boot-up goes on at the configuration
+    bool kept = false;        // kept alive and Operational: left as it is
     std::size_t next_op = 0, end_op = 0;
-    unsigned tries_left = 0;       // of the present step
-    TimeUs deadline = kNever;      // Checking, Resetting, Heartbeat
+    unsigned tries_left = 0;   // of the present step
+    TimeUs deadline = kNever;  // Checking, Resetting, Heartbeat
     BootError error;
   };
   Slave* find(std::uint8_t id) noexcept;
   const Slave* find(std::uint8_t id) const noexcept;
-  void loadPlan(Slave& s);  // boot, ops and start grace from the dictionary (allocates)
+  void loadPlan(Slave& s);          // boot, ops and start grace from the dictionary (allocates)
   static void configOps(Slave& s);  // the writes, each TPDO COB-ID read first, then the read-backs
   static bool bootable(const Slave& s) noexcept { return (s.boot.assignment & kAssignBoot) != 0; }
   bool mayStartAny() const noexcept;  // begun as master, 0x1F80 bit 3 clear, the mandatory slaves booted
@@ -267,14 +267,15 @@ class NmtMaster {
   void startReady(TimeUs now) noexcept;
 
   // The boot process (nmt_boot.cpp), one step after the other.
-  bool resetAllAtOnce() const noexcept;            // at the master's start: no slave kept alive, none mid-transfer
-  void beginBoot(Slave& s, TimeUs now, bool reset_sent) noexcept;  // at the master's start: identity (kept alive) or reset
+  bool resetAllAtOnce() const noexcept;  // at the master's start: no slave kept alive, none mid-transfer
+  void beginBoot(Slave& s, TimeUs now,
+                 bool reset_sent) noexcept;                     // at the master's start: identity (kept alive) or reset
   void reset(Slave& s, TimeUs now, bool send = true) noexcept;  // NMT reset communication, then wait for the boot-up
   void steps(Slave& s, std::size_t from, bool checking) noexcept;  // the SDO steps from ops[from]
-  void checkNode(Slave& s, TimeUs now) noexcept;   // kept alive, identity checked: does it run?
+  void checkNode(Slave& s, TimeUs now) noexcept;                   // kept alive, identity checked: does it run?
   void keptRunning(Slave& s, TimeUs now) noexcept;
   void resetAfterCheck(Slave& s, TimeUs now) noexcept;
-  void runBoot(Slave& s) noexcept;                 // issues the next SDO step
+  void runBoot(Slave& s) noexcept;  // issues the next SDO step
   void onBootReply(Slave& s, std::uint32_t code, const std::uint8_t* data, std::size_t len) noexcept;
   bool checkReply(Slave& s, const Op& op, const std::uint8_t* data, std::size_t len) noexcept;
   static void keepRtr(Slave& s, const Op& op, std::uint32_t device_cob) noexcept;
@@ -282,7 +283,7 @@ class NmtMaster {
   void awaitHeartbeat(Slave& s, TimeUs now) noexcept;
   void done(Slave& s, TimeUs now) noexcept;
   void bootFailed(Slave& s, BootStep step, std::uint32_t code, std::string text) noexcept;
-  void onTimer(TimeUs now) noexcept;               // the deadlines of the steps and the boot time
+  void onTimer(TimeUs now) noexcept;  // the deadlines of the steps and the boot time
   void arm() noexcept;
   void onBootEvent(Slave& s, HeartbeatEvent ev, NmtState st, TimeUs now) noexcept;
 
@@ -297,7 +298,7 @@ class NmtMaster {
   Counters counters_;
   std::uint32_t startup_ = kStartupMaster;
   bool begun_ = false;
-  bool network_started_ = false;  // 0x1F80 bit 1: the start for all decided (sent, or each by itself)
+  bool network_started_ = false;   // 0x1F80 bit 1: the start for all decided (sent, or each by itself)
   TimeUs boot_deadline_ = kNever;  // 0x1F89 after begin()
   std::uint32_t boot_time_ms_ = 0;
 };

@@ -148,9 +148,8 @@ void Node::advance(TimeUs now) {
 
 TimeUs Node::nextDeadline() const {
   if (ctx_.state == NmtState::Initialising) return kNever;
-  TimeUs next = std::min({heartbeat_consumer_.nextDeadline(), heartbeat_producer_.nextDeadline(),
-                          sync_.nextDeadline(), emcy_.nextDeadline(), sdo_server_.nextDeadline(),
-                          sdo_client_.nextDeadline(), timer_at_});
+  TimeUs next = std::min({heartbeat_consumer_.nextDeadline(), heartbeat_producer_.nextDeadline(), sync_.nextDeadline(),
+                          emcy_.nextDeadline(), sdo_server_.nextDeadline(), sdo_client_.nextDeadline(), timer_at_});
   for (const auto& p : rpdos_)
     if (p->valid()) next = std::min(next, p->nextDeadline());
   for (const auto& p : tpdos_)

@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <limits>
 
-
 namespace pamc::canopen {
 
 namespace {
@@ -26,10 +25,8 @@ bool isSigned(DataType t) {
     case DataType::Integer8:
     case DataType::Integer16:
     case DataType::Integer32:
-    case DataType::Integer64:
-      return true;
-    default:
-      return false;
+    case DataType::Integer64: return true;
+    default: return false;
   }
 }
 
@@ -95,8 +92,7 @@ bool isSupportedDataType(std::uint16_t code) {
     case DataType::Domain:
     case DataType::Real64:
     case DataType::Integer64:
-    case DataType::Unsigned64:
-      return true;
+    case DataType::Unsigned64: return true;
   }
   return false;
 }
@@ -254,8 +250,7 @@ ObjectDictionary::ObjectDictionary(std::vector<ObjectInfo> objects, std::vector<
     e.default_ = defaults_.data() + e.offset_;
   }
 
-  std::sort(objects.begin(), objects.end(),
-            [](const ObjectInfo& a, const ObjectInfo& b) { return a.index < b.index; });
+  std::sort(objects.begin(), objects.end(), [](const ObjectInfo& a, const ObjectInfo& b) { return a.index < b.index; });
   // Entries without an explicit object description become VAR objects.
   for (std::size_t i = 0; i < entries_.size();) {
     std::uint16_t idx = entries_[i].index_;
@@ -305,8 +300,8 @@ const ObjectInfo* ObjectDictionary::object(std::uint16_t index) const {
 }
 
 void ObjectDictionary::throwTypeMismatch(const Entry& e) {
-  throw OdError("entry " + entryName(e.index(), e.subIndex()) + " (" + e.name() + ") is " +
-                dataTypeName(e.dataType()) + ", not the requested C++ type");
+  throw OdError("entry " + entryName(e.index(), e.subIndex()) + " (" + e.name() + ") is " + dataTypeName(e.dataType()) +
+                ", not the requested C++ type");
 }
 
 void ObjectDictionary::addValidator(std::uint16_t index, std::uint8_t sub, WriteValidator v) {
@@ -364,8 +359,7 @@ std::uint32_t ObjectDictionary::checkValue(const Entry& e, const std::uint8_t* d
   return kSdoOk;
 }
 
-std::uint32_t ObjectDictionary::remoteRead(const Entry& e, std::uint8_t* out, std::size_t cap,
-                                           std::size_t& len) const {
+std::uint32_t ObjectDictionary::remoteRead(const Entry& e, std::uint8_t* out, std::size_t cap, std::size_t& len) const {
   if (!e.readable()) return kAbortWriteOnly;
   len = e.size_;
   std::memcpy(out, e.value_, std::min(cap, e.size_));

@@ -55,18 +55,30 @@ int compareValues(DataType type, const std::uint8_t* a, const std::uint8_t* b, b
 // Maps a C++ type to the data types it may read or write (checked when a Ref is made).
 template <class T>
 constexpr bool dataTypeMatches(DataType t) {
-  if constexpr (std::is_same_v<T, bool>) return t == DataType::Boolean;
-  else if constexpr (std::is_same_v<T, std::int8_t>) return t == DataType::Integer8;
-  else if constexpr (std::is_same_v<T, std::int16_t>) return t == DataType::Integer16;
-  else if constexpr (std::is_same_v<T, std::int32_t>) return t == DataType::Integer32;
-  else if constexpr (std::is_same_v<T, std::int64_t>) return t == DataType::Integer64;
-  else if constexpr (std::is_same_v<T, std::uint8_t>) return t == DataType::Unsigned8 || t == DataType::Boolean;
-  else if constexpr (std::is_same_v<T, std::uint16_t>) return t == DataType::Unsigned16;
-  else if constexpr (std::is_same_v<T, std::uint32_t>) return t == DataType::Unsigned32;
-  else if constexpr (std::is_same_v<T, std::uint64_t>) return t == DataType::Unsigned64;
-  else if constexpr (std::is_same_v<T, float>) return t == DataType::Real32;
-  else if constexpr (std::is_same_v<T, double>) return t == DataType::Real64;
-  else return false;
+  if constexpr (std::is_same_v<T, bool>)
+    return t == DataType::Boolean;
+  else if constexpr (std::is_same_v<T, std::int8_t>)
+    return t == DataType::Integer8;
+  else if constexpr (std::is_same_v<T, std::int16_t>)
+    return t == DataType::Integer16;
+  else if constexpr (std::is_same_v<T, std::int32_t>)
+    return t == DataType::Integer32;
+  else if constexpr (std::is_same_v<T, std::int64_t>)
+    return t == DataType::Integer64;
+  else if constexpr (std::is_same_v<T, std::uint8_t>)
+    return t == DataType::Unsigned8 || t == DataType::Boolean;
+  else if constexpr (std::is_same_v<T, std::uint16_t>)
+    return t == DataType::Unsigned16;
+  else if constexpr (std::is_same_v<T, std::uint32_t>)
+    return t == DataType::Unsigned32;
+  else if constexpr (std::is_same_v<T, std::uint64_t>)
+    return t == DataType::Unsigned64;
+  else if constexpr (std::is_same_v<T, float>)
+    return t == DataType::Real32;
+  else if constexpr (std::is_same_v<T, double>)
+    return t == DataType::Real64;
+  else
+    return false;
 }
 
 // Thrown while configuring (unknown entry, wrong type); never on the cyclic path.

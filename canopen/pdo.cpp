@@ -30,7 +30,8 @@ std::string pdoName(const char* kind, unsigned number, std::uint16_t map_index) 
 std::string mappingText(std::uint32_t v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "0x%08X (0x%04X:%02X, %u bits)", static_cast<unsigned>(v),
-                static_cast<unsigned>(v >> 16), static_cast<unsigned>((v >> 8) & 0xFF), static_cast<unsigned>(v & 0xFF));
+                static_cast<unsigned>(v >> 16), static_cast<unsigned>((v >> 8) & 0xFF),
+                static_cast<unsigned>(v & 0xFF));
   return buf;
 }
 
@@ -55,40 +56,38 @@ void installHooks(NodeContext& ctx, Pdo* pdo, std::uint16_t comm, std::uint16_t 
         if (new_valid && restrictedCobId(id)) return kAbortValueRange;
         return kSdoOk;
       }
-      case kTypeSub:
-        return typeAllowed(static_cast<std::uint8_t>(v)) ? kSdoOk : kAbortValueRange;
-      case kInhibitSub:
-        return pdo->valid() ? kAbortDeviceState : kSdoOk;
+      case kTypeSub: return typeAllowed(static_cast<std::uint8_t>(v)) ? kSdoOk : kAbortValueRange;
+      case kInhibitSub: return pdo->valid() ? kAbortDeviceState : kSdoOk;
       case kSyncStartSub:
         if (pdo->valid()) return kAbortDeviceState;
         return v <= kPdoSyncMax ? kSdoOk : kAbortValueRange;
-      default:
-        return kSdoOk;
+      default: return kSdoOk;
     }
   });
   // Mapping follows the CiA 301 procedure: disable PDO, sub0 = 0, write entries, sub0 = n, enable.
-  od.addValidator(map_index, [&ctx, pdo, map_index, receive](const Entry& e, const std::uint8_t* d,
-                                                                std::size_t len) -> std::uint32_t {
-    if (pdo->valid()) return kAbortDeviceState;
-    if (e.subIndex() == 0) {
-      if (len != 1) return kSdoOk;
-      if (d[0] > 8) return kAbortValueRange;
-      unsigned total = 0;
-      for (std::uint8_t i = 1; i <= d[0]; ++i) {
-        const Entry* m = ctx.od.find(map_index, i);
-        if (m == nullptr) return kAbortNoSubIndex;
-        std::uint8_t bytes = 0;
-        std::uint32_t code = PdoMap::check(ctx.od, static_cast<std::uint32_t>(m->asUnsigned()), receive, &bytes);
-        if (code != kSdoOk) return code;
-        total += bytes;
-      }
-      return total > 8 ? kAbortPdoLength : kSdoOk;
-    }
-    if (len != 4) return kSdoOk;
-    if (readOr(ctx.od, map_index, 0, 0) != 0) return kAbortDeviceState;
-    std::uint32_t v = getU32(d);
-    return v == 0 ? kSdoOk : PdoMap::check(ctx.od, v, receive, nullptr);
-  });
+  od.addValidator(
+      map_index,
+      [&ctx, pdo, map_index, receive](const Entry& e, const std::uint8_t* d, std::size_t len) -> std::uint32_t {
+        if (pdo->valid()) return kAbortDeviceState;
+        if (e.subIndex() == 0) {
+          if (len != 1) return kSdoOk;
+          if (d[0] > 8) return kAbortValueRange;
+          unsigned total = 0;
+          for (std::uint8_t i = 1; i <= d[0]; ++i) {
+            const Entry* m = ctx.od.find(map_index, i);
+            if (m == nullptr) return kAbortNoSubIndex;
+            std::uint8_t bytes = 0;
+            std::uint32_t code = PdoMap::check(ctx.od, static_cast<std::uint32_t>(m->asUnsigned()), receive, &bytes);
+            if (code != kSdoOk) return code;
+            total += bytes;
+          }
+          return total > 8 ? kAbortPdoLength : kSdoOk;
+        }
+        if (len != 4) return kSdoOk;
+        if (readOr(ctx.od, map_index, 0, 0) != 0) return kAbortDeviceState;
+        std::uint32_t v = getU32(d);
+        return v == 0 ? kSdoOk : PdoMap::check(ctx.od, v, receive, nullptr);
+      });
   od.addObserver(comm, [pdo](Entry&) { pdo->reconfigure(); });
   od.addObserver(map_index, [pdo](Entry&) { pdo->reconfigure(); });
 }
@@ -169,8 +168,10 @@ std::uint32_t PdoMap::build(ObjectDictionary& od, std::uint16_t map_index, bool 
 void PdoMap::encode(std::uint8_t* out) const {
   for (std::uint8_t i = 0; i < count_; ++i) {
     const Field& f = fields_[i];
-    if (f.ptr != nullptr) std::memcpy(out, f.ptr, f.len);
-    else std::memset(out, 0, f.len);
+    if (f.ptr != nullptr)
+      std::memcpy(out, f.ptr, f.len);
+    else
+      std::memset(out, 0, f.len);
     out += f.len;
   }
 }

@@ -13,7 +13,7 @@ namespace pamc::canopen {
 inline constexpr std::uint32_t kPdoInvalidBit = 0x80000000;   // COB-ID bit 31: PDO does not exist
 inline constexpr std::uint32_t kPdoNoRtrBit = 0x40000000;     // COB-ID bit 30: no RTR allowed
 inline constexpr std::uint32_t kPdoExtendedBit = 0x20000000;  // COB-ID bit 29: 29-bit identifier (unsupported)
-inline constexpr std::uint8_t kPdoSyncAcyclic = 0;             // transmission type 0
+inline constexpr std::uint8_t kPdoSyncAcyclic = 0;            // transmission type 0
 inline constexpr std::uint8_t kPdoSyncMax = 240;              // types 1..240: every n-th SYNC
 inline constexpr std::uint8_t kPdoEventManufacturer = 254;
 inline constexpr std::uint8_t kPdoEventProfile = 255;

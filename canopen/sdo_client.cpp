@@ -9,8 +9,7 @@ namespace pamc::canopen {
 SdoClient::SdoClient(NodeContext& ctx, TimeUs timeout_us, std::size_t buffer_size)
     : ctx_(ctx), timeout_us_(timeout_us), buffer_(std::max<std::size_t>(buffer_size, 8)) {}
 
-bool SdoClient::begin(std::uint8_t server_node, std::uint16_t index, std::uint8_t sub, Callback done,
-                      State state) {
+bool SdoClient::begin(std::uint8_t server_node, std::uint16_t index, std::uint8_t sub, Callback done, State state) {
   if (state_ != State::Idle || server_node == 0 || server_node > 127) return false;
   tx_id_ = kSdoRequestBase + server_node;
   rx_id_ = kSdoResponseBase + server_node;
@@ -46,8 +45,7 @@ bool SdoClient::download(std::uint8_t server_node, std::uint16_t index, std::uin
 
 bool SdoClient::upload(std::uint8_t server_node, std::uint16_t index, std::uint8_t sub, Callback done) {
   if (!begin(server_node, index, sub, std::move(done), State::UploadInitiate)) return false;
-  std::uint8_t d[8] = {0x40, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub,
-                       0,    0,                                0,                                     0};
+  std::uint8_t d[8] = {0x40, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub, 0, 0, 0, 0};
   request(d);
   return true;
 }
@@ -64,8 +62,8 @@ void SdoClient::finish(std::uint32_t code, const std::uint8_t* data, std::size_t
 }
 
 void SdoClient::fail(std::uint32_t code) {
-  std::uint8_t d[8] = {0x80, static_cast<std::uint8_t>(index_), static_cast<std::uint8_t>(index_ >> 8), sub_,
-                       0,    0,                                 0,                                      0};
+  std::uint8_t d[8] = {0x80, static_cast<std::uint8_t>(index_), static_cast<std::uint8_t>(index_ >> 8), sub_, 0, 0, 0,
+                       0};
   putU32(d + 4, code);
   request(d);
   ++ctx_.counters.sdo_aborts_sent;
@@ -79,8 +77,8 @@ void SdoClient::abort(std::uint32_t code) {
 void SdoClient::sendSegment() {
   std::size_t n = std::min<std::size_t>(7, size_ - offset_);
   last_sent_ = offset_ + n >= size_;
-  std::uint8_t d[8] = {static_cast<std::uint8_t>((toggle_ << 4) | ((7 - n) << 1) | (last_sent_ ? 1 : 0)), 0, 0, 0,
-                       0, 0, 0, 0};
+  std::uint8_t d[8] = {
+      static_cast<std::uint8_t>((toggle_ << 4) | ((7 - n) << 1) | (last_sent_ ? 1 : 0)), 0, 0, 0, 0, 0, 0, 0};
   std::memcpy(d + 1, buffer_.data() + offset_, n);
   offset_ += n;
   request(d);
@@ -143,8 +141,7 @@ void SdoClient::onFrame(const Frame& f, TimeUs now) {
       std::uint8_t d[8] = {static_cast<std::uint8_t>(0x60 | (toggle_ << 4)), 0, 0, 0, 0, 0, 0, 0};
       return request(d);
     }
-    case State::Idle:
-      break;
+    case State::Idle: break;
   }
 }
 

@@ -157,8 +157,10 @@ void SdoServer::uploadSegment(const Frame& f, TimeUs now) {
   std::memcpy(d + 1, buffer_.data() + offset_, n);
   offset_ += n;
   toggle_ ^= 1;
-  if (last) state_ = State::Idle;
-  else deadline_us_ = now + timeout_us_;
+  if (last)
+    state_ = State::Idle;
+  else
+    deadline_us_ = now + timeout_us_;
   respond(d);
 }
 

@@ -19,14 +19,14 @@ const char* nmtStateName(NmtState s);
 struct Counters {
   std::uint64_t rx_frames = 0;
   std::uint64_t tx_frames = 0;
-  std::uint64_t tx_dropped = 0;         // the transport refused the frame (queue full)
-  std::uint64_t unknown_cob_id = 0;     // no service listens to the identifier
-  std::uint64_t wrong_length = 0;       // a service's frame with a DLC the protocol does not allow
+  std::uint64_t tx_dropped = 0;          // the transport refused the frame (queue full)
+  std::uint64_t unknown_cob_id = 0;      // no service listens to the identifier
+  std::uint64_t wrong_length = 0;        // a service's frame with a DLC the protocol does not allow
   std::uint64_t unsupported_frames = 0;  // RTR or 29-bit frames (CANopen here uses 11-bit data frames)
-  std::uint64_t error_frames = 0;       // SocketCAN error frames
-  std::uint64_t ignored_in_state = 0;   // valid frames the current NMT state does not process
+  std::uint64_t error_frames = 0;        // SocketCAN error frames
+  std::uint64_t ignored_in_state = 0;    // valid frames the current NMT state does not process
   std::uint64_t nmt_invalid_command = 0;
-  std::uint64_t sync_overruns = 0;      // SYNC producer woke more than one period late and skipped SYNCs
+  std::uint64_t sync_overruns = 0;  // SYNC producer woke more than one period late and skipped SYNCs
   std::uint64_t sdo_aborts_sent = 0;
   std::uint64_t sdo_aborts_received = 0;
   std::uint64_t emcy_dropped = 0;       // EMCY queue full while the inhibit time ran
@@ -44,7 +44,7 @@ struct NodeContext {
   Transport& transport;
   Counters& counters;
   NmtState state = NmtState::Initialising;
-  TimeUs now = 0;  // the last time the node was told (onFrame/advance); services never read a clock
+  TimeUs now = 0;                // the last time the node was told (onFrame/advance); services never read a clock
   TimeUs last_sync_us = kNever;  // last SYNC produced or consumed (kNever: none since configuration)
   TimeUs sync_window_us = 0;     // 0x1007 synchronous window length (0: not used)
   std::uint32_t pdo_epoch = 0;   // counts the PDOs' reconfigurations (the node's list of live ones follows)

@@ -30,8 +30,8 @@ struct SocketCanStats {
   // Queued with a deadline (sendUntil) and dropped unsent: the deadline passed before the frame could be
   // written, or the queue was full and the room went to a frame without a deadline (see sendUntil).
   std::uint64_t tx_expired = 0;
-  std::uint64_t tx_errors = 0;   // other write errors (e.g. ENETDOWN)
-  std::uint64_t rx_errors = 0;   // read errors other than EAGAIN
+  std::uint64_t tx_errors = 0;  // other write errors (e.g. ENETDOWN)
+  std::uint64_t rx_errors = 0;  // read errors other than EAGAIN
   std::uint64_t error_frames = 0;
 };
 

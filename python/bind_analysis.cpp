@@ -20,7 +20,8 @@ ident::FitMethod methodOf(const std::string& name, const model::Model& structure
 }
 
 py::tuple fit(const io::Measurement& d, const std::vector<std::string>& effects, const std::string& method,
-              std::uint64_t seed, int threads, const std::string& output_form, const std::optional<model::Model>& start) {
+              std::uint64_t seed, int threads, const std::string& output_form,
+              const std::optional<model::Model>& start) {
   model::Model structure;
   model::OutputForm form;
   if (!model::parseOutputForm(output_form, form))
@@ -57,17 +58,26 @@ py::dict diagnoseData(const io::Measurement& d, const std::optional<io::Measurem
   diagnose::DiagnoseSettings s;
   for (const auto& [k, v] : kw) {
     const std::string name = py::str(k);
-    if (name == "holdout") s.holdout = v.cast<double>();
-    else if (name == "max_effects") s.max_effects = v.cast<int>();
-    else if (name == "min_gain") s.min_gain = v.cast<double>();
-    else if (name == "candidates") s.candidates = v.cast<std::vector<std::string>>();
-    else if (name == "seed") s.seed = v.cast<std::uint64_t>();
-    else if (name == "threads") s.threads = v.cast<int>();
-    else if (name == "method") s.method = ident::fitMethodFromString(v.cast<std::string>());
-    else if (name == "probes") s.probes = v.cast<bool>();
+    if (name == "holdout")
+      s.holdout = v.cast<double>();
+    else if (name == "max_effects")
+      s.max_effects = v.cast<int>();
+    else if (name == "min_gain")
+      s.min_gain = v.cast<double>();
+    else if (name == "candidates")
+      s.candidates = v.cast<std::vector<std::string>>();
+    else if (name == "seed")
+      s.seed = v.cast<std::uint64_t>();
+    else if (name == "threads")
+      s.threads = v.cast<int>();
+    else if (name == "method")
+      s.method = ident::fitMethodFromString(v.cast<std::string>());
+    else if (name == "probes")
+      s.probes = v.cast<bool>();
     else if (name == "output_form" && !model::parseOutputForm(v.cast<std::string>(), s.output_form))
       throw std::invalid_argument("output_form: '" + v.cast<std::string>() + "' (aligned, printed)");
-    else if (name != "output_form") throw py::type_error("diagnose: unknown setting '" + name + "'");
+    else if (name != "output_form")
+      throw py::type_error("diagnose: unknown setting '" + name + "'");
   }
   diagnose::DiagnoseResult r;
   {
@@ -79,9 +89,9 @@ py::dict diagnoseData(const io::Measurement& d, const std::optional<io::Measurem
   return out;
 }
 
-py::dict experiments(const std::string& out_dir, const std::vector<std::string>& only, std::uint64_t seed,
-                     bool figures, const py::object& plant, const py::object& model, const std::string& sine_start,
-                     bool verbose, const py::kwargs& gains) {
+py::dict experiments(const std::string& out_dir, const std::vector<std::string>& only, std::uint64_t seed, bool figures,
+                     const py::object& plant, const py::object& model, const std::string& sine_start, bool verbose,
+                     const py::kwargs& gains) {
   sim::ExperimentSettings s;
   if (!plant.is_none()) {
     s.plant = plantConfigOf(plant);
@@ -112,9 +122,12 @@ void bindAnalysis(py::module_& m) {
   m.def("_fit", &fit, py::arg("data"), py::arg("effects"), py::arg("method"), py::arg("seed"), py::arg("threads"),
         py::arg("output_form"), py::arg("start"));
   m.def("_compare", &compare, py::arg("model"), py::arg("data"));
-  m.def("_diagnose", [](const io::Measurement& d, const std::optional<io::Measurement>& val, const py::kwargs& kw) {
-    return diagnoseData(d, val, kw);
-  }, py::arg("data"), py::arg("validate") = py::none());
+  m.def(
+      "_diagnose",
+      [](const io::Measurement& d, const std::optional<io::Measurement>& val, const py::kwargs& kw) {
+        return diagnoseData(d, val, kw);
+      },
+      py::arg("data"), py::arg("validate") = py::none());
   m.def("experiments", &experiments, py::arg("out_dir") = "results", py::arg("only") = std::vector<std::string>{},
         py::arg("seed") = 1, py::arg("figures") = false, py::arg("plant") = py::none(), py::arg("model") = py::none(),
         py::arg("sine_start") = "centre", py::arg("verbose") = false);

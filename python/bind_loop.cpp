@@ -87,11 +87,14 @@ void bindTrajectory(py::module_& m) {
   py::class_<control::Trajectory>(m, "Trajectory")
       .def(py::init(&control::Trajectory::parse), py::arg("spec"))
       .def("at", &control::Trajectory::at, py::arg("t"))
-      .def("__call__", [](const control::Trajectory& tr, const Array& t) {
-        std::vector<double> v = toVector(t, "t");
-        for (double& x : v) x = tr.at(x);
-        return toArray(std::move(v));
-      }, py::arg("t"))
+      .def(
+          "__call__",
+          [](const control::Trajectory& tr, const Array& t) {
+            std::vector<double> v = toVector(t, "t");
+            for (double& x : v) x = tr.at(x);
+            return toArray(std::move(v));
+          },
+          py::arg("t"))
       .def("describe", &control::Trajectory::describe)
       .def("__repr__", [](const control::Trajectory& tr) { return "<pamc.Trajectory " + tr.describe() + ">"; });
 }
@@ -117,14 +120,18 @@ void bindController(py::module_& m) {
       .def_property_readonly("Ts", [](const PyController& c) { return c.config.Ts; })
       .def_property_readonly("integral", [](const PyController& c) { return c.impl->integral(); })
       .def_property_readonly("last", [](const PyController& c) { return lastOutput(c.last); })
-      .def("activate", [](PyController& c, double u0, double y0) { c.impl->activate(u0, y0); }, py::arg("u0"),
-           py::arg("y0"))
-      .def("update", [](PyController& c, double yd, double yd_next, double y, double load) {
-        c.last = c.impl->update(yd, yd_next, y, load);
-        return c.last.u;
-      }, py::arg("yd"), py::arg("yd_next"), py::arg("y"), py::arg("load") = 0.0);
-  m.def("closed_loop", &closedLoop, py::arg("controller"), py::arg("plant"), py::arg("reference"),
-        py::arg("duration"), py::arg("u0") = 0.0, py::arg("preroll") = 5.0, py::arg("home") = py::none());
+      .def(
+          "activate", [](PyController& c, double u0, double y0) { c.impl->activate(u0, y0); }, py::arg("u0"),
+          py::arg("y0"))
+      .def(
+          "update",
+          [](PyController& c, double yd, double yd_next, double y, double load) {
+            c.last = c.impl->update(yd, yd_next, y, load);
+            return c.last.u;
+          },
+          py::arg("yd"), py::arg("yd_next"), py::arg("y"), py::arg("load") = 0.0);
+  m.def("closed_loop", &closedLoop, py::arg("controller"), py::arg("plant"), py::arg("reference"), py::arg("duration"),
+        py::arg("u0") = 0.0, py::arg("preroll") = 5.0, py::arg("home") = py::none());
 }
 
 }  // namespace

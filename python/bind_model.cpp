@@ -58,20 +58,21 @@ py::object column(const io::Measurement& m, const std::string& name, const py::h
 
 void bindMeasurement(py::module_& mod) {
   py::class_<io::Measurement>(mod, "Measurement")
-      .def(py::init([](const Array& t, const Array& u, const Array& y, const std::string& source, const py::kwargs& kw) {
-             return measurementOf(t, u, y, kw, source);
-           }),
+      .def(py::init([](const Array& t, const Array& u, const Array& y, const std::string& source,
+                       const py::kwargs& kw) { return measurementOf(t, u, y, kw, source); }),
            py::arg("t"), py::arg("u"), py::arg("y"), py::kw_only(), py::arg("source") = "arrays")
       .def_property_readonly("t", [](py::object s) { return viewOf(s.cast<const io::Measurement&>().t, s); })
       .def_property_readonly("u", [](py::object s) { return viewOf(s.cast<const io::Measurement&>().u, s); })
       .def_property_readonly("y", [](py::object s) { return viewOf(s.cast<const io::Measurement&>().y, s); })
       .def_property_readonly("load", [](py::object s) { return column(s.cast<const io::Measurement&>(), "load", s); })
       .def_property_readonly("p", [](py::object s) { return column(s.cast<const io::Measurement&>(), "p", s); })
-      .def_property_readonly("columns", [](py::object s) {
-        py::dict d;
-        for (const auto& [k, v] : s.cast<const io::Measurement&>().extra) d[py::str(k)] = viewOf(v, s);
-        return d;
-      })
+      .def_property_readonly("columns",
+                             [](py::object s) {
+                               py::dict d;
+                               for (const auto& [k, v] : s.cast<const io::Measurement&>().extra)
+                                 d[py::str(k)] = viewOf(v, s);
+                               return d;
+                             })
       .def_readonly("Ts", &io::Measurement::Ts)
       .def_readonly("source", &io::Measurement::source)
       .def("__len__", &io::Measurement::size)
@@ -79,20 +80,26 @@ void bindMeasurement(py::module_& mod) {
         return "<pamc.Measurement " + m.source + ": " + std::to_string(m.size()) + " samples>";
       });
 
-  mod.def("read_csv", [](const py::object& p) {
-    const std::string path = pathOf(p);
-    std::vector<std::string> warnings;
-    auto m = readingFile(path, [&] { return io::readMeasurementCsv(path, &warnings); });
-    for (const auto& w : warnings) PyErr_WarnEx(PyExc_UserWarning, w.c_str(), 1);
-    return m;
-  }, py::arg("path"));
-  mod.def("write_csv", [](const py::object& p, const Array& t, const Array& u, const Array& y, const py::kwargs& kw) {
-    const auto m = measurementOf(t, u, y, kw, pathOf(p));
-    std::vector<std::string> header{"t", "u", "y"};
-    std::vector<const std::vector<double>*> cols{&m.t, &m.u, &m.y};
-    for (const auto& [k, v] : m.extra) header.push_back(k), cols.push_back(&v);
-    io::writeCsvAtomic(m.source, header, cols, 17);
-  }, py::arg("path"), py::arg("t"), py::arg("u"), py::arg("y"));
+  mod.def(
+      "read_csv",
+      [](const py::object& p) {
+        const std::string path = pathOf(p);
+        std::vector<std::string> warnings;
+        auto m = readingFile(path, [&] { return io::readMeasurementCsv(path, &warnings); });
+        for (const auto& w : warnings) PyErr_WarnEx(PyExc_UserWarning, w.c_str(), 1);
+        return m;
+      },
+      py::arg("path"));
+  mod.def(
+      "write_csv",
+      [](const py::object& p, const Array& t, const Array& u, const Array& y, const py::kwargs& kw) {
+        const auto m = measurementOf(t, u, y, kw, pathOf(p));
+        std::vector<std::string> header{"t", "u", "y"};
+        std::vector<const std::vector<double>*> cols{&m.t, &m.u, &m.y};
+        for (const auto& [k, v] : m.extra) header.push_back(k), cols.push_back(&v);
+        io::writeCsvAtomic(m.source, header, cols, 17);
+      },
+      py::arg("path"), py::arg("t"), py::arg("u"), py::arg("y"));
 }
 
 py::dict parameters(const Model& m) {
@@ -110,7 +117,8 @@ void setParameters(Model& m, const py::dict& d) {
     const std::string name = py::str(k);
     size_t i = 0;
     while (i < specs.size() && specs[i].name != name) ++i;
-    if (i == specs.size()) throw std::invalid_argument("parameters: '" + name + "' is not a parameter of " + m.describe());
+    if (i == specs.size())
+      throw std::invalid_argument("parameters: '" + name + "' is not a parameter of " + m.describe());
     p[i] = v.cast<double>();
   }
   m.setParams(p);
@@ -174,14 +182,21 @@ void bindModel(py::module_& mod) {
              return m;
            }),
            py::arg("effects") = std::vector<std::string>{}, py::arg("output_form") = "aligned")
-      .def_static("load", [](const py::object& p) {
-        const std::string path = pathOf(p);
-        return readingFile(path, [&] { return io::readModelFile(path); });
-      }, py::arg("path"))
-      .def("save", [](const Model& m, const py::object& p, const py::object& fit) {
-        io::writeModelFile(pathOf(p), m, fit.is_none() ? nlohmann::json{} : fromPython(fit));
-      }, py::arg("path"), py::arg("fit") = py::none())
-      .def_static("from_dict", [](const py::object& d) { return io::modelFromJson(fromPython(d), "dict"); }, py::arg("d"))
+      .def_static(
+          "load",
+          [](const py::object& p) {
+            const std::string path = pathOf(p);
+            return readingFile(path, [&] { return io::readModelFile(path); });
+          },
+          py::arg("path"))
+      .def(
+          "save",
+          [](const Model& m, const py::object& p, const py::object& fit) {
+            io::writeModelFile(pathOf(p), m, fit.is_none() ? nlohmann::json{} : fromPython(fit));
+          },
+          py::arg("path"), py::arg("fit") = py::none())
+      .def_static(
+          "from_dict", [](const py::object& d) { return io::modelFromJson(fromPython(d), "dict"); }, py::arg("d"))
       .def("to_dict", [](const Model& m) { return toPython(io::modelToJson(m)); })
       .def_property("parameters", &parameters, &setParameters)
       .def_property_readonly("effects", &Model::effectNames)

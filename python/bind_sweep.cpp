@@ -84,7 +84,8 @@ py::list pointsList(const std::vector<sim::CalibrationPoint>& points) {
 }
 
 // One candidate plant's points (a task on a worker): its runs in work_dir.
-py::list calibrationPlant(const std::vector<double>& ki_grid, const std::vector<double>& values, const std::string& work_dir) {
+py::list calibrationPlant(const std::vector<double>& ki_grid, const std::vector<double>& values,
+                          const std::string& work_dir) {
   const sim::CalibrationSettings s = calibrationSettings(ki_grid, {}, work_dir);
   std::vector<sim::CalibrationPoint> points;
   {

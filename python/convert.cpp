@@ -14,8 +14,9 @@ bool fileExists(const std::string& path) {
 }
 
 std::vector<double> toVector(const Array& a, const char* what) {
-  if (a.ndim() != 1) throw std::invalid_argument(std::string(what) + ": a 1-D array is needed, got " +
-                                                 std::to_string(a.ndim()) + " dimensions");
+  if (a.ndim() != 1)
+    throw std::invalid_argument(std::string(what) + ": a 1-D array is needed, got " + std::to_string(a.ndim()) +
+                                " dimensions");
   return std::vector<double>(a.data(), a.data() + a.size());
 }
 

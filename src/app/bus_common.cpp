@@ -79,8 +79,10 @@ nodes::RigFile readRig(const std::string& path) {
   nodes::RigFile rig = nodes::readRigFile(path);
   static std::set<std::string> told;
   if (rig.one_muscle_form && told.insert(path).second)
-    std::fprintf(stderr, "notice: %s is in the one-muscle form ([sensor], [valve]): read as channel 1; the form of slaves "
-                 "and channels ([slave.NAME], [channel.N]) replaces it (docs/RIG.md, od/rigs/default.ini)\n", path.c_str());
+    std::fprintf(stderr,
+                 "notice: %s is in the one-muscle form ([sensor], [valve]): read as channel 1; the form of slaves "
+                 "and channels ([slave.NAME], [channel.N]) replaces it (docs/RIG.md, od/rigs/default.ini)\n",
+                 path.c_str());
   return rig;
 }
 
@@ -89,8 +91,9 @@ void printJoints(const std::vector<nodes::RigJoint>& joints, const TrackingSumma
     const auto& x = t.ch[joints[j].flexor];
     if (x.n == 0) continue;
     const double deg_per_mm = 180.0 / M_PI / joints[j].lever_mm;
-    std::printf("joint %zu (channels %zu, %zu): angle tracking RMSE %.3f deg, max %.3f deg\n", j + 1, joints[j].flexor + 1,
-                joints[j].extensor + 1, std::sqrt(x.acc / static_cast<double>(x.n)) * deg_per_mm, x.max * deg_per_mm);
+    std::printf("joint %zu (channels %zu, %zu): angle tracking RMSE %.3f deg, max %.3f deg\n", j + 1,
+                joints[j].flexor + 1, joints[j].extensor + 1, std::sqrt(x.acc / static_cast<double>(x.n)) * deg_per_mm,
+                x.max * deg_per_mm);
   }
 }
 
@@ -100,7 +103,6 @@ void BusLoad::print() const {
               100.0 * meter.load(s, bitrate), bitrate / 1000, static_cast<unsigned long long>(meter.frames()),
               static_cast<unsigned long long>(meter.bits()), s);
 }
-
 
 std::unique_ptr<canopen::SocketCanTransport> openCan(const std::string& iface) {
   try {
@@ -129,12 +131,14 @@ std::string defaultOdDir() {
 }
 
 void OdOption::add(CLI::App* a) {
-  a->add_option("--od", dir, "folder with the EDS files (controller.eds, sensor.eds, valve.eds)")->capture_default_str();
+  a->add_option("--od", dir, "folder with the EDS files (controller.eds, sensor.eds, valve.eds)")
+      ->capture_default_str();
 }
 
 void BusDictionaryOptions::add(CLI::App* a) {
-  a->add_option("--rig", rig, "rig file (docs/RIG.md): decode the rig's devices - their COB-IDs and scaling - "
-                              "as the controller configured them, instead of the EDS files of --od");
+  a->add_option("--rig", rig,
+                "rig file (docs/RIG.md): decode the rig's devices - their COB-IDs and scaling - "
+                "as the controller configured them, instead of the EDS files of --od");
   a->add_option("--eds", eds, "further EDS files (devices not in --od or the rig), repeatable");
 }
 
@@ -156,13 +160,15 @@ void EmulatorOptions::add(CLI::App* a) {
   a->add_option("--plant", plant_file, "plant emulator config (JSON)");
   a->add_option("--sensor-silent-at", ec.sensor_silent_at_s, "the sensor node goes silent at this time [s]");
   a->add_option("--sensor-silent-for", ec.sensor_silent_for_s, "... for this long [s]");
-  a->add_option("--drop-pdo", ec.drop_pdo_prob, "probability of dropping each position PDO")->check(CLI::Range(0.0, 1.0));
+  a->add_option("--drop-pdo", ec.drop_pdo_prob, "probability of dropping each position PDO")
+      ->check(CLI::Range(0.0, 1.0));
   a->add_option("--late-pdo", ec.late_pdo_cycles, "position PDOs this many cycles late")->check(CLI::Range(0, 255));
   a->add_option("--payload", payload, "payload step TIME:NEWTONS, e.g. 10:40");
-  a->add_flag("--profile-defaults", profile_defaults,
-              "play off-the-shelf devices with their makers' defaults instead of pamc's own (od/profile/: a CiA 406 "
-              "encoder, node 16, 5 um steps, asynchronous PDO; a CiA 401 analog I/O module, node 32, valve on output 2, "
-              "no heartbeats): only a controller that configures them (--rig od/rigs/profile.ini) can use them");
+  a->add_flag(
+      "--profile-defaults", profile_defaults,
+      "play off-the-shelf devices with their makers' defaults instead of pamc's own (od/profile/: a CiA 406 "
+      "encoder, node 16, 5 um steps, asynchronous PDO; a CiA 401 analog I/O module, node 32, valve on output 2, "
+      "no heartbeats): only a controller that configures them (--rig od/rigs/profile.ini) can use them");
 }
 
 nodes::EmulatorConfig EmulatorOptions::config(const std::string& od_dir, unsigned period_us) const {
@@ -189,17 +195,20 @@ nodes::EmulatorConfig EmulatorOptions::config(const std::string& od_dir, unsigne
 }
 
 void RealtimeOptions::add(CLI::App* a, const std::string& what, const std::string& new_path) {
-  a->add_flag("--realtime", rt, what + "; SCHED_FIFO at --priority, mlockall, pinned to --cpu (a warning when not permitted)");
+  a->add_flag("--realtime", rt,
+              what + "; SCHED_FIFO at --priority, mlockall, pinned to --cpu (a warning when not permitted)");
   addOldFlag(a, "--rt", (new_path.empty() ? commandPath(a) : new_path) + " --realtime", rt);
   a->add_option("--cpu", cpu, "with --realtime: pin the process to this CPU");
-  a->add_option("--priority", priority, "with --realtime: SCHED_FIFO priority and mlockall (0: normal scheduling, no mlockall)")
+  a->add_option("--priority", priority,
+                "with --realtime: SCHED_FIFO priority and mlockall (0: normal scheduling, no mlockall)")
       ->capture_default_str()
       ->check(CLI::Range(0, 99));
 }
 
 void InterfaceOption::add(CLI::App* a, bool with_rig) {
-  a->add_option("--iface", name, std::string("CAN interface (can0, vcan0, ...; default: ") +
-                                     (with_rig ? "the rig file's, else " : "") + nodes::kDefaultInterface + ")");
+  a->add_option("--iface", name,
+                std::string("CAN interface (can0, vcan0, ...; default: ") + (with_rig ? "the rig file's, else " : "") +
+                    nodes::kDefaultInterface + ")");
 }
 
 std::string InterfaceOption::resolve(const std::string& rig_file) const {

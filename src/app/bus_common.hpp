@@ -161,7 +161,6 @@ class Logger {
   std::atomic<bool> quit_{false};
 };
 
-
 // A rig file as the commands read it (nodes::readRigFile): a file in the one-muscle form ([sensor],
 // [valve]) gets one notice on stderr per run that it reads as one channel and the form of slaves and
 // channels replaces it.

@@ -50,13 +50,17 @@ class CalibrateCommand final : public Command {
                                    "tuned on (Table 1 and Table 2's triangle row) - nothing else; prints every point "
                                    "tried (docs/CALIBRATION.md)")) {
     cmd_->footer("Free parameters (one at a time, the best kept, --passes times over):\n" + axesText());
-    cmd_->add_option("--ki-grid", ki_, "comma list of PI integral gains to try [V/(mm s)] (0.15: as printed)")->capture_default_str();
+    cmd_->add_option("--ki-grid", ki_, "comma list of PI integral gains to try [V/(mm s)] (0.15: as printed)")
+        ->capture_default_str();
     cmd_->add_option("--passes", passes_, "passes of the coordinate search over the free parameters")
         ->capture_default_str()
         ->check(CLI::Range(1, 5));
-    cmd_->add_option("--axes", axes_, "comma list of the free parameters to search (default: all; the others stay "
-                                      "at their nominal values)");
-    cmd_->add_option("--threads", threads_, "plants evaluated at once")->capture_default_str()->check(CLI::Range(1, 64));
+    cmd_->add_option("--axes", axes_,
+                     "comma list of the free parameters to search (default: all; the others stay "
+                     "at their nominal values)");
+    cmd_->add_option("--threads", threads_, "plants evaluated at once")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 64));
     cmd_->add_option("--out-dir", work_, "directory for every point's runs")->capture_default_str();
     cmd_->add_option("--out", out_, "also write the table (Markdown) to this file");
   }

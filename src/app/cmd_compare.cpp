@@ -13,8 +13,9 @@ namespace {
 class CompareCommand final : public Command {
  public:
   explicit CompareCommand(CLI::App& app)
-      : Command(app.add_subcommand("compare", "simulate a model on a measurement's input and show where it fails: "
-                                              "RMSE, max error, fit %, error by where it happens, residual tests, figures")) {
+      : Command(app.add_subcommand("compare",
+                                   "simulate a model on a measurement's input and show where it fails: "
+                                   "RMSE, max error, fit %, error by where it happens, residual tests, figures")) {
     cmd_->add_option("model", cmp_model, "model file (JSON, from `pamc fit` or `pamc diagnose`)")->required();
     cmd_->add_option("data", cmp_data, "measurement CSV with header t,u,y")->required();
     cmd_->add_option("--out-dir", cmp_report, "folder for CSVs and figures (default: DATA.compare/)");

@@ -31,9 +31,11 @@ class ControllerCommand final : public Command {
     iface_.add(cmd_);
     od_.add(cmd_);
     rig_.add(cmd_);
-    cmd_->add_option("--dcf", dcf_, "master DCF (CiA 306, docs/RIG.md): its values replace the controller EDS's defaults "
-                     "on top of the rig file's - the slaves' boot (0x1F22 concise DCFs, 0x1F81, 0x1F84-0x1F89), 0x1016, "
-                     "the PDOs; its NodeID is the controller's");
+    cmd_->add_option(
+        "--dcf", dcf_,
+        "master DCF (CiA 306, docs/RIG.md): its values replace the controller EDS's defaults "
+        "on top of the rig file's - the slaves' boot (0x1F22 concise DCFs, 0x1F81, 0x1F84-0x1F89), 0x1016, "
+        "the PDOs; its NodeID is the controller's");
     kind_.add(cmd_);
     ctrl_.add(cmd_);
     run_.add(cmd_);
@@ -70,8 +72,9 @@ class ControllerCommand final : public Command {
     g_loop = &loop;
     installSignals();
     logger.start();
-    std::fprintf(stderr, "controller node %u on %s: %s, %s%s\n", node.node().nodeId(), iface.c_str(), control::toString(node.kind()),
-                 c.trajectory.describe().c_str(), c.produce_sync ? ", producing SYNC" : ", consuming SYNC");
+    std::fprintf(stderr, "controller node %u on %s: %s, %s%s\n", node.node().nodeId(), iface.c_str(),
+                 control::toString(node.kind()), c.trajectory.describe().c_str(),
+                 c.produce_sync ? ", producing SYNC" : ", consuming SYNC");
     // --duration by the wall clock too: the run ends on time whatever the slaves do.
     const nodes::RunEnd end(duration, c.preroll_s, canopen::monotonicNowUs());
     std::thread watch([&] {

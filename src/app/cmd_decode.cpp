@@ -25,8 +25,9 @@ namespace {
 class DecodeCommand final : public Command {
  public:
   explicit DecodeCommand(CLI::App& app)
-      : Command(app.add_subcommand("decode", "turn a candump log into a measurement CSV (t,u,y,p,...) through the PDO "
-                                             "mappings of the EDS files")) {
+      : Command(app.add_subcommand("decode",
+                                   "turn a candump log into a measurement CSV (t,u,y,p,...) through the PDO "
+                                   "mappings of the EDS files")) {
     cmd_->add_option("log", log_in, "candump -l log (from candump or the nodes)")->required();
     od_.add(cmd_);
     dict_.add(cmd_);
@@ -46,8 +47,10 @@ class DecodeCommand final : public Command {
     char b[64];
     for (const auto& r : run.rows) {
       for (size_t i = 0; i < r.size(); ++i) {
-        if (std::isnan(r[i])) std::snprintf(b, sizeof b, "%s", i ? "," : "");
-        else std::snprintf(b, sizeof b, "%s%.9g", i ? "," : "", r[i]);
+        if (std::isnan(r[i]))
+          std::snprintf(b, sizeof b, "%s", i ? "," : "");
+        else
+          std::snprintf(b, sizeof b, "%s%.9g", i ? "," : "", r[i]);
         text += b;
       }
       text += '\n';
@@ -57,11 +60,12 @@ class DecodeCommand final : public Command {
     if (run.held)
       std::fprintf(stderr, "warning: %llu cycles had no position PDO; their position holds the last value\n",
                    static_cast<unsigned long long>(run.held));
-    std::printf("%s: %llu frames, %llu SYNCs -> %zu rows (%zu columns) in %s; %llu frames of unknown COB-ID, %llu of "
-                "wrong length\n",
-                log_in.c_str(), static_cast<unsigned long long>(run.frames), static_cast<unsigned long long>(run.syncs),
-                run.rows.size(), run.columns.size(), dst.c_str(), static_cast<unsigned long long>(run.unknown),
-                static_cast<unsigned long long>(run.bad_length));
+    std::printf(
+        "%s: %llu frames, %llu SYNCs -> %zu rows (%zu columns) in %s; %llu frames of unknown COB-ID, %llu of "
+        "wrong length\n",
+        log_in.c_str(), static_cast<unsigned long long>(run.frames), static_cast<unsigned long long>(run.syncs),
+        run.rows.size(), run.columns.size(), dst.c_str(), static_cast<unsigned long long>(run.unknown),
+        static_cast<unsigned long long>(run.bad_length));
     return 0;
   }
 

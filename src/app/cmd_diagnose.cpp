@@ -13,28 +13,39 @@ namespace {
 class DiagnoseCommand final : public Command {
  public:
   explicit DiagnoseCommand(CLI::App& app)
-      : Command(app.add_subcommand("diagnose", "fit the reference model, find which physical effect is missing, add "
-                                               "it, refit, and repeat while the validated error falls")) {
+      : Command(app.add_subcommand("diagnose",
+                                   "fit the reference model, find which physical effect is missing, add "
+                                   "it, refit, and repeat while the validated error falls")) {
     cmd_->add_option("data", dg_data, "training measurement CSV (t,u,y[,load,...])")->required();
     cmd_->add_option("--validate", dg_val, "validation measurement (default: hold out the last part of DATA)");
-    cmd_->add_option("--holdout", ds.holdout, "fraction held out without --validate")->capture_default_str()->check(CLI::Range(0.06, 0.94));
-    cmd_->add_option("--max-effects", ds.max_effects, "at most this many effects added")->capture_default_str()->check(CLI::Range(0, 9));
+    cmd_->add_option("--holdout", ds.holdout, "fraction held out without --validate")
+        ->capture_default_str()
+        ->check(CLI::Range(0.06, 0.94));
+    cmd_->add_option("--max-effects", ds.max_effects, "at most this many effects added")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 9));
     cmd_->add_option("--min-gain", ds.min_gain, "an effect must lower the validated RMSE by this fraction")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 0.99));
-    cmd_->add_option("--candidates", dg_cands, "comma list of effects to try, or of effects to leave out as -name (write --candidates=-name,...; default: the whole catalogue)");
+    cmd_->add_option("--candidates", dg_cands,
+                     "comma list of effects to try, or of effects to leave out as -name (write --candidates=-name,...; "
+                     "default: the whole catalogue)");
     cmd_->add_option("--out-dir", dg_report, "folder for figures, CSVs and the final model");
     addOldSpelling(cmd_, "--report", "--out-dir", dg_report);
     cmd_->add_option("--json", dg_json, "write the result as JSON to this file");
     cmd_->add_option("--seed", ds.seed, "seed of the searches")->capture_default_str();
-    cmd_->add_option("--method", dg_method,
-                     "how each fit searches: lm (Levenberg-Marquardt from starts around the current model, each round's best "
-                     "searched again by the GA) or ga (the paper's GA first for every fit: slower; docs/PERFORMANCE.md)")
+    cmd_->add_option(
+            "--method", dg_method,
+            "how each fit searches: lm (Levenberg-Marquardt from starts around the current model, each round's best "
+            "searched again by the GA) or ga (the paper's GA first for every fit: slower; docs/PERFORMANCE.md)")
         ->capture_default_str()
         ->check(CLI::IsMember({"lm", "ga"}));
     addOutputFormOption(cmd_, dg_form);
-    cmd_->add_flag("--no-probes", dg_no_probes, "do not try the probes when the catalogue leaves the error above the noise");
-    cmd_->add_option("--threads", ds.threads, "worker threads (0: all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
+    cmd_->add_flag("--no-probes", dg_no_probes,
+                   "do not try the probes when the catalogue leaves the error above the noise");
+    cmd_->add_option("--threads", ds.threads, "worker threads (0: all cores)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1024));
   }
   int run() override {
     std::vector<std::string> warnings;
@@ -60,7 +71,8 @@ class DiagnoseCommand final : public Command {
       std::string e;
       for (const auto& x : g.effects) e += (e.empty() ? "" : " + ") + x;
       std::printf("  %-50s train %-10.5g validation %-10.5g%s\n", e.empty() ? "reference model" : ("+ " + e).c_str(),
-                  g.rmse_train, g.rmse_val, g.removed.empty()           ? ""
+                  g.rmse_train, g.rmse_val,
+                  g.removed.empty()       ? ""
                   : g.replaced_by.empty() ? ("  (" + g.removed + " taken out)").c_str()
                   : g.refined             ? ("  (" + g.removed + " refined to " + g.replaced_by + ")").c_str()
                                           : ("  (" + g.removed + " replaced by " + g.replaced_by + ")").c_str());
@@ -69,8 +81,8 @@ class DiagnoseCommand final : public Command {
       std::string e;
       for (const auto& x : r.probes.front().effectsWith(r.ladder.back().effects)) e += (e.empty() ? "+ " : " + ") + x;
       const auto& p = r.probes.front();
-      std::printf("  %-50s train %-10.5g validation %-10.5g  (probe%s, not added)\n", e.c_str(), p.rmse_train, p.rmse_val,
-                  p.replaces.empty() ? "" : (" in place of " + p.replaces).c_str());
+      std::printf("  %-50s train %-10.5g validation %-10.5g  (probe%s, not added)\n", e.c_str(), p.rmse_train,
+                  p.rmse_val, p.replaces.empty() ? "" : (" in place of " + p.replaces).c_str());
     }
     if (!r.probes.empty()) {
       std::printf("\nProbes (on top of the final model, or \"for\" an effect: in its place), best first:\n");

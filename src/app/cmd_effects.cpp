@@ -11,7 +11,8 @@ namespace {
 // pamc effects: the catalogue of physical effects.
 class EffectsCommand final : public Command {
  public:
-  explicit EffectsCommand(CLI::App& app) : Command(app.add_subcommand("effects", "list the catalogue of physical effects")) {
+  explicit EffectsCommand(CLI::App& app)
+      : Command(app.add_subcommand("effects", "list the catalogue of physical effects")) {
     cmd_->add_flag("--probes", probes_,
                    "list the probes instead: generic structures diagnose tries when no effect explains the residual");
   }
@@ -31,7 +32,8 @@ class EffectsCommand final : public Command {
   static void print(const char* name, const model::Effect& x) {
     std::printf("%-20s %s %s\n", name, x.stage() == model::Stage::Input ? "[input] " : "[output]", x.explanation());
     for (const auto& p : x.params())
-      std::printf("%-20s   %-12s default %-10g bounds [%g, %g] %s\n", "", p.name.c_str(), p.def, p.lo, p.hi, p.unit.c_str());
+      std::printf("%-20s   %-12s default %-10g bounds [%g, %g] %s\n", "", p.name.c_str(), p.def, p.lo, p.hi,
+                  p.unit.c_str());
   }
   bool probes_ = false;
 };

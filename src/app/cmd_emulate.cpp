@@ -18,8 +18,9 @@ class EmulateCommand final : public Command {
  public:
   explicit EmulateCommand(CLI::App& app)
       : Command(app.add_subcommand("emulate", "excite the plant emulator open loop and write a measurement CSV")) {
-    cmd_->add_option("--input", em_input, "command u(t) [V]: " + control::Trajectory::forms() +
-                                              " (docs/MODELING.md, \"Designing a record\")")
+    cmd_->add_option(
+            "--input", em_input,
+            "command u(t) [V]: " + control::Trajectory::forms() + " (docs/MODELING.md, \"Designing a record\")")
         ->capture_default_str();
     cmd_->add_option("--input-from", em_input_from,
                      "replay the command (and a 'load' column, if any) of this measurement CSV instead of --input; "

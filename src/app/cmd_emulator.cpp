@@ -27,16 +27,19 @@ namespace {
 class EmulatorCommand final : public Command {
  public:
   explicit EmulatorCommand(CLI::App& app)
-      : Command(app.add_subcommand("emulator", "play the valve and sensor nodes with the emulator physics on SocketCAN")) {
+      : Command(
+            app.add_subcommand("emulator", "play the valve and sensor nodes with the emulator physics on SocketCAN")) {
     iface_.add(cmd_, false);
     od_.add(cmd_);
-    cmd_->add_option("--rig", rig_, "play the devices of this rig file (a rig of several channels: an encoder per "
-                                    "channel and the valve module with an output per channel, od/rigs/four_muscles.ini)");
+    cmd_->add_option("--rig", rig_,
+                     "play the devices of this rig file (a rig of several channels: an encoder per "
+                     "channel and the valve module with an output per channel, od/rigs/four_muscles.ini)");
     emu_.add(cmd_);
     cmd_->add_option("--duration", emu_duration, "stop after this many seconds of SYNCs (0: until Ctrl-C)")
         ->capture_default_str()
         ->check(CLI::NonNegativeNumber);
-    cmd_->add_option("--period-us", period_us, "SYNC period the physics steps by (default 1000 us)")->check(CLI::Range(100u, 1000000u));
+    cmd_->add_option("--period-us", period_us, "SYNC period the physics steps by (default 1000 us)")
+        ->check(CLI::Range(100u, 1000000u));
     cmd_->add_option("--log", candump, "write every frame to this file as a candump -l log");
     rt_.add(cmd_, "real time");
   }
@@ -58,9 +61,11 @@ class EmulatorCommand final : public Command {
     logger.start();
     std::fprintf(stderr, "emulator on %s: %zu muscle%s, sensor node%s", iface.c_str(), emu.channels(),
                  emu.channels() > 1 ? "s" : "", emu.sensors() > 1 ? "s" : "");
-    for (std::size_t s = 0; s < emu.sensors(); ++s) std::fprintf(stderr, "%s%u", s ? ", " : " ", emu.sensor(s).nodeId());
+    for (std::size_t s = 0; s < emu.sensors(); ++s)
+      std::fprintf(stderr, "%s%u", s ? ", " : " ", emu.sensor(s).nodeId());
     std::fprintf(stderr, ", valve node%s", emu.valveModules() > 1 ? "s" : "");
-    for (std::size_t m = 0; m < emu.valveModules(); ++m) std::fprintf(stderr, "%s%u", m ? ", " : " ", emu.valve(m).nodeId());
+    for (std::size_t m = 0; m < emu.valveModules(); ++m)
+      std::fprintf(stderr, "%s%u", m ? ", " : " ", emu.valve(m).nodeId());
     std::fprintf(stderr, "; stepped by SYNC\n");
     std::thread watch([&] {
       while (!g_stop) {

@@ -16,10 +16,12 @@ namespace {
 class ExperimentsCommand final : public Command {
  public:
   explicit ExperimentsCommand(CLI::App& app)
-      : Command(app.add_subcommand("experiments", "run the paper's experiments on the calibrated physics plant (Tables 1 "
-                                                  "and 2, square/sawtooth, payload step); judge every claim of the paper; "
-                                                  "write CSVs, figures and a summary")) {
-    cmd_->add_option("--out-dir", out_, "output folder (CSVs, figures, summary.txt, summary.json)")->capture_default_str();
+      : Command(app.add_subcommand("experiments",
+                                   "run the paper's experiments on the calibrated physics plant (Tables 1 "
+                                   "and 2, square/sawtooth, payload step); judge every claim of the paper; "
+                                   "write CSVs, figures and a summary")) {
+    cmd_->add_option("--out-dir", out_, "output folder (CSVs, figures, summary.txt, summary.json)")
+        ->capture_default_str();
     addOldSpelling(cmd_, "--out", "--out-dir", out_);
     cmd_->add_option("--plant", plant_, "plant emulator config (JSON; see `pamc plant`)");
     cmd_->add_option("--only", only_,

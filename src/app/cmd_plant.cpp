@@ -11,9 +11,11 @@ namespace {
 // pamc plant: the emulator's configuration (the defaults of its kind merged with a file).
 class PlantCommand final : public Command {
  public:
-  explicit PlantCommand(CLI::App& app) : Command(app.add_subcommand("plant", "show the plant emulator's configuration")) {
-    auto* file = cmd_->add_option("--plant", file_, "plant file to load and show merged with the defaults of its kind "
-                                        "(\"kind\": \"physics\", the default, or \"model\")");
+  explicit PlantCommand(CLI::App& app)
+      : Command(app.add_subcommand("plant", "show the plant emulator's configuration")) {
+    auto* file = cmd_->add_option("--plant", file_,
+                                  "plant file to load and show merged with the defaults of its kind "
+                                  "(\"kind\": \"physics\", the default, or \"model\")");
     addOldSpelling(cmd_, "--config", "--plant", file_);
     auto* mk = cmd_->add_flag("--model-kind", model_kind_, "without --plant: the defaults of the model kind");
     cmd_->add_flag("--calibrated", calibrated_,

@@ -30,16 +30,20 @@ namespace {
 class RigCommand final : public Command {
  public:
   explicit RigCommand(CLI::App& app)
-      : Command(app.add_subcommand("rig", "controller and emulator as CANopen nodes on the in-process bus (no CAN "
-                                          "hardware): a run, the fault table, the soak, the SDO guards")) {
+      : Command(app.add_subcommand("rig",
+                                   "controller and emulator as CANopen nodes on the in-process bus (no CAN "
+                                   "hardware): a run, the fault table, the soak, the SDO guards")) {
     cmd_->require_subcommand(0, 1);
-    run_cmd_ = cmd_->add_subcommand("run", "run the controller and the emulator through the CANopen layer, in "
-                                           "virtual time (as fast as it goes) or paced to the wall clock (--realtime)");
-    faults_cmd_ = cmd_->add_subcommand("faults", "run each fault on the bus (seeded) and print the fault table: "
-                                                 "reaction, cycles to the safe valve value, EMCY, recovery, data lost");
+    run_cmd_ = cmd_->add_subcommand("run",
+                                    "run the controller and the emulator through the CANopen layer, in "
+                                    "virtual time (as fast as it goes) or paced to the wall clock (--realtime)");
+    faults_cmd_ = cmd_->add_subcommand("faults",
+                                       "run each fault on the bus (seeded) and print the fault table: "
+                                       "reaction, cycles to the safe valve value, EMCY, recovery, data lost");
     soak_cmd_ = cmd_->add_subcommand("soak", soakHelp());
-    guards_cmd_ = cmd_->add_subcommand("guards", "write parameters over SDO to the running controller and print "
-                                                 "the abort codes and what the loop saw");
+    guards_cmd_ = cmd_->add_subcommand("guards",
+                                       "write parameters over SDO to the running controller and print "
+                                       "the abort codes and what the loop saw");
     addRunOptions(run_cmd_);
     addFaultToolOptions(faults_cmd_, rig::FaultRigOptions{});
     faults_cmd_->add_option("--only", only, kOnlyHelp);
@@ -53,7 +57,8 @@ class RigCommand final : public Command {
   int run() override {
     from_ = selectedApp();
     if (from_ == soak_cmd_ || (from_ == cmd_ && soak_hours > 0)) return runSoak();
-    if (from_ == faults_cmd_ || from_ == guards_cmd_ || (from_ == cmd_ && (faults || sdo_guards))) return runRigChecks();
+    if (from_ == faults_cmd_ || from_ == guards_cmd_ || (from_ == cmd_ && (faults || sdo_guards)))
+      return runRigChecks();
     const auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, false, &rig_);
     ec = emu_.config(od_.dir, run_.period_us);
     bitrate_ = 1000000;
@@ -70,7 +75,8 @@ class RigCommand final : public Command {
  private:
   static constexpr const char* kOnlyHelp = "comma list of faults, e.g. sync-stop,bus-off (an unknown name lists them)";
   static std::string soakHelp() {
-    return "--hours of 1 kHz cycles in virtual time (the tool's own controller and gains unless --controller, --kp, --ki, "
+    return "--hours of 1 kHz cycles in virtual time (the tool's own controller and gains unless --controller, --kp, "
+           "--ki, "
            "--kc are given; a 0.2 Hz sine; the controller consuming the SYNC of a producer node, 1 Mbit/s bus) with "
            "faults of the catalogue injected one after the other at random times; prints per report interval the "
            "cycles, SYNC gaps, faults, tracking after each fault against the no-fault baseline, heap and RSS, CPU per "
@@ -85,14 +91,17 @@ class RigCommand final : public Command {
     run_.add(a);
     emu_.add(a);
     a->add_option("--log", candump, "write every frame to this file as a candump -l log");
-    a->add_option("--figure", figure_, "draw the run into this PNG: each joint's angle, each channel's position and "
-                                       "command against its setpoint (gnuplot; the data beside it as FILE.csv)");
-    rt_.add(a, "pace the rig to the wall clock (1 ms of bus time per ms) like a live node: --log and --csv "
-               "(t,yd,y,u,u_n,u_c,y_hat,fault,latency_us) are streamed by a logger thread and on disk within a "
-               "millisecond, the log's times are wall-clock times",
+    a->add_option("--figure", figure_,
+                  "draw the run into this PNG: each joint's angle, each channel's position and "
+                  "command against its setpoint (gnuplot; the data beside it as FILE.csv)");
+    rt_.add(a,
+            "pace the rig to the wall clock (1 ms of bus time per ms) like a live node: --log and --csv "
+            "(t,yd,y,u,u_n,u_c,y_hat,fault,latency_us) are streamed by a logger thread and on disk within a "
+            "millisecond, the log's times are wall-clock times",
             "rig run");
-    a->add_option("--progress", progress, "with --realtime: append 'cycle K t T bus_us B' to this file as each "
-                                          "cycle is computed (a marker for crash tests and watchdogs)");
+    a->add_option("--progress", progress,
+                  "with --realtime: append 'cycle K t T bus_us B' to this file as each "
+                  "cycle is computed (a marker for crash tests and watchdogs)");
   }
   // The fault tools take the controller and its gains from the command line (their own otherwise).
   template <class Own>
@@ -172,7 +181,8 @@ class RigCommand final : public Command {
       std::printf("\n");
     }
     const auto list = faultList();
-    std::fprintf(stderr, "in-process bus, %s, fault injected after %g s of a 0.2 Hz sine, run on %g s after it cleared\n",
+    std::fprintf(stderr,
+                 "in-process bus, %s, fault injected after %g s of a 0.2 Hz sine, run on %g s after it cleared\n",
                  control::toString(o.kind), o.inject_at_s, o.after_s);
     std::printf("%s", rig::faultTableMarkdown(rig::runFaultTable(list, o)).c_str());
     return 0;
@@ -248,7 +258,8 @@ class RigCommand final : public Command {
         // What the rig has computed so far (the logger may not have written it yet): the cycle, its
         // trajectory time and the bus time (the log's time stamps count from the first frame at bus time 0).
         char b[96];
-        const int n = std::snprintf(b, sizeof b, "cycle %u t %.3f bus_us %lld\n", last.k, last.t, static_cast<long long>(now));
+        const int n =
+            std::snprintf(b, sizeof b, "cycle %u t %.3f bus_us %lld\n", last.k, last.t, static_cast<long long>(now));
         if (::write(progress_fd, b, static_cast<size_t>(n)) < 0) progress_fd = -1;
         fresh = false;
       }
@@ -257,8 +268,11 @@ class RigCommand final : public Command {
     installSignals();
     realtimeSetup(true, rt_.cpu, rt_.priority);
     logger.start();
-    std::fprintf(stderr, "in-process bus paced in real time: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
-                 c.node_id ? c.node_id : 1u, c.channels[0].sensor_id, c.channels[0].valve_id, run_.preroll, run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
+    std::fprintf(
+        stderr,
+        "in-process bus paced in real time: controller (node %u) + sensor (%u) + valve (%u), %g s pre-roll + %s\n",
+        c.node_id ? c.node_id : 1u, c.channels[0].sensor_id, c.channels[0].valve_id, run_.preroll,
+        run_.duration > 0 ? (std::to_string(run_.duration) + " s run").c_str() : "run until stopped");
     const auto r = rig::runVirtualRig(c, ec, run_.duration, "", epoch, 0, hooks);
     logger.stop();
     if (progress_fd >= 0) ::close(progress_fd);
@@ -271,14 +285,15 @@ class RigCommand final : public Command {
     // In-process the SYNC period is exact in bus time; what real time costs is the pacing: how late
     // each 1 ms wake-up came (the node's work runs right after it).
     const auto& w = r.wake_late_us;
-    std::printf("wake-up lateness (%s): median %.1f us, p99 %.1f us, max %.1f us; %llu of %llu wake-ups a period or more late\n",
-                rt_.priority > 0 ? ("SCHED_FIFO " + std::to_string(rt_.priority) + ", mlockall").c_str() : "normal scheduling",
-                w.quantile(0.5), w.quantile(0.99), w.max(), static_cast<unsigned long long>(r.wake_overruns),
-                static_cast<unsigned long long>(w.count()));
+    std::printf(
+        "wake-up lateness (%s): median %.1f us, p99 %.1f us, max %.1f us; %llu of %llu wake-ups a period or more "
+        "late\n",
+        rt_.priority > 0 ? ("SCHED_FIFO " + std::to_string(rt_.priority) + ", mlockall").c_str() : "normal scheduling",
+        w.quantile(0.5), w.quantile(0.99), w.max(), static_cast<unsigned long long>(r.wake_overruns),
+        static_cast<unsigned long long>(w.count()));
     writeMeasurement(measurement, run_.out);
     return 0;
   }
-
 
   // Virtual time, as fast as it goes; --duration 0 runs until Ctrl-C.
   int runVirtual(const nodes::ControllerNodeConfig& c) {
@@ -316,8 +331,8 @@ class RigCommand final : public Command {
       if (c.channels.size() > 1) names.push_back("channel"), cols.push_back(&ch);  // 1-based
       io::writeCsvAtomic(run_.csv, names, cols);
     }
-    std::printf("%s controller: %llu frames on the bus, %llu faults%s%s\n", control::toString(static_cast<control::Kind>(c.kind)),
-                static_cast<unsigned long long>(r.frames),
+    std::printf("%s controller: %llu frames on the bus, %llu faults%s%s\n",
+                control::toString(static_cast<control::Kind>(c.kind)), static_cast<unsigned long long>(r.frames),
                 static_cast<unsigned long long>(r.faults), r.final_fault == nodes::Fault::None ? "" : ", last: ",
                 r.final_fault == nodes::Fault::None ? "" : nodes::toString(r.final_fault));
     printStats(r.stats, t);
@@ -326,7 +341,8 @@ class RigCommand final : public Command {
     if (!figure_.empty()) writeRunFigure(figure_, kept, c.channels.size(), joints_);
     if (!candump.empty()) std::printf("candump log: %s\n", candump.c_str());
     if (!r.failure.empty() && !forever)
-      throw std::runtime_error("the loop never started: " + r.failure + "; devices that differ from pamc's own need "
+      throw std::runtime_error("the loop never started: " + r.failure +
+                               "; devices that differ from pamc's own need "
                                "a rig file that describes them (--rig, docs/RIG.md)");
     writeMeasurement(measurement, run_.out);
     return 0;

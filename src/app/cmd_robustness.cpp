@@ -25,10 +25,12 @@ class RobustnessCommand final : public Command {
             "ESO/PI, summary.txt and summary.json")) {
     cmd_->add_option("--out-dir", out_, "output folder (created)")->capture_default_str();
     cmd_->add_option("--plant", plant_, "the nominal plant (JSON; see `pamc plant`); default: the experiments' plant");
-    cmd_->add_option("--only-axes", only_axes_, "comma list of the axes to run: flow, mass, supply, noise, model "
-                                                "(default: all; the grid needs two)");
+    cmd_->add_option("--only-axes", only_axes_,
+                     "comma list of the axes to run: flow, mass, supply, noise, model "
+                     "(default: all; the grid needs two)");
     cmd_->add_option("--seed", seed_, "GA seed of the identifications")->capture_default_str();
-    cmd_->add_option("--method", method_, "the identifications' fit: ga (the paper's GA first) or lm (spread starts, fast)")
+    cmd_->add_option("--method", method_,
+                     "the identifications' fit: ga (the paper's GA first) or lm (spread starts, fast)")
         ->capture_default_str()
         ->check(CLI::IsMember({"lm", "ga"}));
     cmd_->add_option("--duration-scale", duration_scale_,
@@ -48,7 +50,8 @@ class RobustnessCommand final : public Command {
     cmd_->add_flag("--no-figures", no_figures_, "skip the PNG heat maps");
     addParts();
     ctrl_.add(cmd_);
-    cmd_->get_option("--model")->description("the nominal model (JSON) instead of identifying one on u0 of the nominal plant");
+    cmd_->get_option("--model")->description(
+        "the nominal model (JSON) instead of identifying one on u0 of the nominal plant");
   }
 
   int run() override {
@@ -65,9 +68,10 @@ class RobustnessCommand final : public Command {
  private:
   // The parts of a sweep on several machines (docs/PERFORMANCE.md, "Sweeps in parts").
   void addParts() {
-    cmd_->add_option("--shard", shard_,
-                     "run only part I of N of the phase's cells (I/N, e.g. 2/4) and write them to --out-dir/cells.json; "
-                     "every part with the same options, then --merge");
+    cmd_->add_option(
+        "--shard", shard_,
+        "run only part I of N of the phase's cells (I/N, e.g. 2/4) and write them to --out-dir/cells.json; "
+        "every part with the same options, then --merge");
     auto* pairs = cmd_->add_option("--pairs-of", pairs_of_,
                                    "the second phase: the pairs grid chosen from the axes merged in this folder, with "
                                    "its settings (give only --shard, --out-dir, --threads)");
@@ -79,7 +83,8 @@ class RobustnessCommand final : public Command {
 
   // With --pairs-of or --merge the settings are the cells'; an option that would set them is refused.
   void refuseSettings(const char* mode) const {
-    static const char* const kAllowed[] = {"--shard", "--pairs-of", "--merge", "--out-dir", "--threads", "--no-figures"};
+    static const char* const kAllowed[] = {"--shard",   "--pairs-of", "--merge",
+                                           "--out-dir", "--threads",  "--no-figures"};
     for (const auto* o : cmd_->get_options()) {
       if (o->count() == 0 || o->get_name().rfind("--", 0) != 0) continue;
       const std::string name = o->get_name();
@@ -93,7 +98,8 @@ class RobustnessCommand final : public Command {
     sim::RobustnessSettings s = settings();
     s.shard = sim::parseShard(shard_);
     const auto doc = sim::runRobustnessCells(s);
-    std::printf("part %s of the axes: %zu cells in %s/cells.json\n", shard_.c_str(), doc.at("cells").size(), out_.c_str());
+    std::printf("part %s of the axes: %zu cells in %s/cells.json\n", shard_.c_str(), doc.at("cells").size(),
+                out_.c_str());
     std::printf("when all %d parts are done: pamc robustness --merge DIR1 ... DIR%d --out-dir DIR\n", s.shard.count,
                 s.shard.count);
     return 0;
@@ -123,9 +129,10 @@ class RobustnessCommand final : public Command {
     std::printf("\n%s", rep.text.c_str());
     std::printf("results in %s/ from %zu parts\n", out_.c_str(), docs.size());
     if (rep.pairs_pending)
-      std::printf("next, the pairs grid %s x %s: pamc robustness --pairs-of %s --shard I/N --out-dir PART_I, then "
-                  "pamc robustness --merge PART_1 ... PART_N --out-dir %s\n",
-                  rep.strongest[0].c_str(), rep.strongest[1].c_str(), out_.c_str(), out_.c_str());
+      std::printf(
+          "next, the pairs grid %s x %s: pamc robustness --pairs-of %s --shard I/N --out-dir PART_I, then "
+          "pamc robustness --merge PART_1 ... PART_N --out-dir %s\n",
+          rep.strongest[0].c_str(), rep.strongest[1].c_str(), out_.c_str(), out_.c_str());
     return 0;
   }
 

@@ -60,9 +60,9 @@ std::string commandPath(const CLI::App* cmd);
 template <class T>
 CLI::Option* addOldSpelling(CLI::App* cmd, const std::string& old_name, const std::string& new_name, T& var) {
   const std::string where = commandPath(cmd) + " ";
-  return cmd->add_option(old_name, var)
-      ->group("")
-      ->each([where, old_name, new_name](const std::string&) { oldSpellingNotice(where + old_name, where + new_name); });
+  return cmd->add_option(old_name, var)->group("")->each([where, old_name, new_name](const std::string&) {
+    oldSpellingNotice(where + old_name, where + new_name);
+  });
 }
 CLI::Option* addOldFlag(CLI::App* cmd, const std::string& old_name, const std::string& new_usage, bool& var);
 

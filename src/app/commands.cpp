@@ -42,10 +42,13 @@ void oldSpellingNotice(const std::string& old_usage, const std::string& new_usag
 
 CLI::Option* addOldFlag(CLI::App* cmd, const std::string& old_name, const std::string& new_usage, bool& var) {
   const std::string old_usage = commandPath(cmd) + " " + old_name;
-  return cmd->add_flag_callback(old_name, [&var, old_usage, new_usage] {
-    var = true;
-    oldSpellingNotice(old_usage, new_usage);
-  })->group("");
+  return cmd
+      ->add_flag_callback(old_name,
+                          [&var, old_usage, new_usage] {
+                            var = true;
+                            oldSpellingNotice(old_usage, new_usage);
+                          })
+      ->group("");
 }
 
 CLI::Option* addOutputFormOption(CLI::App* cmd, std::string& form) {

@@ -49,22 +49,34 @@ void ControllerOptions::addStructure(CLI::App* a) {
   a->add_option("--eso-wo", cc.eso_wo, "first-order ESO: observer bandwidth [rad/s]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  a->add_option("--eso-b0", cc.b0, "printed ESO: input gain b0 [mm/(s^2 V)]")->capture_default_str()->check(CLI::PositiveNumber);
-  a->add_option("--eso-delta", cc.delta, "printed ESO: fal() linear zone delta [mm]")->capture_default_str()->check(CLI::PositiveNumber);
-  a->add_option("--eso-beta1", cc.beta1, "printed ESO: observer gain beta1")->capture_default_str()->check(CLI::NonNegativeNumber);
-  a->add_option("--eso-beta2", cc.beta2, "printed ESO: observer gain beta2")->capture_default_str()->check(CLI::NonNegativeNumber);
-  a->add_option("--eso-beta3", cc.beta3, "printed ESO: observer gain beta3")->capture_default_str()->check(CLI::NonNegativeNumber);
+  a->add_option("--eso-b0", cc.b0, "printed ESO: input gain b0 [mm/(s^2 V)]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  a->add_option("--eso-delta", cc.delta, "printed ESO: fal() linear zone delta [mm]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  a->add_option("--eso-beta1", cc.beta1, "printed ESO: observer gain beta1")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  a->add_option("--eso-beta2", cc.beta2, "printed ESO: observer gain beta2")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  a->add_option("--eso-beta3", cc.beta3, "printed ESO: observer gain beta3")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   a->add_option("--delay", cc.delay_cycles,
                 "cycles from command to the measurement that shows it, beyond one sample (2 on the CAN bus)")
       ->capture_default_str()
       ->check(CLI::Range(0, 7));
-  a->add_option("--mbc-horizon", cc.mbc_horizon,
-                "MBC: samples ahead its inverse reaches the setpoint at; 0 = automatic (bus delay + the model's response "
-                "time)")
+  a->add_option(
+       "--mbc-horizon", cc.mbc_horizon,
+       "MBC: samples ahead its inverse reaches the setpoint at; 0 = automatic (bus delay + the model's response "
+       "time)")
       ->capture_default_str()
       ->check(CLI::Range(0, 2000));
-  a->add_option("--mbc-error-tau", cc.mbc_error_tau_s,
-                "MBC: time constant [s] of the filter on the UKF's modelling-error estimate the feedforward aims off by")
+  a->add_option(
+       "--mbc-error-tau", cc.mbc_error_tau_s,
+       "MBC: time constant [s] of the filter on the UKF's modelling-error estimate the feedforward aims off by")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   a->add_option("--mbc-rate", cc.mbc_rate_mm_s,

@@ -12,11 +12,13 @@
 #include "io/measurement.hpp"
 
 int main(int argc, char** argv) {
-  CLI::App app{"pamc - pneumatic artificial muscle control: Bouc-Wen model, GA identification, UKF active "
-               "model control, plant emulator, CANopen nodes"};
+  CLI::App app{
+      "pamc - pneumatic artificial muscle control: Bouc-Wen model, GA identification, UKF active "
+      "model control, plant emulator, CANopen nodes"};
   app.require_subcommand(1);
   // A command line that does not parse gets one line, as any other bad input does.
-  app.failure_message([](const CLI::App*, const CLI::Error& e) { return "pamc: error: " + std::string(e.what()) + "\n"; });
+  app.failure_message(
+      [](const CLI::App*, const CLI::Error& e) { return "pamc: error: " + std::string(e.what()) + "\n"; });
   // For the command-line test: parse (options, values, checks) and stop before running anything.
   bool parse_only = false;
   app.add_flag("--parse-only", parse_only, "parse the command line and exit")->group("");

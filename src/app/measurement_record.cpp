@@ -31,7 +31,8 @@ double MeasurementRecord::period() const {
 
 void MeasurementRecord::write(const std::string& path) const {
   if (u_.size() < lag_ + 2)
-    throw std::runtime_error(path + ": not written: " + std::to_string(u_.size()) + " cycles recorded (the run never got going)");
+    throw std::runtime_error(path + ": not written: " + std::to_string(u_.size()) +
+                             " cycles recorded (the run never got going)");
   if (gaps_ > 0)
     throw std::runtime_error(path + ": not written: the cycle records have " + std::to_string(gaps_) + " gap" +
                              (gaps_ == 1 ? "" : "s") + ", the first at t = " + io::fmt("%.3f", gap_at_) +

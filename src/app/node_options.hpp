@@ -32,20 +32,28 @@ struct NodeRunOptions {
                      ->capture_default_str();
     auto* in = a->add_option("--input", input, inputHelp())->excludes(traj);
     if (auto* kind = a->get_option_no_throw("--controller")) in->excludes(kind);
-    a->add_option("--out", out, "measurement CSV to write at the end (t,u,y,p - p where the rig maps a pressure): "
-                                "from the first cycle after the pre-roll, u the command that went to the valve, y the "
-                                "sensor's position; written whole or not at all");
-    a->add_option("--duration", duration, "seconds of trajectory; the run ends by the clock at the latest pre-roll + duration + 3 s after the start, "
-                  "whatever the slaves do (0: until stopped with Ctrl-C)")->capture_default_str()->check(CLI::NonNegativeNumber);
-    a->add_option("--preroll", preroll, "seconds holding the first setpoint before the trajectory")->capture_default_str()->check(CLI::NonNegativeNumber);
+    a->add_option("--out", out,
+                  "measurement CSV to write at the end (t,u,y,p - p where the rig maps a pressure): "
+                  "from the first cycle after the pre-roll, u the command that went to the valve, y the "
+                  "sensor's position; written whole or not at all");
+    a->add_option(
+         "--duration", duration,
+         "seconds of trajectory; the run ends by the clock at the latest pre-roll + duration + 3 s after the start, "
+         "whatever the slaves do (0: until stopped with Ctrl-C)")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
+    a->add_option("--preroll", preroll, "seconds holding the first setpoint before the trajectory")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
     a->add_option("--csv", csv, "file for the cycle records (t,yd,y,u,...)");
-    a->add_option("--period-us", period_us, "SYNC period (default: 0x1006 of the EDS, 1000 us)")->check(CLI::Range(100u, 1000000u));
+    a->add_option("--period-us", period_us, "SYNC period (default: 0x1006 of the EDS, 1000 us)")
+        ->check(CLI::Range(100u, 1000000u));
   }
   static std::string inputHelp() {
     return "open loop for identification, in place of --trajectory and the controller: the valve command u(t) [V "
-           "about the valve's mid-range], passed through within [" + io::fmt("%g", control::kCommandMin) + ", " +
-           io::fmt("%g", control::kCommandMax) + "] (a fault still sends the safe value; the pre-roll holds u(0)): " +
-           control::Trajectory::forms();
+           "about the valve's mid-range], passed through within [" +
+           io::fmt("%g", control::kCommandMin) + ", " + io::fmt("%g", control::kCommandMax) +
+           "] (a fault still sends the safe value; the pre-roll holds u(0)): " + control::Trajectory::forms();
   }
 };
 

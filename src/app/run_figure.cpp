@@ -20,7 +20,8 @@ struct Columns {
   std::vector<std::vector<double>> data;
 };
 
-Columns columnsOf(const std::vector<nodes::CycleRecord>& recs, std::size_t channels, const std::vector<nodes::RigJoint>& joints) {
+Columns columnsOf(const std::vector<nodes::CycleRecord>& recs, std::size_t channels,
+                  const std::vector<nodes::RigJoint>& joints) {
   Columns c;
   c.names = {"t"};
   for (std::size_t ch = 1; ch <= channels; ++ch)
@@ -71,7 +72,8 @@ void writeRunFigure(const std::string& png, const std::vector<nodes::CycleRecord
   }
   report::Panel y{"muscles: contraction", "t [s]", "y [mm]", {}}, u{"muscles: valve command", "t [s]", "u [V]", {}};
   for (std::size_t ch = 1; ch <= channels; ++ch) {
-    y.series.push_back({csv, "t", "yd" + std::to_string(ch), "channel " + std::to_string(ch) + " setpoint", "lines dt 2"});
+    y.series.push_back(
+        {csv, "t", "yd" + std::to_string(ch), "channel " + std::to_string(ch) + " setpoint", "lines dt 2"});
     y.series.push_back({csv, "t", "y" + std::to_string(ch), "channel " + std::to_string(ch)});
     u.series.push_back({csv, "t", "u" + std::to_string(ch), "channel " + std::to_string(ch)});
   }

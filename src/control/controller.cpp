@@ -296,10 +296,13 @@ class PiAmc final : public Controller {
     }
     un_prev_ = un;
     // Compensation, eq. (18), and total command, eqs. (14)/(19).
-    if (!std::isfinite(y_next)) o.u_c = 0.0;
+    if (!std::isfinite(y_next))
+      o.u_c = 0.0;
     else if (cfg_.amc_inverse > 0.0)
-      o.u_c = std::clamp(cfg_.amc_inverse * (yd_next - y_next) / inverse_gain_, cfg_.u_min - cfg_.u_max, cfg_.u_max - cfg_.u_min);
-    else o.u_c = cfg_.kc * (yd_next - y_next);
+      o.u_c = std::clamp(cfg_.amc_inverse * (yd_next - y_next) / inverse_gain_, cfg_.u_min - cfg_.u_max,
+                         cfg_.u_max - cfg_.u_min);
+    else
+      o.u_c = cfg_.kc * (yd_next - y_next);
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
     hist_.push(o.u);
     return o;

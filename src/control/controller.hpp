@@ -55,9 +55,9 @@ inline constexpr Gains kDefaultGains{0.1, 3.0, 0.06};
 struct ControllerConfig {
   double Ts = 1e-3;
   double u_min = kCommandMin, u_max = kCommandMax;  // valve command range [V]
-  double kp = kDefaultGains.kp;  // [V/mm]
-  double ki = kDefaultGains.ki;  // [V/(mm s)]; the printed value is 0.15
-  double kc = kDefaultGains.kc;  // [V/mm]
+  double kp = kDefaultGains.kp;                     // [V/mm]
+  double ki = kDefaultGains.ki;                     // [V/(mm s)]; the printed value is 0.15
+  double kc = kDefaultGains.kc;                     // [V/mm]
   // AMC prediction horizon in samples: 1 is eq. (17); longer horizons roll the model out so that
   // its lags and delays shape the compensation (see docs/CONTROL.md). 0: automatic - 1 with
   // amc_inverse = 0, otherwise the bus delay plus the time the model takes to make 10 % of its response
@@ -118,9 +118,9 @@ struct ControllerConfig {
 };
 
 struct ControlOutput {
-  double u = 0.0;    // saturated command sent to the valve [V]
-  double u_n = 0.0;  // nominal controller part [V]
-  double u_c = 0.0;  // compensation part (AMC u_c, or the ESO's disturbance estimate in volts) [V]
+  double u = 0.0;      // saturated command sent to the valve [V]
+  double u_n = 0.0;    // nominal controller part [V]
+  double u_c = 0.0;    // compensation part (AMC u_c, or the ESO's disturbance estimate in volts) [V]
   double y_hat = 0.0;  // estimator output (AMC posterior / ESO x1_hat) [mm]
   bool saturated = false;
   bool estimator_reset = false;  // the estimator started over this cycle (the UKF or the ESO)

@@ -79,8 +79,10 @@ class Mbc final : public Controller {
     const double ff = feedforward(r - miss_);
     const bool use = recover_ == 0 && std::isfinite(ff) && inRange(ff, r, yd_ahead, y_.get());
     if (recover_ > 0) --recover_;
-    if (std::isfinite(ff)) u_solved_ = ff;
-    else recover_ = kRecoverCycles;
+    if (std::isfinite(ff))
+      u_solved_ = ff;
+    else
+      recover_ = kRecoverCycles;
     switchFeedforward(use, ff);
     advanceReference(u_solved_);
     // The nominal PI on the governed setpoint's error (on the reference model's instead, a model that cannot
@@ -164,16 +166,16 @@ class Mbc final : public Controller {
   estimation::ActiveModel am_;
   detail::CommandHistory ff_hist_;  // the feedforwards sent, the reference model's input
   detail::SetpointGovernor governor_;
-  detail::DelayLine governed_;      // the governed setpoint ahead, r(k), of the last cycles
-  model::Model::State ref_;         // the reference model: the model driven by the feedforward alone
-  double y_ref_ = 0.0;              // its output now
+  detail::DelayLine governed_;  // the governed setpoint ahead, r(k), of the last cycles
+  model::Model::State ref_;     // the reference model: the model driven by the feedforward alone
+  double y_ref_ = 0.0;          // its output now
   model::StepContext ctx_;
   double u_ff_ = 0.0;      // the feedforward in the command (the last one, while it is off)
   double u_solved_ = 0.0;  // the last finite solution of the inverse: the next cycle's start
-  double gain_ = 1.0;   // the model's response at the horizon to a unit command change [mm/V]
-  bool ff_on_ = false;  // the feedforward is in the command
-  double miss_ = 0.0;   // the modelling error: the UKF's posterior output - the reference model's, low-passed
-  int recover_ = 0;     // cycles left with the feedforward off after an estimator restart
+  double gain_ = 1.0;      // the model's response at the horizon to a unit command change [mm/V]
+  bool ff_on_ = false;     // the feedforward is in the command
+  double miss_ = 0.0;      // the modelling error: the UKF's posterior output - the reference model's, low-passed
+  int recover_ = 0;        // cycles left with the feedforward off after an estimator restart
 };
 
 }  // namespace

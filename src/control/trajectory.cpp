@@ -20,7 +20,6 @@ std::size_t multisineLines(double f0, double f1) {
 
 }  // namespace
 
-
 Trajectory Trajectory::mapped(double scale, double offset) const {
   Trajectory m = *this;
   m.map_offset = offset + scale * map_offset;
@@ -85,15 +84,19 @@ std::string Trajectory::describe() const {
     case Shape::SineDescending:
       std::snprintf(b, sizeof b, "%g Hz sine about %g, amplitude %g -> %g over %g s%s", freq_hz, offset, amplitude,
                     amplitude_end, duration,
-                    phase == 0.0 ? "" : std::fabs(phase - M_PI / 2) < 1e-12 ? ", from the centre" : ", phase shifted");
+                    phase == 0.0                          ? ""
+                    : std::fabs(phase - M_PI / 2) < 1e-12 ? ", from the centre"
+                                                          : ", phase shifted");
       break;
     case Shape::Chirp:
-      std::snprintf(b, sizeof b, "chirp %g -> %g Hz over %g s, %g sin + %g", freq_hz, freq_end_hz, duration, amplitude, offset);
+      std::snprintf(b, sizeof b, "chirp %g -> %g Hz over %g s, %g sin + %g", freq_hz, freq_end_hz, duration, amplitude,
+                    offset);
       break;
     case Shape::RandomRampHold: std::snprintf(b, sizeof b, "random ramps and holds in [%g, %g]", lo, hi); break;
     case Shape::Multisine:
-      std::snprintf(b, sizeof b, "multisine %g-%g Hz (%zu lines, period %g s, seed %llu) in [%g, %g]", freq_hz, freq_end_hz,
-                    multisineLines(freq_hz, freq_end_hz), duration, static_cast<unsigned long long>(seed), lo, hi);
+      std::snprintf(b, sizeof b, "multisine %g-%g Hz (%zu lines, period %g s, seed %llu) in [%g, %g]", freq_hz,
+                    freq_end_hz, multisineLines(freq_hz, freq_end_hz), duration, static_cast<unsigned long long>(seed),
+                    lo, hi);
       break;
     case Shape::Aprbs:
       std::snprintf(b, sizeof b, "APRBS in [%g, %g], holds %g-%g s (seed %llu)", lo, hi, hold_min, hold_max,
@@ -216,7 +219,8 @@ std::vector<double> multisineSamples(const std::vector<double>& phases, std::siz
 void scaleOnto(std::vector<double>& x, double lo, double hi) {
   const auto [mn_it, mx_it] = std::minmax_element(x.begin(), x.end());
   const double mn = *mn_it, mx = *mx_it;
-  const std::size_t i_mn = static_cast<std::size_t>(mn_it - x.begin()), i_mx = static_cast<std::size_t>(mx_it - x.begin());
+  const std::size_t i_mn = static_cast<std::size_t>(mn_it - x.begin()),
+                    i_mx = static_cast<std::size_t>(mx_it - x.begin());
   for (double& v : x) v = std::clamp(lo + (hi - lo) * (v - mn) / (mx - mn), lo, hi);
   x[i_mn] = lo;
   x[i_mx] = hi;
@@ -230,13 +234,15 @@ Trajectory Trajectory::multisine(std::uint64_t seed, double f0, double f1, doubl
   if (f1 > kMultisineMaxHz) bad("F1 must be at most " + io::fmt("%g", kMultisineMaxHz) + " Hz");
   if (!(lo < hi)) bad("LO must be below HI");
   const double period = 1.0 / f0;
-  if (period > kMaxTablePeriod_s) bad("F0 must be at least 1/" + io::fmt("%g", kMaxTablePeriod_s) + " Hz (a period of at most " +
-                                      io::fmt("%g", kMaxTablePeriod_s) + " s)");
+  if (period > kMaxTablePeriod_s)
+    bad("F0 must be at least 1/" + io::fmt("%g", kMaxTablePeriod_s) + " Hz (a period of at most " +
+        io::fmt("%g", kMaxTablePeriod_s) + " s)");
   const std::size_t lines = multisineLines(f0, f1);
   const auto n = static_cast<std::size_t>(std::ceil(period / kMultisineStep_s - 1e-9));
   // The tables cost lines x samples: keep the build well under a second.
   if (static_cast<double>(lines) * static_cast<double>(n) > 2e8)
-    bad(std::to_string(lines) + " lines over a " + std::to_string(n) + "-sample period is too many: raise F0 or lower F1");
+    bad(std::to_string(lines) + " lines over a " + std::to_string(n) +
+        "-sample period is too many: raise F0 or lower F1");
   Trajectory t;
   t.shape = Shape::Multisine;
   t.seed = seed;
@@ -311,7 +317,8 @@ constexpr Form kForms[] = {
      }},
     {"chirp", "F0:F1:OFFSET:AMP:DURATION", 5, 5,
      [](const Numbers& v) { return Trajectory::chirp(v[0], v[1], v[2], v[3], v[4]); }},
-    {"random", "SEED:LO:HI", 3, 3, [](const Numbers& v) { return Trajectory::randomRampHold(seedOf(v[0]), v[1], v[2]); }},
+    {"random", "SEED:LO:HI", 3, 3,
+     [](const Numbers& v) { return Trajectory::randomRampHold(seedOf(v[0]), v[1], v[2]); }},
     {"multisine", "SEED:F0:F1:LO:HI", 5, 5,
      [](const Numbers& v) { return Trajectory::multisine(seedOf(v[0]), v[1], v[2], v[3], v[4]); }},
     {"aprbs", "SEED:HOLD_MIN:HOLD_MAX:LO:HI", 5, 5,

@@ -9,14 +9,25 @@
 namespace pamc::control {
 
 struct Trajectory {
-  enum class Shape { Constant, Sine, Triangle, Square, Sawtooth, SineDescending, Chirp, RandomRampHold, Multisine, Aprbs };
+  enum class Shape {
+    Constant,
+    Sine,
+    Triangle,
+    Square,
+    Sawtooth,
+    SineDescending,
+    Chirp,
+    RandomRampHold,
+    Multisine,
+    Aprbs
+  };
   Shape shape = Shape::Constant;
   double freq_hz = 0.1;
-  double lo = 0.0;   // lowest value (Triangle, Square, Sawtooth); centre - amplitude otherwise
-  double hi = 0.0;   // highest value
-  double offset = 0.0, amplitude = 0.0;   // Sine: offset + amplitude sin(2 pi f t)
-  double amplitude_end = 0.0;             // SineDescending: amplitude at t = duration
-  double duration = 0.0;                  // SineDescending, Chirp: length; RandomRampHold, Multisine, Aprbs: period of the table
+  double lo = 0.0;                       // lowest value (Triangle, Square, Sawtooth); centre - amplitude otherwise
+  double hi = 0.0;                       // highest value
+  double offset = 0.0, amplitude = 0.0;  // Sine: offset + amplitude sin(2 pi f t)
+  double amplitude_end = 0.0;            // SineDescending: amplitude at t = duration
+  double duration = 0.0;  // SineDescending, Chirp: length; RandomRampHold, Multisine, Aprbs: period of the table
   // SineDescending: phase added to 2 pi f t [rad]; 0 starts at the trough, pi/2 at the centre, rising.
   double phase = 0.0;
   double freq_end_hz = 0.0;               // Chirp: frequency at t = duration
@@ -60,10 +71,10 @@ struct Trajectory {
   // uniform in [hold_min, hold_max] s, reproducible from `seed`; the table covers kMaxTablePeriod_s and
   // then repeats. Throws std::invalid_argument unless kAprbsMinHold_s <= hold_min <= hold_max and lo < hi.
   static Trajectory aprbs(std::uint64_t seed, double hold_min, double hold_max, double lo, double hi);
-  static constexpr double kMultisineStep_s = 1e-3;   // the cycle period: a 1 kHz loop reads the samples
-  static constexpr double kMultisineMaxHz = 50.0;     // at least 20 samples per period of the highest line
-  static constexpr double kAprbsMinHold_s = 0.01;     // 10 cycles at 1 kHz; bounds the table (120 000 levels)
-  static constexpr double kMaxTablePeriod_s = 1200.0; // the tables' length: a record longer than this repeats
+  static constexpr double kMultisineStep_s = 1e-3;     // the cycle period: a 1 kHz loop reads the samples
+  static constexpr double kMultisineMaxHz = 50.0;      // at least 20 samples per period of the highest line
+  static constexpr double kAprbsMinHold_s = 0.01;      // 10 cycles at 1 kHz; bounds the table (120 000 levels)
+  static constexpr double kMaxTablePeriod_s = 1200.0;  // the tables' length: a record longer than this repeats
 
   // Parses "triangle:0.05:0.2:30", "sine:0.05:15:14.9" (freq:centre:amplitude), "sinedesc:0.05:15.1:14.9:2:60"
   // (a sixth number: the phase in degrees),

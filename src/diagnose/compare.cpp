@@ -34,11 +34,12 @@ RangeShare rangeShare(const model::OperatingRange& r, const io::Measurement& d) 
 std::string describeRangeShare(const RangeShare& s, const model::OperatingRange& r) {
   if (!s.known) return "the model file records no range it was identified on (an older file): nothing to check against";
   char b[400];
-  std::snprintf(b, sizeof b,
-                "outside the range the model was identified on: %.1f %% of the samples (input %.1f %% outside [%g, %g], "
-                "output %.1f %% outside [%g, %g], input rate %.1f %% outside [%g, %g]/s)",
-                100 * s.any, 100 * s.input, r.input.lo, r.input.hi, 100 * s.output, r.output.lo, r.output.hi,
-                100 * s.rate, r.rate.lo, r.rate.hi);
+  std::snprintf(
+      b, sizeof b,
+      "outside the range the model was identified on: %.1f %% of the samples (input %.1f %% outside [%g, %g], "
+      "output %.1f %% outside [%g, %g], input rate %.1f %% outside [%g, %g]/s)",
+      100 * s.any, 100 * s.input, r.input.lo, r.input.hi, 100 * s.output, r.output.lo, r.output.hi, 100 * s.rate,
+      r.rate.lo, r.rate.hi);
   return b;
 }
 
@@ -67,14 +68,26 @@ nlohmann::json rangeJson(const RangeShare& s) {
 nlohmann::json toJson(const Comparison& c) {
   const auto& r = c.report;
   nlohmann::json bins = nlohmann::json::array();
-  for (const auto& b : r.bins) bins.push_back({{"group", b.group}, {"label", b.label}, {"n", b.n}, {"rmse", b.rmse}, {"mean", b.mean}});
-  return {{"samples", r.n},  {"rmse", r.rmse}, {"max_abs", r.max_abs}, {"fit_pct", r.fit_pct},
-          {"mean", r.mean},  {"noise_floor", r.noise_floor}, {"breakdown", bins}, {"indicators", r.ind},
-          {"acf", r.acf},    {"ccf_du", r.ccf_du}, {"conf", r.conf}, {"lag_step_s", r.lag_step_s},
-          {"spectrum", toJson(c.spectrum)}, {"outside_range", rangeJson(c.outside)}};
+  for (const auto& b : r.bins)
+    bins.push_back({{"group", b.group}, {"label", b.label}, {"n", b.n}, {"rmse", b.rmse}, {"mean", b.mean}});
+  return {{"samples", r.n},
+          {"rmse", r.rmse},
+          {"max_abs", r.max_abs},
+          {"fit_pct", r.fit_pct},
+          {"mean", r.mean},
+          {"noise_floor", r.noise_floor},
+          {"breakdown", bins},
+          {"indicators", r.ind},
+          {"acf", r.acf},
+          {"ccf_du", r.ccf_du},
+          {"conf", r.conf},
+          {"lag_step_s", r.lag_step_s},
+          {"spectrum", toJson(c.spectrum)},
+          {"outside_range", rangeJson(c.outside)}};
 }
 
-void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::vector<std::string>* warnings) {
+void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir,
+                        std::vector<std::string>* warnings) {
   io::makeDirectory(dir, "report directory");
   const std::string p = dir + "/";
   std::vector<double> e(d.size());
@@ -112,24 +125,32 @@ void writeCompareReport(const Comparison& c, const io::Measurement& d, const std
   std::string err;
   const std::string cc = p + "compare.csv";
   char title[200];
-  std::snprintf(title, sizeof title, "%s: RMSE %.4g, max %.4g, fit %.1f %%", d.source.c_str(), r.rmse, r.max_abs, r.fit_pct);
-  if (!report::renderFigure(p + "compare.png", title,
-                         {{"measured and model over time", "t [s]", "y", {{cc, "t", "y", "measured"}, {cc, "t", "y_model", "model"}}},
-                          {"loops: y against u", "u", "y", {{cc, "u", "y", "measured"}, {cc, "u", "y_model", "model"}}},
-                          {"residual over time", "t [s]", "y - model", {{cc, "t", "residual", "residual"}}}},
-                         err))
+  std::snprintf(title, sizeof title, "%s: RMSE %.4g, max %.4g, fit %.1f %%", d.source.c_str(), r.rmse, r.max_abs,
+                r.fit_pct);
+  if (!report::renderFigure(
+          p + "compare.png", title,
+          {{"measured and model over time", "t [s]", "y", {{cc, "t", "y", "measured"}, {cc, "t", "y_model", "model"}}},
+           {"loops: y against u", "u", "y", {{cc, "u", "y", "measured"}, {cc, "u", "y_model", "model"}}},
+           {"residual over time", "t [s]", "y - model", {{cc, "t", "residual", "residual"}}}},
+          err))
     if (warnings) warnings->push_back(err);
-  if (!report::renderBars(p + "breakdown.png", "Where the error is: RMSE of y - model by group", p + "breakdown.csv", 6, 4,
-                       "RMSE", err))
+  if (!report::renderBars(p + "breakdown.png", "Where the error is: RMSE of y - model by group", p + "breakdown.csv", 6,
+                          4, "RMSE", err))
     if (warnings) warnings->push_back(err);
   if (!report::renderFigure(p + "residual_tests.png", "Residual tests with 95 % bounds",
-                         {{"auto-correlation of the residual", "lag [s]", "acf",
-                           {{p + "acf.csv", "lag_s", "acf", "acf"}, {p + "acf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
-                            {p + "acf.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}},
-                          {"cross-correlation of the residual with the input increments", "lag [s]", "ccf",
-                           {{p + "ccf.csv", "lag_s", "ccf", "ccf"}, {p + "ccf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
-                            {p + "ccf.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}}},
-                         err))
+                            {{"auto-correlation of the residual",
+                              "lag [s]",
+                              "acf",
+                              {{p + "acf.csv", "lag_s", "acf", "acf"},
+                               {p + "acf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
+                               {p + "acf.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}},
+                             {"cross-correlation of the residual with the input increments",
+                              "lag [s]",
+                              "ccf",
+                              {{p + "ccf.csv", "lag_s", "ccf", "ccf"},
+                               {p + "ccf.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
+                               {p + "ccf.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}}},
+                            err))
     if (warnings) warnings->push_back(err);
 }
 

@@ -14,7 +14,7 @@ namespace pamc::diagnose {
 
 // The share of a record's samples outside the range the model was identified on (model::OperatingRange).
 struct RangeShare {
-  bool known = false;  // the model records its range
+  bool known = false;                                       // the model records its range
   double input = 0.0, output = 0.0, rate = 0.0, any = 0.0;  // fractions of the samples
 };
 RangeShare rangeShare(const model::OperatingRange& r, const io::Measurement& d);
@@ -31,6 +31,7 @@ struct Comparison {
 Comparison compare(const model::Model& m, const io::Measurement& d);
 nlohmann::json toJson(const Comparison& c);
 // CSVs and figures (time plot, loops, residual, breakdown, residual tests) into dir.
-void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir, std::vector<std::string>* warnings = nullptr);
+void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir,
+                        std::vector<std::string>* warnings = nullptr);
 
 }  // namespace pamc::diagnose

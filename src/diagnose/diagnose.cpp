@@ -43,11 +43,13 @@ std::vector<std::string> candidatePool(const std::vector<std::string>& given, bo
   std::vector<std::string> pool, without;
   for (const auto& c : given) (c.size() > 1 && c[0] == '-' ? without.push_back(c.substr(1)) : pool.push_back(c));
   if (!pool.empty() && !without.empty())
-    throw std::invalid_argument("candidates: give either the effects to try or the ones to leave out ('-name'), not both");
+    throw std::invalid_argument(
+        "candidates: give either the effects to try or the ones to leave out ('-name'), not both");
   for (const auto& c : pool.empty() ? without : pool) {
     (void)model::makeEffect(c);  // unknown names fail here, listing the known ones
     if (model::findProbe(c))
-      throw std::invalid_argument("candidates: '" + c + "' is a probe, not a physical effect (diagnose tries the probes itself)");
+      throw std::invalid_argument("candidates: '" + c +
+                                  "' is a probe, not a physical effect (diagnose tries the probes itself)");
   }
   if (pool.empty())
     for (const auto& e : model::catalogue())
@@ -114,7 +116,8 @@ void Diagnosis::screen() {
     v_ = {val_, 0};
     res_.validation = val_->source;
   } else {
-    if (!(s_.holdout > 0.05 && s_.holdout < 0.95)) throw std::invalid_argument("holdout fraction must be in (0.05, 0.95)");
+    if (!(s_.holdout > 0.05 && s_.holdout < 0.95))
+      throw std::invalid_argument("holdout fraction must be in (0.05, 0.95)");
     const auto n_train = static_cast<size_t>(static_cast<double>(data_.size()) * (1.0 - s_.holdout));
     if (n_train < 50 || data_.size() - n_train < 50)
       throw std::invalid_argument(data_.source + ": too few samples to hold out a validation part; give --validate");
@@ -209,7 +212,8 @@ std::vector<CandidateResult> Diagnosis::searchRound(const Rung& cur, const std::
 // frequency) where the GA, searching its whole range, does not: a round's best is searched again by the
 // GA (method lm), and the better fit kept - unless its quick and full searches, from different starts,
 // already ended in the same place (CandidateResult::confirmed).
-void Diagnosis::secondOpinion(CandidateResult& best, const model::Model& base, int round, const ResidualReport& rr) const {
+void Diagnosis::secondOpinion(CandidateResult& best, const model::Model& base, int round,
+                              const ResidualReport& rr) const {
   if (s_.method != ident::FitMethod::MultiStart) return;
   model::Model st = base;
   st.addEffect(best.effect);
@@ -240,21 +244,25 @@ void Diagnosis::candidates() {
       return;
     }
     if (!(gain >= s_.min_gain)) {
-      stop_reason_ = gain > 0 ? "the best candidate, " + results.front().effect + ", lowers the validated RMSE by only " +
-                                    fmt("%.1f", 100 * gain) + " % (at least " + fmt("%.0f", 100 * s_.min_gain) + " % needed)"
-                              : "no candidate lowers the validated RMSE";
+      stop_reason_ = gain > 0
+                         ? "the best candidate, " + results.front().effect + ", lowers the validated RMSE by only " +
+                               fmt("%.1f", 100 * gain) + " % (at least " + fmt("%.0f", 100 * s_.min_gain) + " % needed)"
+                         : "no candidate lowers the validated RMSE";
       return;
     }
     CandidateResult taken = results.front();
-    if (round < s_.max_effects && nearTie(results, cur)) taken = breakTie(results, cur, round, ahead);
-    else refitIfBetter(taken);
+    if (round < s_.max_effects && nearTie(results, cur))
+      taken = breakTie(results, cur, round, ahead);
+    else
+      refitIfBetter(taken);
     Rung next_rung{cur.effects, taken.rmse_train, taken.rmse_val, taken.model, {}, {}, {}, false};
     next_rung.effects.push_back(taken.effect);
     res_.ladder.push_back(next_rung);
     log("  -> added " + taken.effect + ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " +
         fmt("%.5g", next_rung.rmse_val) + " (" + fmt("%.1f", 100 * (1.0 - next_rung.rmse_val / cur.rmse_val)) +
         " % lower)");
-    if (round == s_.max_effects) stop_reason_ = "the limit of " + std::to_string(s_.max_effects) + " effects was reached";
+    if (round == s_.max_effects)
+      stop_reason_ = "the limit of " + std::to_string(s_.max_effects) + " effects was reached";
   }
 }
 
@@ -294,7 +302,8 @@ CandidateResult Diagnosis::breakTie(std::vector<CandidateResult>& results, const
       next[i] = searchRound(r, todo, round + 1);
       refitIfBetter(next[i].front());  // judged on all the samples, as a rung is
     }
-    const CandidateResult& end = next[i].empty() || pick[i].rmse_val <= next[i].front().rmse_val ? pick[i] : next[i].front();
+    const CandidateResult& end =
+        next[i].empty() || pick[i].rmse_val <= next[i].front().rmse_val ? pick[i] : next[i].front();
     score[i] = end.rmse_val;
     at_noise[i] = end.rmse_train < kAtNoise * noise_;
   }
@@ -326,8 +335,10 @@ void Diagnosis::prune() {
       model::Model m(cur.model.core());
       m.setOutputForm(cur.model.outputForm());
       for (const auto& e : cur.effects) {
-        if (e != drop) m.addEffect(e);
-        else if (put) m.addEffect(put);
+        if (e != drop)
+          m.addEffect(e);
+        else if (put)
+          m.addEffect(put);
       }
       structures.push_back(std::move(m));
       out.push_back(drop);
@@ -343,7 +354,9 @@ void Diagnosis::prune() {
     // Every parameter has a value to start from: Levenberg-Marquardt from there, whatever the method.
     auto fits = fitEach(structures, cur.model, labels, s_.max_effects + 2, res_.baseline_residual, "",
                         ident::FitMethod::MultiStart);
-    const auto acceptable = [&](double rv) { return rv <= cur.rmse_val * (1.0 + s_.min_gain / 4.0) || rv < 1.2 * noise_; };
+    const auto acceptable = [&](double rv) {
+      return rv <= cur.rmse_val * (1.0 + s_.min_gain / 4.0) || rv < 1.2 * noise_;
+    };
     // A screening fit ranks; next to the bound it decides. A removal that misses it by little (within
     // min_gain, or at kAtNoise times the noise) is refitted on all the training samples before it is
     // judged: an effect fitted on the decimated record can miss there what the whole record's fit does
@@ -351,8 +364,8 @@ void Diagnosis::prune() {
     // A replacement by the simpler alternative is refitted on all samples whenever it misses: the
     // decimation favours the effect with friction over the ringing one (see searchRound()).
     for (size_t i = 0; i < fits.size(); ++i)
-      if (!acceptable(fits[i].rmse_val) &&
-          (!in[i].empty() || fits[i].rmse_val < kAtNoise * noise_ || fits[i].rmse_val <= cur.rmse_val * (1.0 + s_.min_gain)))
+      if (!acceptable(fits[i].rmse_val) && (!in[i].empty() || fits[i].rmse_val < kAtNoise * noise_ ||
+                                            fits[i].rmse_val <= cur.rmse_val * (1.0 + s_.min_gain)))
         refitIfBetter(fits[i]);
     size_t best = fits.size();
     for (int pass = 0; pass < 2 && best == fits.size(); ++pass)  // removals first, then replacements
@@ -373,8 +386,10 @@ void Diagnosis::prune() {
     const double rv = fits[best].rmse_val;
     Rung pruned{{}, fits[best].rmse_train, rv, fits[best].model, {}, {}, {}, false};
     for (const auto& e : cur.effects)
-      if (e != out[best]) pruned.effects.push_back(e);
-      else if (!in[best].empty()) pruned.effects.push_back(in[best]);
+      if (e != out[best])
+        pruned.effects.push_back(e);
+      else if (!in[best].empty())
+        pruned.effects.push_back(in[best]);
     pruned.removed = out[best];
     pruned.replaced_by = in[best];
     log("  -> " + (in[best].empty() ? "removed " + out[best] : "replaced " + out[best] + " by " + in[best]) +
@@ -389,20 +404,26 @@ std::string Diagnosis::ladderText() const {
   if (res_.ladder.size() == 1) return "No effect in the catalogue explains the residual: " + stop_reason_ + ".";
   std::string removed, replaced, directions, refined;
   for (const auto& g : res_.ladder)
-    if (g.removed.empty()) continue;
-    else if (!g.direction.empty()) directions += (directions.empty() ? "" : "; ") + g.direction;
-    else if (g.refined) refined += (refined.empty() ? "" : ", ") + g.removed + " refined to " + g.replaced_by;
-    else if (g.replaced_by.empty()) removed += (removed.empty() ? "" : ", ") + g.removed;
-    else replaced += (replaced.empty() ? "" : ", ") + g.removed + " by " + g.replaced_by;
+    if (g.removed.empty())
+      continue;
+    else if (!g.direction.empty())
+      directions += (directions.empty() ? "" : "; ") + g.direction;
+    else if (g.refined)
+      refined += (refined.empty() ? "" : ", ") + g.removed + " refined to " + g.replaced_by;
+    else if (g.replaced_by.empty())
+      removed += (removed.empty() ? "" : ", ") + g.removed;
+    else
+      replaced += (replaced.empty() ? "" : ", ") + g.removed + " by " + g.replaced_by;
   std::string notes;
   if (!removed.empty()) notes += removed + " taken out again: no longer needed";
   if (!replaced.empty()) notes += (notes.empty() ? "" : "; ") + replaced + " replaced: the simpler form is enough";
-  if (!refined.empty()) notes += (notes.empty() ? "" : "; ") + refined + ": a richer form that holds it as a special case";
+  if (!refined.empty())
+    notes += (notes.empty() ? "" : "; ") + refined + ": a richer form that holds it as a special case";
   if (!directions.empty()) notes += (notes.empty() ? "" : "; ") + directions;
   return "Added " + join(fin.effects) + (notes.empty() ? "" : " (" + notes + ")") + ": validated RMSE " +
          fmt("%.4g", res_.ladder.front().rmse_val) + " -> " + fmt("%.4g", fin.rmse_val) + " (" +
-         fmt("%.1f", res_.ladder.front().rmse_val / std::max(fin.rmse_val, 1e-300)) + "x lower). Stopped: " +
-         stop_reason_ + ".";
+         fmt("%.1f", res_.ladder.front().rmse_val / std::max(fin.rmse_val, 1e-300)) +
+         "x lower). Stopped: " + stop_reason_ + ".";
 }
 
 // The remaining training error against the noise: at it on both records, on the training record only
@@ -422,10 +443,12 @@ std::string Diagnosis::offsetText(bool val_off) const {
              "way at one of them, or a sensor zero that moved between them - which a fit on one record cannot tell "
              "from the model's own offset and gain. Record from a known start (a cold muscle, a zeroed sensor)" +
              std::string(val_ ? ", or validate on a later part of the same record (without --validate)." : ".");
-    return t + " Something differs between the records that the training record does not show: its levels or rates, "
-               "or a slow change between the recordings.";
+    return t +
+           " Something differs between the records that the training record does not show: its levels or rates, "
+           "or a slow change between the recordings.";
   }
-  if (noise_ > 0 && fin.rmse_train < 2.0 * noise_) return train_err + at_noise + ": nothing systematic is left to explain.";
+  if (noise_ > 0 && fin.rmse_train < 2.0 * noise_)
+    return train_err + at_noise + ": nothing systematic is left to explain.";
   if (noise_ > 0)
     return train_err + fmt("%.0f", fin.rmse_train / noise_) + "x the sensor noise (" + fmt("%.3g", noise_) +
            " rms): something systematic is left that the catalogue does not capture.";
@@ -437,8 +460,8 @@ void Diagnosis::verdict() {
   // A model at the noise on the training record and far from it on the validation record: the records
   // differ in what one record cannot show. Mostly a constant offset there: they start in different states.
   const bool val_off = noise_ > 0 && fin.rmse_train < 2.0 * noise_ && !(fin.rmse_val < kAtNoise * noise_);
-  res_.verdict = ladderText() + offsetText(val_off) + probeText(val_off) + " The residual: " +
-                 describeSpectrum(res_.spectrum) + ".";
+  res_.verdict = ladderText() + offsetText(val_off) + probeText(val_off) +
+                 " The residual: " + describeSpectrum(res_.spectrum) + ".";
 }
 
 // The best probe in words: what it explains and where; at the noise, the effect it fits better than.
@@ -448,11 +471,13 @@ std::string Diagnosis::probeText(bool val_off) const {
   const auto& p = res_.probes.front();
   const std::string change = "(validated RMSE " + fmt("%.4g", fin.rmse_val) + " -> " + fmt("%.4g", p.rmse_val) + ")";
   if (res_.probe_rung && fin.rmse_val < kAtNoise * noise_)
-    return " Though at the noise, the probe " + p.probe + " fits better still in the place of " + p.replaces + " " + change +
-           ": " + p.meaning + ". On these records the two differ by that much; it is a probe, not part of the model.";
+    return " Though at the noise, the probe " + p.probe + " fits better still in the place of " + p.replaces + " " +
+           change + ": " + p.meaning +
+           ". On these records the two differ by that much; it is a probe, not part of the model.";
   if (res_.probe_rung)
     return " The probe " + p.probe + (p.replaces.empty() ? "" : " (in place of " + p.replaces + ")") + " explains " +
-           fmt("%.0f", 100 * p.explains) + " % of what is left " + change + ", most of it at " + p.regime + ": " + p.meaning +
+           fmt("%.0f", 100 * p.explains) + " % of what is left " + change + ", most of it at " + p.regime + ": " +
+           p.meaning +
            (p.direction.empty() ? "" : "; fitted with separate parameters rising and falling, " + p.direction) +
            ". It is a probe, not part of the model.";
   if (!val_off)

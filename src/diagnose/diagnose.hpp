@@ -18,12 +18,12 @@
 namespace pamc::diagnose {
 
 struct DiagnoseSettings {
-  double holdout = 0.3;      // fraction held out at the end when no validation file is given
-  int max_effects = 4;       // rungs above the baseline
-  double min_gain = 0.10;    // a candidate must lower the validated RMSE by this fraction
+  double holdout = 0.3;                 // fraction held out at the end when no validation file is given
+  int max_effects = 4;                  // rungs above the baseline
+  double min_gain = 0.10;               // a candidate must lower the validated RMSE by this fraction
   std::vector<std::string> candidates;  // empty: the whole catalogue
   std::uint64_t seed = 1;
-  int threads = 0;           // 0: all cores
+  int threads = 0;  // 0: all cores
   // How every fit is searched: Levenberg-Marquardt from starts around the current model, each round's
   // best searched again by the GA (default), or the paper's GA first for every fit - several times
   // slower (docs/PERFORMANCE.md).
@@ -53,7 +53,7 @@ struct Rung {
   std::vector<std::string> effects;
   double rmse_train = 0, rmse_val = 0;
   model::Model model;
-  std::string removed;  // a pruning rung: the effect taken out of the previous rung
+  std::string removed;      // a pruning rung: the effect taken out of the previous rung
   std::string replaced_by;  // ... and, if not empty, the simpler alternative put in its place
   std::string direction;    // a direction rung: what differs between rising and falling, in words
   bool refined = false;     // a refinement rung: replaced_by is a richer form that holds `removed` as a special case
@@ -63,10 +63,10 @@ struct Rung {
 struct ProbeResult {
   std::string probe;
   double rmse_train = 0, rmse_val = 0;
-  double explains = 0;   // fraction of the validated residual's mean square the probe removes
-  std::string regime;    // where in compare's breakdown (training data) it removes the most
-  std::string meaning;   // the kind of physics it points to (model/probes/probes.inc)
-  std::string replaces;  // the final model's effect it was fitted in place of (empty: on top of the model)
+  double explains = 0;    // fraction of the validated residual's mean square the probe removes
+  std::string regime;     // where in compare's breakdown (training data) it removes the most
+  std::string meaning;    // the kind of physics it points to (model/probes/probes.inc)
+  std::string replaces;   // the final model's effect it was fitted in place of (empty: on top of the model)
   std::string direction;  // fitted with separate parameters rising and falling: what differs, in words
   // Taken by the directions step (Diagnosis::probeDirections): the validated RMSE of the symmetric fit it
   // replaced; 0 otherwise.
@@ -81,16 +81,16 @@ struct ProbeResult {
 };
 
 struct DiagnoseResult {
-  size_t samples = 0;          // training samples
+  size_t samples = 0;  // training samples
   size_t val_samples = 0;
-  std::string validation;      // "held out: last 30 % of DATA" or the file name
-  std::vector<Rung> ladder;    // [0] is the baseline (reference model)
+  std::string validation;                            // "held out: last 30 % of DATA" or the file name
+  std::vector<Rung> ladder;                          // [0] is the baseline (reference model)
   std::vector<std::vector<CandidateResult>> rounds;  // candidates per round, best first
-  std::vector<ProbeResult> probes;  // best first; empty when the catalogue reached the noise
-  bool probe_rung = false;          // the best probe lowers the validated RMSE by min_gain or more
+  std::vector<ProbeResult> probes;                   // best first; empty when the catalogue reached the noise
+  bool probe_rung = false;                           // the best probe lowers the validated RMSE by min_gain or more
   ResidualReport baseline_residual, final_residual;  // on the training data
-  ResidualSpectrum spectrum;        // of the final model's residual on the training data
-  double val_offset = 0;            // mean of measured - final model on the validation data
+  ResidualSpectrum spectrum;                         // of the final model's residual on the training data
+  double val_offset = 0;                             // mean of measured - final model on the validation data
   std::string verdict;
   double seconds = 0;
 };

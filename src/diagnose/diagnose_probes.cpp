@@ -78,8 +78,9 @@ void Diagnosis::probes() {
 void Diagnosis::alternativesAtTheNoise(const Rung& fin) {
   auto fits = searchProbes(fin, Placement::InPlaceOnly);
   const double limit = (1.0 - s_.min_gain) * fin.rmse_val;
-  fits.erase(std::remove_if(fits.begin(), fits.end(), [limit](const CandidateResult& c) { return !(c.rmse_val <= limit); }),
-             fits.end());
+  fits.erase(
+      std::remove_if(fits.begin(), fits.end(), [limit](const CandidateResult& c) { return !(c.rmse_val <= limit); }),
+      fits.end());
   if (fits.empty()) return;
   recordProbes(fin, fits);
   res_.probe_rung = true;
@@ -106,7 +107,9 @@ void Diagnosis::recordProbes(const Rung& fin, const std::vector<CandidateResult>
   // one probe per worker ("-" for one that explains less than kRegimeShare: its regime would be noise).
   onWorkers(res_.probes.size(), threads_, [&](size_t i) {
     ProbeResult& p = res_.probes[i];
-    p.regime = p.explains < kRegimeShare ? "-" : mostImprovedRegime(res_.final_residual, analyze(train_, simulate(p.model, train_)));
+    p.regime = p.explains < kRegimeShare
+                   ? "-"
+                   : mostImprovedRegime(res_.final_residual, analyze(train_, simulate(p.model, train_)));
   });
 }
 
@@ -138,7 +141,8 @@ std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin, Placement 
       }
   }
   if (structures.empty()) return {};
-  if (where == Placement::InPlaceOnly) log("at the noise: does a probe fit better in the place of an effect of " + join(fin.effects) + "?");
+  if (where == Placement::InPlaceOnly)
+    log("at the noise: does a probe fit better in the place of an effect of " + join(fin.effects) + "?");
   const int round = s_.max_effects + 1;
   const auto method = ident::FitMethod::MultiStart;
   auto fits = fitEach(structures, fin.model, labels, round, res_.final_residual, "probe ", method, Search::Quick, 0);
@@ -146,9 +150,10 @@ std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin, Placement 
     fits[i].effect = labels[i].substr(0, labels[i].find(' '));
     fits[i].replaces = replaces[i];
   }
-  const auto best = static_cast<size_t>(std::min_element(fits.begin(), fits.end(), [](const CandidateResult& a, const CandidateResult& b) {
-                                          return a.rmse_val < b.rmse_val;
-                                        }) - fits.begin());
+  const auto best = static_cast<size_t>(
+      std::min_element(fits.begin(), fits.end(),
+                       [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; }) -
+      fits.begin());
   auto full = fitEach({structures[best]}, fin.model, {labels[best]}, round, res_.final_residual, "full: probe ", method,
                       Search::Full, 0);
   if (full.front().rmse_val < fits[best].rmse_val) {
@@ -179,13 +184,16 @@ void Diagnosis::fitTheLine(const Rung& fin, std::vector<CandidateResult>& fits) 
   std::vector<CandidateResult> tries;
   for (const auto& m : starts)  // each from its own phase
     tries.push_back(fitEach({m}, m, {"periodic"}, s_.max_effects + 1, res_.final_residual,
-                            "line at " + fmt("%.2f", line->hz) + " Hz: ", ident::FitMethod::MultiStart, Search::Quick, 0)
+                            "line at " + fmt("%.2f", line->hz) + " Hz: ", ident::FitMethod::MultiStart, Search::Quick,
+                            0)
                         .front());
-  auto best = std::min_element(tries.begin(), tries.end(),
-                               [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; });
+  auto best = std::min_element(tries.begin(), tries.end(), [](const CandidateResult& a, const CandidateResult& b) {
+    return a.rmse_val < b.rmse_val;
+  });
   // The best phase searched to the end (Levenberg-Marquardt to convergence from it).
-  auto full = fitEach({best->model}, best->model, {"periodic"}, s_.max_effects + 1, res_.final_residual,
-                      "full: line at " + fmt("%.2f", line->hz) + " Hz: ", ident::FitMethod::MultiStart, Search::Full, 0);
+  auto full =
+      fitEach({best->model}, best->model, {"periodic"}, s_.max_effects + 1, res_.final_residual,
+              "full: line at " + fmt("%.2f", line->hz) + " Hz: ", ident::FitMethod::MultiStart, Search::Full, 0);
   if (full.front().rmse_val < best->rmse_val) *best = std::move(full.front());
   for (auto& c : fits)
     if (c.effect == "periodic" && c.replaces.empty() && best->rmse_val < c.rmse_val) c = *best;
@@ -221,7 +229,8 @@ void Diagnosis::preferSimplestProbe() {
   size_t best = 0;
   for (size_t i = 1; i < res_.probes.size() && res_.probes[i].rmse_val <= limit; ++i)
     if (size(res_.probes[i]) < size(res_.probes[best])) best = i;
-  std::rotate(res_.probes.begin(), res_.probes.begin() + static_cast<long>(best), res_.probes.begin() + static_cast<long>(best) + 1);
+  std::rotate(res_.probes.begin(), res_.probes.begin() + static_cast<long>(best),
+              res_.probes.begin() + static_cast<long>(best) + 1);
 }
 
 }  // namespace pamc::diagnose::detail

@@ -38,8 +38,10 @@ model::Model withReplacement(const Rung& fin, const std::string& effect, const s
   model::Model m(fin.model.core());
   m.setOutputForm(fin.model.outputForm());
   for (const auto& e : fin.effects)
-    if (e != effect && kept(e)) m.addEffect(e);
-    else if (e == effect && !by.empty()) m.addEffect(by);
+    if (e != effect && kept(e))
+      m.addEffect(e);
+    else if (e == effect && !by.empty())
+      m.addEffect(by);
   const auto by_specs = by.empty() ? std::vector<model::ParamSpec>{} : model::makeEffect(by)->params();
   for (int i = 0; i < fin.model.numEffects(); ++i) {
     const auto& eff = fin.model.effect(i);
@@ -120,7 +122,8 @@ model::Model without(const model::Model& m, const std::string& name) {
   for (int i = 0; i < m.numEffects(); ++i) {
     if (m.effect(i).name() == name) continue;
     const auto& specs = m.effect(i).params();
-    for (size_t q = 0; q < specs.size(); ++q) out.setEffectParam(m.effect(i).name(), specs[q].name, m.effectParams(i)[q]);
+    for (size_t q = 0; q < specs.size(); ++q)
+      out.setEffectParam(m.effect(i).name(), specs[q].name, m.effectParams(i)[q]);
   }
   return out;
 }
@@ -152,19 +155,21 @@ std::optional<Rung> Diagnosis::tryRefinement(const std::string& effect, const st
   auto c = fitEach({refined}, cur.model, {richer}, round, rr, "refine ", s_.method, Search::Quick, kQuickCover).front();
   const bool absorbing = !model::makeEffect(richer)->absorbs().empty();
   if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain && !absorbing) {
-    log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " + fmt("%.5g", cur.rmse_val) +
-        "): not searched further");
+    log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " +
+        fmt("%.5g", cur.rmse_val) + "): not searched further");
     return std::nullopt;
   }
   searchByGa(c, base);
   refitIfBetter(c);
-  log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " + fmt("%.5g", cur.rmse_val) +
-      ")");
+  log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " +
+      fmt("%.5g", cur.rmse_val) + ")");
   if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain) return std::nullopt;
   Rung r;
   for (const auto& x : cur.effects)
-    if (x == effect) r.effects.push_back(richer);
-    else if (c.model.hasEffect(x)) r.effects.push_back(x);  // not one the richer form absorbed
+    if (x == effect)
+      r.effects.push_back(richer);
+    else if (c.model.hasEffect(x))
+      r.effects.push_back(x);  // not one the richer form absorbed
   r.model = c.model;
   r.rmse_train = c.rmse_train;
   r.rmse_val = c.rmse_val;

@@ -27,12 +27,14 @@ nlohmann::json toJson(const DiagnoseResult& r) {
   nlohmann::json c = nlohmann::json::array();
   if (!r.rounds.empty())
     for (const auto& x : r.rounds.front())
-      c.push_back({{"effect", x.effect}, {"rmse_val", x.rmse_val}, {"rmse_train", x.rmse_train},
-                   {"evidence", x.evidence.text}, {"evidence_strength", x.evidence.strength}});
+      c.push_back({{"effect", x.effect},
+                   {"rmse_val", x.rmse_val},
+                   {"rmse_train", x.rmse_train},
+                   {"evidence", x.evidence.text},
+                   {"evidence_strength", x.evidence.strength}});
   j["candidates"] = c;
   nlohmann::json l = nlohmann::json::array();
-  for (const auto& g : r.ladder)
-  {
+  for (const auto& g : r.ladder) {
     l.push_back({{"effects", g.effects}, {"rmse_train", g.rmse_train}, {"rmse_val", g.rmse_val}, {"probe", false}});
     if (!g.removed.empty()) l.back()["removed"] = g.removed;
     if (!g.replaced_by.empty()) l.back()["replaced_by"] = g.replaced_by;
@@ -41,7 +43,10 @@ nlohmann::json toJson(const DiagnoseResult& r) {
   }
   if (r.probe_rung) {
     const auto e = r.probes.front().effectsWith(r.ladder.back().effects);
-    l.push_back({{"effects", e}, {"rmse_train", r.probes.front().rmse_train}, {"rmse_val", r.probes.front().rmse_val}, {"probe", true}});
+    l.push_back({{"effects", e},
+                 {"rmse_train", r.probes.front().rmse_train},
+                 {"rmse_val", r.probes.front().rmse_val},
+                 {"probe", true}});
   }
   j["ladder"] = l;
   nlohmann::json pj = nlohmann::json::array();
@@ -51,8 +56,13 @@ nlohmann::json toJson(const DiagnoseResult& r) {
       if (p.probe == p.model.effect(i).name() || p.probe + model::kDirectionalSuffix == p.model.effect(i).name())
         for (size_t q = 0; q < p.model.effect(i).params().size(); ++q)
           params[p.model.effect(i).params()[q].name] = p.model.effectParams(i)[q];
-    pj.push_back({{"probe", p.probe}, {"rmse_val", p.rmse_val}, {"rmse_train", p.rmse_train}, {"explains", p.explains},
-                  {"regime", p.regime}, {"meaning", p.meaning}, {"params", params}});
+    pj.push_back({{"probe", p.probe},
+                  {"rmse_val", p.rmse_val},
+                  {"rmse_train", p.rmse_train},
+                  {"explains", p.explains},
+                  {"regime", p.regime},
+                  {"meaning", p.meaning},
+                  {"params", params}});
     if (!p.replaces.empty()) pj.back()["replaces"] = p.replaces;
     if (!p.direction.empty()) pj.back()["direction"] = p.direction;
     if (p.symmetric_rmse_val > 0) pj.back()["symmetric_rmse_val"] = p.symmetric_rmse_val;
@@ -147,24 +157,49 @@ void writeReport(const DiagnoseResult& r, const io::Measurement& data, const io:
     if (!report::renderFigure(p + png, title, panels, err) && warnings) warnings->push_back(err);
   };
   fig("ladder.png", "Error ladder: " + r.verdict.substr(0, 90),
-      {{"RMSE after each added effect (0 = reference model)", "rung", "RMSE",
+      {{"RMSE after each added effect (0 = reference model)",
+        "rung",
+        "RMSE",
         {{p + "ladder.csv", "rung", "rmse_train", "training", "linespoints lw 2 pt 7"},
          {p + "ladder.csv", "rung", "rmse_val", "validation", "linespoints lw 2 pt 5"}}}});
-  if (!r.probes.empty() && !report::renderBars(p + "probes.png", "Probes: share of what " + join(r.ladder.back().effects) +
-                                                   " leaves that each explains (validation)",
-                                               p + "probes.csv", 1, 2, "explained [%]", err) && warnings)
+  if (!r.probes.empty() &&
+      !report::renderBars(
+          p + "probes.png",
+          "Probes: share of what " + join(r.ladder.back().effects) + " leaves that each explains (validation)",
+          p + "probes.csv", 1, 2, "explained [%]", err) &&
+      warnings)
     warnings->push_back(err);
-  fig("validation.png", "Validation data: measured, reference model and final model (" + join(r.ladder.back().effects) + ")",
-      {{"measured and models over time", "t [s]", "y", {{vcsv, "t", "y", "measured"}, {vcsv, "t", "y_reference", "reference model"}, {vcsv, "t", "y_final", "final model"}}},
-       {"loops: y against u", "u", "y", {{vcsv, "u", "y", "measured"}, {vcsv, "u", "y_reference", "reference model"}, {vcsv, "u", "y_final", "final model"}}},
-       {"residual over time", "t [s]", "y - model", {{vcsv, "t", "e_reference", "reference model"}, {vcsv, "t", "e_final", "final model"}}}});
+  fig("validation.png",
+      "Validation data: measured, reference model and final model (" + join(r.ladder.back().effects) + ")",
+      {{"measured and models over time",
+        "t [s]",
+        "y",
+        {{vcsv, "t", "y", "measured"},
+         {vcsv, "t", "y_reference", "reference model"},
+         {vcsv, "t", "y_final", "final model"}}},
+       {"loops: y against u",
+        "u",
+        "y",
+        {{vcsv, "u", "y", "measured"},
+         {vcsv, "u", "y_reference", "reference model"},
+         {vcsv, "u", "y_final", "final model"}}},
+       {"residual over time",
+        "t [s]",
+        "y - model",
+        {{vcsv, "t", "e_reference", "reference model"}, {vcsv, "t", "e_final", "final model"}}}});
   fig("residual_tests.png", "Residual tests (training data) with 95 % bounds",
-      {{"auto-correlation of the residual", "lag [s]", "acf",
-        {{p + "acf_reference.csv", "lag_s", "acf", "reference model"}, {p + "acf_final.csv", "lag_s", "acf", "final model"},
+      {{"auto-correlation of the residual",
+        "lag [s]",
+        "acf",
+        {{p + "acf_reference.csv", "lag_s", "acf", "reference model"},
+         {p + "acf_final.csv", "lag_s", "acf", "final model"},
          {p + "acf_reference.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
          {p + "acf_reference.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}},
-       {"cross-correlation of the residual with the input increments", "lag [s]", "ccf",
-        {{p + "ccf_reference.csv", "lag_s", "ccf", "reference model"}, {p + "ccf_final.csv", "lag_s", "ccf", "final model"},
+       {"cross-correlation of the residual with the input increments",
+        "lag [s]",
+        "ccf",
+        {{p + "ccf_reference.csv", "lag_s", "ccf", "reference model"},
+         {p + "ccf_final.csv", "lag_s", "ccf", "final model"},
          {p + "ccf_reference.csv", "lag_s", "upper", "95 % bound", "lines dt 2 lc 'black'"},
          {p + "ccf_reference.csv", "lag_s", "lower", "", "lines dt 2 lc 'black'"}}}});
 }

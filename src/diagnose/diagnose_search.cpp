@@ -126,7 +126,8 @@ std::vector<CandidateResult> Diagnosis::fitEach(const std::vector<model::Model>&
     std::lock_guard<std::mutex> lk(log_mu);
     const std::string label = tag + names[i];
     log("  " + label + std::string(label.size() < 20 ? 20 - label.size() : 0, ' ') + " train " +
-        fmt("%-10.5g", c.rmse_train) + " validation " + fmt("%-10.5g", c.rmse_val) + " (" + fmt("%.1f", c.seconds) + " s)");
+        fmt("%-10.5g", c.rmse_train) + " validation " + fmt("%-10.5g", c.rmse_val) + " (" + fmt("%.1f", c.seconds) +
+        " s)");
   });
   return results;
 }
@@ -145,11 +146,13 @@ std::vector<CandidateResult> Diagnosis::fitOnTop(const model::Model& base_model,
 
 // Every name on top of base_model searched quickly, the `full_n` best (by validated RMSE) again
 // in full; the better fit of each kept, best first. With the GA every fit is a full search.
-std::vector<CandidateResult> Diagnosis::searchOnTop(const model::Model& base_model, const std::vector<std::string>& names,
-                                                    int round, const ResidualReport& rr, const std::string& tag,
+std::vector<CandidateResult> Diagnosis::searchOnTop(const model::Model& base_model,
+                                                    const std::vector<std::string>& names, int round,
+                                                    const ResidualReport& rr, const std::string& tag,
                                                     ident::FitMethod method, size_t full_n, int quick_cover) const {
   const bool staged = method == ident::FitMethod::MultiStart && names.size() > full_n;
-  auto results = fitOnTop(base_model, names, round, rr, tag, method, staged ? Search::Quick : Search::Full, quick_cover);
+  auto results =
+      fitOnTop(base_model, names, round, rr, tag, method, staged ? Search::Quick : Search::Full, quick_cover);
   std::stable_sort(results.begin(), results.end(), byValidation);
   if (!staged) return results;
   std::vector<std::string> top;

@@ -126,9 +126,10 @@ class Diagnosis {
                                        const std::vector<std::string>& names, int round, const ResidualReport& rr,
                                        const std::string& tag, ident::FitMethod method, Search search = Search::Full,
                                        int quick_cover = kQuickCover) const;
-  std::vector<CandidateResult> fitOnTop(const model::Model& base_model, const std::vector<std::string>& names, int round,
-                                        const ResidualReport& rr, const std::string& tag, ident::FitMethod method,
-                                        Search search = Search::Full, int quick_cover = kQuickCover) const;
+  std::vector<CandidateResult> fitOnTop(const model::Model& base_model, const std::vector<std::string>& names,
+                                        int round, const ResidualReport& rr, const std::string& tag,
+                                        ident::FitMethod method, Search search = Search::Full,
+                                        int quick_cover = kQuickCover) const;
   std::vector<CandidateResult> searchOnTop(const model::Model& base_model, const std::vector<std::string>& names,
                                            int round, const ResidualReport& rr, const std::string& tag,
                                            ident::FitMethod method, size_t full_n, int quick_cover) const;
@@ -141,13 +142,13 @@ class Diagnosis {
   const DiagnoseSettings& s_;
   std::chrono::steady_clock::time_point t0_;
   int threads_ = 1;
-  io::Measurement train_;           // the training record
-  Validation v_;                    // where the validated error is measured
-  io::Measurement screen_;          // the training record decimated for the searches
-  size_t step_ = 1;                 // its decimation
-  std::vector<std::string> pool_;   // candidate effects
+  io::Measurement train_;            // the training record
+  Validation v_;                     // where the validated error is measured
+  io::Measurement screen_;           // the training record decimated for the searches
+  size_t step_ = 1;                  // its decimation
+  std::vector<std::string> pool_;    // candidate effects
   std::vector<std::string> richer_;  // effects tried only in the place of those they refine
-  double noise_ = 0;                // sensor noise of the records (rms)
+  double noise_ = 0;                 // sensor noise of the records (rms)
   std::string stop_reason_ = "the catalogue is exhausted";
   DiagnoseResult res_;
 };

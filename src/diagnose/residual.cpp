@@ -140,7 +140,9 @@ ResidualReport analyze(const io::Measurement& d, const std::vector<double>& yhat
     const char* names[] = {"lowest quarter", "second quarter", "third quarter", "highest quarter"};
     for (int b = 0; b < 4; ++b) {
       std::string label = names[b];
-      label += b == 0 ? " (<= " + fmt("%.4g", q[0]) + unit + ")" : b == 3 ? " (> " + fmt("%.4g", q[2]) + unit + ")" : "";
+      label += b == 0   ? " (<= " + fmt("%.4g", q[0]) + unit + ")"
+               : b == 3 ? " (> " + fmt("%.4g", q[2]) + unit + ")"
+                        : "";
       push(group, label, acc[static_cast<size_t>(b)]);
     }
     return acc;
@@ -157,7 +159,8 @@ ResidualReport analyze(const io::Measurement& d, const std::vector<double>& yhat
   // Holds: time since the input last moved by 0.2 % of its range.
   {
     const double edges[] = {0.05, 0.5, 2.0, 10.0};
-    const char* labels[] = {"moving (< 0.05 s since)", "0.05-0.5 s since the input moved", "0.5-2 s", "2-10 s", "> 10 s"};
+    const char* labels[] = {"moving (< 0.05 s since)", "0.05-0.5 s since the input moved", "0.5-2 s", "2-10 s",
+                            "> 10 s"};
     std::vector<Acc> acc(5);
     for (size_t i = 0; i < n; ++i) {
       int b = 0;
@@ -290,8 +293,8 @@ Evidence effectEvidence(const std::string& effect, const ResidualReport& r) {
   } else if (effect == "mass_spring") {
     const double m = get("ring_min"), f = get("ring_hz");
     ev.strength = clamp01(-m * 2);
-    ev.text = m < -0.05 ? "the residual auto-correlation swings to " + fmt("%.2f", m) + ": it rings near " + fmt("%.3g", f) +
-                              " Hz after fast changes"
+    ev.text = m < -0.05 ? "the residual auto-correlation swings to " + fmt("%.2f", m) + ": it rings near " +
+                              fmt("%.3g", f) + " Hz after fast changes"
                         : "no ringing in the residual (its auto-correlation does not swing negative within the lags)";
   } else if (effect == "force_loop") {
     const double m = get("ring_min"), t = get("turn_ratio");
@@ -301,8 +304,8 @@ Evidence effectEvidence(const std::string& effect, const ResidualReport& r) {
   } else if (effect == "friction_hysteresis") {
     const double t = get("turn_ratio");
     ev.strength = clamp01((t - 1) / 2);
-    ev.text = "error near turning points is " + fmt("%.1f", t) + "x the error elsewhere (corr with the model's own motion " +
-              fmt("%.2f", get("corr_e_dyhat")) + ")";
+    ev.text = "error near turning points is " + fmt("%.1f", t) +
+              "x the error elsewhere (corr with the model's own motion " + fmt("%.2f", get("corr_e_dyhat")) + ")";
   } else if (effect == "asymmetry") {
     const double dd = get("dir_mean_diff");
     ev.strength = clamp01(std::fabs(dd));
@@ -331,16 +334,17 @@ Evidence effectEvidence(const std::string& effect, const ResidualReport& r) {
 
 std::string formatReport(const ResidualReport& r) {
   std::ostringstream o;
-  o << "RMSE " << fmt("%.5g", r.rmse) << ", max |error| " << fmt("%.5g", r.max_abs) << ", fit " << fmt("%.2f", r.fit_pct)
-    << " %, mean error " << fmt("%.3g", r.mean) << " (sensor noise estimated at " << fmt("%.3g", r.noise_floor)
-    << " rms)\n\n";
+  o << "RMSE " << fmt("%.5g", r.rmse) << ", max |error| " << fmt("%.5g", r.max_abs) << ", fit "
+    << fmt("%.2f", r.fit_pct) << " %, mean error " << fmt("%.3g", r.mean) << " (sensor noise estimated at "
+    << fmt("%.3g", r.noise_floor) << " rms)\n\n";
   o << "Where the error is (RMSE and mean of y - model per group):\n";
   std::string last;
   for (const auto& b : r.bins) {
     if (b.group != last) o << "  " << b.group << "\n";
     last = b.group;
     char line[200];
-    std::snprintf(line, sizeof line, "    %-42s n=%-8zu rmse %-10.4g mean %+.4g\n", b.label.c_str(), b.n, b.rmse, b.mean);
+    std::snprintf(line, sizeof line, "    %-42s n=%-8zu rmse %-10.4g mean %+.4g\n", b.label.c_str(), b.n, b.rmse,
+                  b.mean);
     o << line;
   }
   // Residual tests: where they leave the 95 % band.
@@ -355,14 +359,14 @@ std::string formatReport(const ResidualReport& r) {
       ccf_peak_lag = static_cast<int>(i) - r.max_lag;
     }
   }
-  o << "\nResidual tests (95 % bound +-" << fmt("%.3g", r.conf) << ", lags up to " << fmt("%.3g", r.max_lag * r.lag_step_s)
-    << " s):\n";
+  o << "\nResidual tests (95 % bound +-" << fmt("%.3g", r.conf) << ", lags up to "
+    << fmt("%.3g", r.max_lag * r.lag_step_s) << " s):\n";
   o << "  auto-correlation of e: " << acf_out << " of " << r.max_lag << " lags outside the bound"
     << (acf_out > r.max_lag / 20 ? " - the residual is correlated in time (its spectrum says where)\n" : " - white\n");
   o << "  cross-correlation of e with du: " << ccf_out << " of " << r.ccf_du.size() << " lags outside the bound, peak "
     << fmt("%.3f", ccf_peak) << " at lag " << fmt("%.4g", ccf_peak_lag * r.lag_step_s) << " s"
     << (ccf_out > static_cast<int>(r.ccf_du.size()) / 20 ? " - the input still explains part of the residual\n"
-                                                          : " - independent of the input\n");
+                                                         : " - independent of the input\n");
   return o.str();
 }
 

@@ -23,11 +23,11 @@ struct ResidualReport {
   double rmse = 0, max_abs = 0, fit_pct = 0, mean = 0;
   double noise_floor = 0;  // estimated sensor noise of y (rms), from its second differences
   std::vector<Bin> bins;
-  int max_lag = 0;               // lags 0..max_lag (auto), -max_lag..max_lag (cross)
-  double lag_step_s = 0;         // seconds per lag
-  std::vector<double> acf;       // residual auto-correlation
-  std::vector<double> ccf_du;    // corr(e(t), du(t - lag)) for lag = -max_lag..max_lag
-  double conf = 0;               // 95 % bound: 1.96 / sqrt(n)
+  int max_lag = 0;             // lags 0..max_lag (auto), -max_lag..max_lag (cross)
+  double lag_step_s = 0;       // seconds per lag
+  std::vector<double> acf;     // residual auto-correlation
+  std::vector<double> ccf_du;  // corr(e(t), du(t - lag)) for lag = -max_lag..max_lag
+  double conf = 0;             // 95 % bound: 1.96 / sqrt(n)
   // Indicators used as evidence for effects (see effectEvidence).
   std::map<std::string, double> ind;
 };

@@ -19,11 +19,11 @@ using io::fmt;
 using cvec = std::vector<std::complex<double>>;
 
 constexpr size_t kMaxSegment = 4096;
-constexpr double kLineFactor = 10.0;    // a line stands this far above the running median
-constexpr int kMedianHalfWidth = 24;    // bins each side of the running median
-constexpr double kMinLineHz = 0.5;      // below this a "line" is the excitation's own slow content
+constexpr double kLineFactor = 10.0;  // a line stands this far above the running median
+constexpr int kMedianHalfWidth = 24;  // bins each side of the running median
+constexpr double kMinLineHz = 0.5;    // below this a "line" is the excitation's own slow content
 constexpr size_t kMaxPeaks = 5;
-constexpr int kLineBins = 2;            // bins each side summed into a line's power (Hann's main lobe)
+constexpr int kLineBins = 2;  // bins each side summed into a line's power (Hann's main lobe)
 
 size_t segmentLength(size_t n) {
   size_t len = 256;
@@ -88,7 +88,8 @@ void findPeaks(ResidualSpectrum& s) {
     if (s.hz[k] < kMinLineHz || s.psd[k] < s.psd[k - 1] || s.psd[k] < s.psd[k + 1]) continue;
     if (s.psd[k] < kLineFactor * base[k] || (s.noise_psd > 0 && s.psd[k] < kLineFactor * s.noise_psd)) continue;
     double power = 0;
-    const size_t lo = k >= static_cast<size_t>(kLineBins) ? k - kLineBins : 0, hi = std::min(s.psd.size() - 1, k + kLineBins);
+    const size_t lo = k >= static_cast<size_t>(kLineBins) ? k - kLineBins : 0,
+                 hi = std::min(s.psd.size() - 1, k + kLineBins);
     for (size_t j = lo; j <= hi; ++j) power += (s.psd[j] - base[j]) * s.df;
     // Hann's equivalent noise bandwidth is 1.5 bins: the sum over the main lobe holds the line's power.
     // The line's frequency between bins: a parabola through the log-psd of the peak and its neighbours.
@@ -99,7 +100,8 @@ void findPeaks(ResidualSpectrum& s) {
     p.coherent = p.coherence >= s.coherence_threshold;
     s.peaks.push_back(p);
   }
-  std::sort(s.peaks.begin(), s.peaks.end(), [](const SpectrumPeak& a, const SpectrumPeak& b) { return a.amplitude > b.amplitude; });
+  std::sort(s.peaks.begin(), s.peaks.end(),
+            [](const SpectrumPeak& a, const SpectrumPeak& b) { return a.amplitude > b.amplitude; });
   if (s.peaks.size() > kMaxPeaks) s.peaks.resize(kMaxPeaks);
 }
 
@@ -133,7 +135,8 @@ void powerBand(ResidualSpectrum& s) {
 
 }  // namespace
 
-ResidualSpectrum residualSpectrum(const std::vector<double>& e, const std::vector<double>& u, double Ts, double noise_std) {
+ResidualSpectrum residualSpectrum(const std::vector<double>& e, const std::vector<double>& u, double Ts,
+                                  double noise_std) {
   if (e.size() != u.size()) throw std::invalid_argument("residual spectrum: residual and input differ in length");
   ResidualSpectrum s;
   if (!(Ts > 0) || e.size() < 1024) return s;
@@ -163,10 +166,17 @@ nlohmann::json toJson(const ResidualSpectrum& s) {
   nlohmann::json peaks = nlohmann::json::array();
   for (const auto& p : s.peaks)
     peaks.push_back({{"hz", p.hz}, {"amplitude", p.amplitude}, {"coherence", p.coherence}, {"coherent", p.coherent}});
-  return {{"peaks", peaks},           {"df_hz", s.df},          {"segments", s.segments},
-          {"floor_psd", s.floor_psd}, {"noise_psd", s.noise_psd}, {"coherence_threshold", s.coherence_threshold},
-          {"white", s.white},         {"rms", s.rms},             {"f90_hz", s.f90_hz},
-          {"band_coherence", s.band_coherence}, {"summary", describeSpectrum(s)}};
+  return {{"peaks", peaks},
+          {"df_hz", s.df},
+          {"segments", s.segments},
+          {"floor_psd", s.floor_psd},
+          {"noise_psd", s.noise_psd},
+          {"coherence_threshold", s.coherence_threshold},
+          {"white", s.white},
+          {"rms", s.rms},
+          {"f90_hz", s.f90_hz},
+          {"band_coherence", s.band_coherence},
+          {"summary", describeSpectrum(s)}};
 }
 
 std::string describeSpectrum(const ResidualSpectrum& s) {
@@ -175,20 +185,21 @@ std::string describeSpectrum(const ResidualSpectrum& s) {
   std::string t;
   if (!s.peaks.empty()) {
     const auto& p = s.peaks.front();
-    t = "its spectrum has a line at " + fmt("%.2f", p.hz) + " Hz (amplitude " + fmt("%.3g", p.amplitude) + ", coherence " +
-        fmt("%.2f", p.coherence) + " with the input: " +
-        (p.coherent ? "driven by the input - a dynamic the model lacks)" : "not driven by the input - a disturbance from elsewhere)");
+    t = "its spectrum has a line at " + fmt("%.2f", p.hz) + " Hz (amplitude " + fmt("%.3g", p.amplitude) +
+        ", coherence " + fmt("%.2f", p.coherence) + " with the input: " +
+        (p.coherent ? "driven by the input - a dynamic the model lacks)"
+                    : "not driven by the input - a disturbance from elsewhere)");
     if (s.peaks.size() > 1) t += " and " + std::to_string(s.peaks.size() - 1) + " weaker line(s)";
   } else {
     t = "its spectrum has no line";
   }
   if (s.noise_psd > 0 && s.rms < 2.0 * std::sqrt(0.5 * s.noise_psd * s.fs)) return t;
-  const std::string band = s.f90_hz < 0.25 * s.fs / 2
-                               ? "90 % of its power lies below " + fmt("%.3g", s.f90_hz) + " Hz"
-                               : "its power is spread over the whole band";
+  const std::string band = s.f90_hz < 0.25 * s.fs / 2 ? "90 % of its power lies below " + fmt("%.3g", s.f90_hz) + " Hz"
+                                                      : "its power is spread over the whole band";
   return t + "; " + band + " with a coherence of " + fmt("%.2f", s.band_coherence) + " with the input there (" +
-         (s.band_coherence >= 0.5 ? "linearly driven by the input: dynamics the model lacks"
-                                  : "not linearly related to the input: a nonlinear effect of it, a drift or a disturbance") +
+         (s.band_coherence >= 0.5
+              ? "linearly driven by the input: dynamics the model lacks"
+              : "not linearly related to the input: a nonlinear effect of it, a drift or a disturbance") +
          "), not white noise";
 }
 
@@ -200,12 +211,16 @@ void writeSpectrumReport(const ResidualSpectrum& s, const std::string& dir, cons
   io::writeCsvAtomic(csv, {"hz", "psd", "noise_psd", "coherence", "coherence_threshold"},
                      {&s.hz, &s.psd, &noise, &s.coherence, &thr});
   if (!report::haveGnuplot()) return;
-  report::Panel psd{"residual power spectral density (Welch, " + std::to_string(s.segments) + " segments)", "f [Hz]",
-                    "PSD [y-unit^2/Hz]", {{csv, "hz", "psd", "residual"}}};
+  report::Panel psd{"residual power spectral density (Welch, " + std::to_string(s.segments) + " segments)",
+                    "f [Hz]",
+                    "PSD [y-unit^2/Hz]",
+                    {{csv, "hz", "psd", "residual"}}};
   if (s.noise_psd > 0) psd.series.push_back({csv, "hz", "noise_psd", "sensor noise level", "lines dt 2", "#000000"});
   psd.log_y = psd.log_x = true;
   psd.every = 1;
-  report::Panel coh{"coherence of the residual with the input", "f [Hz]", "coherence",
+  report::Panel coh{"coherence of the residual with the input",
+                    "f [Hz]",
+                    "coherence",
                     {{csv, "hz", "coherence", "coherence"},
                      {csv, "hz", "coherence_threshold", "threshold", "lines dt 2", "#000000"}}};
   coh.log_x = true;

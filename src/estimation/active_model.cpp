@@ -60,8 +60,10 @@ void ActiveModel::reset(double u0, double load) noexcept {
   Filter::Vec x0 = Filter::Vec::Zero();
   x0(0) = st_.h;
   for (int i = 0; i < nf_; ++i) x0(kCore + i) = st_.s[static_cast<size_t>(model_.filterStateIndex(i))];
-  if (nf_ > 0) ukf_.reset(x0, P0<Filter>());
-  else core_.reset(x0.head<kCore>(), P0<CoreFilter>());
+  if (nf_ > 0)
+    ukf_.reset(x0, P0<Filter>());
+  else
+    core_.reset(x0.head<kCore>(), P0<CoreFilter>());
   du_pending_ = 0.0;
   outlier_run_ = 0;
   nis_level_ = 0.0;
@@ -157,7 +159,8 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   // filter is lost): start over from P0 at the prediction and take the position without the gate. The
   // gate then re-learns the filter's level, as after reset(), so the way back is not gated either.
   bool restart = false;
-  if (s2 == UkfStatus::OutlierRejected && settings_.gate_max_rejects > 0 && outlier_run_ >= settings_.gate_max_rejects) {
+  if (s2 == UkfStatus::OutlierRejected && settings_.gate_max_rejects > 0 &&
+      outlier_run_ >= settings_.gate_max_rejects) {
     ukf.reset(ukf.x(), P0<F>());  // x is the prediction: a rejected update leaves it there
     s2 = worstOf(correct(0.0, 0.0), UkfStatus::Reset);
     restart = true;

@@ -53,9 +53,9 @@ struct ActiveModelStep {
   double y_post = 0.0;   // posterior output estimate (the paper's "with active model")
   double h = 0.0;
   double f_h = 0.0;
-  double nis = 0.0;      // normalised innovation squared of y_k (0 if y_k was not finite)
-  double nis_gate = 0.0; // what the gate compares with gate_nis: the NIS widened by the model's own step
-  bool rejected = false; // y_k was not used: not finite, or beyond the gate (y_post is the prediction)
+  double nis = 0.0;                  // normalised innovation squared of y_k (0 if y_k was not finite)
+  double nis_gate = 0.0;             // what the gate compares with gate_nis: the NIS widened by the model's own step
+  bool rejected = false;             // y_k was not used: not finite, or beyond the gate (y_post is the prediction)
   UkfStatus status = UkfStatus::Ok;  // the worse of predict and update (a reset always shows)
 };
 
@@ -103,10 +103,10 @@ class ActiveModel {
   double gateStatistic() const noexcept { return nf_ > 0 ? ukf_.gateStatistic() : core_.gateStatistic(); }
   const model::Model::State& modelState() const { return st_; }
   double Ts() const { return Ts_; }
-  unsigned resets() const { return resets_; }  // of every kind (P, gate, divergence)
+  unsigned resets() const { return resets_; }            // of every kind (P, gate, divergence)
   unsigned divergences() const { return divergences_; }  // restarts by the divergence guard
   unsigned outliers() const { return outliers_total_; }  // positions rejected by the gate since configure()
-  double nisLevel() const { return nis_level_; }  // mean NIS of the last ~1000 used positions
+  double nisLevel() const { return nis_level_; }         // mean NIS of the last ~1000 used positions
 
  private:
   model::Model model_;
@@ -124,17 +124,17 @@ class ActiveModel {
   double fh() const noexcept { return nf_ > 0 ? ukf_.x()(1) : core_.x()(1); }
   CoreFilter core_;
   model::Model::State st_prev_;  // output-effect states of the last sample (filter states: posterior mean)
-  double ue_prev_ = 0.0;     // effective command of the last sample
+  double ue_prev_ = 0.0;         // effective command of the last sample
   double load_prev_ = 0.0;
-  int nf_ = 0;               // filter states in use (model_.numFilterStates())
+  int nf_ = 0;  // filter states in use (model_.numFilterStates())
   unsigned divergences_ = 0;
   double y_post_ = 0.0;      // last posterior output
   double du_pending_ = 0.0;  // u_eff(k-1) - u_eff(k-2): drives h_k = F(h_{k-1}) in the printed form
   unsigned resets_ = 0;
-  int outlier_run_ = 0;      // outliers in a row
+  int outlier_run_ = 0;  // outliers in a row
   unsigned outliers_total_ = 0;
-  double nis_level_ = 0.0;   // mean NIS of the last ~1000 used positions (the gate acts while <= 1)
-  int nis_count_ = 0;        // used positions in that mean (up to 1000)
+  double nis_level_ = 0.0;  // mean NIS of the last ~1000 used positions (the gate acts while <= 1)
+  int nis_count_ = 0;       // used positions in that mean (up to 1000)
 };
 
 }  // namespace pamc::estimation

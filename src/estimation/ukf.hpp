@@ -30,17 +30,17 @@
 namespace pamc::estimation {
 
 struct UkfSettings {
-  double alpha = 1e-3;   // sigma-point spread (the paper's sigma)
-  double beta = 2.0;     // prior-distribution term (the paper's theta); 2 is optimal for Gaussians
-  double kappa = -1.0;   // secondary scaling; < -0.5 means "3 - n"
+  double alpha = 1e-3;  // sigma-point spread (the paper's sigma)
+  double beta = 2.0;    // prior-distribution term (the paper's theta); 2 is optimal for Gaussians
+  double kappa = -1.0;  // secondary scaling; < -0.5 means "3 - n"
 };
 
 enum class UkfStatus : unsigned {
   Ok = 0,
-  CovarianceRepaired = 1,  // P lost definiteness and was floored
-  Reset = 2,               // P or x became non-finite: x kept if finite, P back to P0
-  MeasurementRejected = 3, // non-finite measurement: the prior is kept
-  OutlierRejected = 4,     // innovation beyond the gate: the prior is kept, P held (see update())
+  CovarianceRepaired = 1,   // P lost definiteness and was floored
+  Reset = 2,                // P or x became non-finite: x kept if finite, P back to P0
+  MeasurementRejected = 3,  // non-finite measurement: the prior is kept
+  OutlierRejected = 4,      // innovation beyond the gate: the prior is kept, P held (see update())
 };
 
 inline const char* toString(UkfStatus s) {
@@ -502,7 +502,7 @@ class Ukf {
   Mat P_last_ = Mat::Identity();  // P before the last predict (held on an outlier)
   Mat spread_ = Mat::Zero();      // gamma L, L P's Cholesky factor, while factored_
   bool factored_ = false;
-  bool definite_ = false;         // P known positive definite (factor() succeeds), not yet factored
+  bool definite_ = false;  // P known positive definite (factor() succeeds), not yet factored
   double nis_ = 0.0, gate_stat_ = 0.0;
   MSigmas Z_ = MSigmas::Zero();
   MVec z_pred_ = MVec::Zero();

@@ -42,7 +42,7 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   b.hi[1] = 10.0 * ry / ru;  // c = k (1 - rho)
   b.lo[2] = *ymin - kmax * umax - ry;
   b.hi[2] = *ymax + kmax * umax + ry;  // b
-  b.lo[3] = b.hi[3] = 1.0;           // alpha fixed: scale of h
+  b.lo[3] = b.hi[3] = 1.0;             // alpha fixed: scale of h
   b.lo[4] = -10.0 / ru;
   b.hi[4] = 10.0 / ru;  // beta
   b.lo[5] = -10.0 / ru;
@@ -87,7 +87,9 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
       hi = 2.0 * ry / rl;
     } else if (u == "s") {
       // No faster than a few samples; no slower than the record; a delay at most the ring's length.
-      lo = std::max(lo, specs[i].name.size() >= 2 && specs[i].name.compare(specs[i].name.size() - 2, 2, ".d") == 0 ? 0.0 : 2.0 * d.Ts);
+      lo = std::max(lo, specs[i].name.size() >= 2 && specs[i].name.compare(specs[i].name.size() - 2, 2, ".d") == 0
+                            ? 0.0
+                            : 2.0 * d.Ts);
       hi = std::min(hi, duration / 2.0);
       if (specs[i].name.size() >= 2 && specs[i].name.compare(specs[i].name.size() - 2, 2, ".d") == 0)
         hi = std::min(hi, 250.0 * d.Ts);
@@ -114,9 +116,15 @@ FitMethod autoFitMethod(const model::Model& structure) {
 
 nlohmann::json fitReport(const FitResult& r, const FitSettings& s, const io::Measurement& data,
                          const std::string& source) {
-  return {{"data", source},          {"samples", data.size()},         {"Ts", data.Ts},
-          {"rmse", r.rmse},          {"generations", r.generations},   {"evaluations", r.evaluations},
-          {"seconds", r.seconds},    {"seed", s.ga.seed},              {"method", toString(s.method)}};
+  return {{"data", source},
+          {"samples", data.size()},
+          {"Ts", data.Ts},
+          {"rmse", r.rmse},
+          {"generations", r.generations},
+          {"evaluations", r.evaluations},
+          {"seconds", r.seconds},
+          {"seed", s.ga.seed},
+          {"method", toString(s.method)}};
 }
 
 namespace {
@@ -151,7 +159,7 @@ std::vector<std::vector<double>> warmStarts(const std::vector<double>& start, co
         if (!explore[i]) continue;
         const double q = strata[i][static_cast<size_t>(k)];
         x[i] = in_log && spansDecades(b.lo[i], b.hi[i]) ? b.lo[i] * std::pow(b.hi[i] / b.lo[i], q)
-                                                         : b.lo[i] + q * (b.hi[i] - b.lo[i]);
+                                                        : b.lo[i] + q * (b.hi[i] - b.lo[i]);
         any = true;
       }
       if (any) out.push_back(x);
@@ -245,7 +253,8 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
     for (int i = 0; i < start->numEffects(); ++i) {
       const auto& e = start->effect(i);
       if (!seeded.hasEffect(e.name())) continue;
-      for (size_t q = 0; q < e.params().size(); ++q) seeded.setEffectParam(e.name(), e.params()[q].name, start->effectParams(i)[q]);
+      for (size_t q = 0; q < e.params().size(); ++q)
+        seeded.setEffectParam(e.name(), e.params()[q].name, start->effectParams(i)[q]);
     }
     gs.start = modelToSearch(seeded.params());
     const auto specs = structure.paramSpecs();
@@ -288,7 +297,8 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
     // Short LM runs from the best and the GA's distinct runners-up, then the best of them to the end:
     // the GA finds basins, LM their bottoms.
     std::vector<std::vector<double>> starts = {r.x};
-    for (size_t k = 0; k < r.runners_up.size() && static_cast<int>(k) < s.lm_starts; ++k) starts.push_back(r.runners_up[k]);
+    for (size_t k = 0; k < r.runners_up.size() && static_cast<int>(k) < s.lm_starts; ++k)
+      starts.push_back(r.runners_up[k]);
     std::vector<std::vector<double>> spread;  // starts spread over the box, not from the GA
     {
       std::mt19937_64 rng(gs.seed ^ 0x5851f42d4c957f2dull);
@@ -341,7 +351,8 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
     };
     auto group = [&](const std::vector<std::vector<double>>& xs, std::size_t keep) {
       std::vector<OptResult> runs = runAll(xs, multi ? 8 : s.lm_iterations);
-      std::stable_sort(runs.begin(), runs.end(), [](const OptResult& a, const OptResult& c) { return a.cost < c.cost; });
+      std::stable_sort(runs.begin(), runs.end(),
+                       [](const OptResult& a, const OptResult& c) { return a.cost < c.cost; });
       // The best few to the end: after eight iterations the eventual winner is not always ahead (a
       // hysteretic effect's width and the core's beta/gamma trade places before they settle).
       runs.resize(std::min(keep, runs.size()));

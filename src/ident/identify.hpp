@@ -33,11 +33,11 @@ struct FitSettings {
   FitMethod method = FitMethod::Ga;
   GaSettings ga{};  // also the seed and the threads of the multi-start method
   bool refine = true;
-  int refine_evals = 300;      // Nelder-Mead polish after Levenberg-Marquardt (non-smooth effects)
-  int lm_iterations = 40;      // Levenberg-Marquardt iterations after the GA (0: none)
+  int refine_evals = 300;  // Nelder-Mead polish after Levenberg-Marquardt (non-smooth effects)
+  int lm_iterations = 40;  // Levenberg-Marquardt iterations after the GA (0: none)
   // A Levenberg-Marquardt run ends when a step lowers the cost by less than this fraction of it.
   double lm_tolerance = 1e-10;
-  int lm_starts = 3;           // LM also from this many distinct runners-up of the GA (short runs)
+  int lm_starts = 3;  // LM also from this many distinct runners-up of the GA (short runs)
   // ... and from this many points spread over the search box (Latin hypercube, seeded): a
   // multimodal fit (a hysteretic effect that can mirror the core's loop) is not left to the GA alone.
   int lm_spread_starts = 16;
@@ -48,8 +48,8 @@ struct FitSettings {
   int lm_keep = 2;
 
   // The defaults of a method: the GA's as above; the multi-start method with fewer spread starts
-  // (6), more starts around a start model (8) and a shorter Nelder-Mead polish (100, none for the plain core), which on the benchmark records reach the GA's error
-  // (docs/PERFORMANCE.md).
+  // (6), more starts around a start model (8) and a shorter Nelder-Mead polish (100, none for the plain core), which on
+  // the benchmark records reach the GA's error (docs/PERFORMANCE.md).
   static FitSettings forMethod(FitMethod m) {
     FitSettings s;
     s.method = m;
@@ -94,8 +94,7 @@ std::vector<double> modelToSearch(const std::vector<double>& p);
 // warm-started from it: its parameters seed half the population (effects it lacks are explored
 // over their whole range).
 FitResult fit(const model::Model& structure, const io::Measurement& data, const FitSettings& s,
-              const std::function<void(const char*, int, double)>& progress = {},
-              const model::Model* start = nullptr);
+              const std::function<void(const char*, int, double)>& progress = {}, const model::Model* start = nullptr);
 
 // The record of a fit that a model file keeps under "fit" (`pamc fit --out`): the data's name, its
 // samples and sampling step, the RMSE, the search's effort, its seed and method.

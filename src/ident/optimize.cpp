@@ -21,8 +21,7 @@ namespace {
 double safe(double c) { return std::isfinite(c) ? c : std::numeric_limits<double>::max(); }
 
 // Evaluates f on every row, split over `threads` workers.
-void evaluateAll(const CostFn& f, const std::vector<std::vector<double>>& pop, std::vector<double>& cost,
-                 int threads) {
+void evaluateAll(const CostFn& f, const std::vector<std::vector<double>>& pop, std::vector<double>& cost, int threads) {
   const int n = static_cast<int>(pop.size());
   threads = std::max(1, std::min(threads, n));
   if (threads == 1) {
@@ -65,13 +64,16 @@ OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const
   }
   if (!s.start.empty() && s.start.size() == d) {
     std::vector<double> g0(d);
-    for (size_t i = 0; i < d; ++i) g0[i] = hi[i] > lo[i] ? std::clamp((s.start[i] - lo[i]) / (hi[i] - lo[i]), 0.0, 1.0) : 0.0;
+    for (size_t i = 0; i < d; ++i)
+      g0[i] = hi[i] > lo[i] ? std::clamp((s.start[i] - lo[i]) / (hi[i] - lo[i]), 0.0, 1.0) : 0.0;
     for (int p = 0; p < P / 2; ++p) {
       auto& g = genes[static_cast<size_t>(p)];
       for (size_t i = 0; i < d; ++i) {
         const bool ex = i < s.explore.size() && s.explore[i];
-        if (p == 0) g[i] = ex ? g[i] : g0[i];
-        else g[i] = ex ? g[i] : std::clamp(g0[i] + 0.03 * N01(rng), 0.0, 1.0);
+        if (p == 0)
+          g[i] = ex ? g[i] : g0[i];
+        else
+          g[i] = ex ? g[i] : std::clamp(g0[i] + 0.03 * N01(rng), 0.0, 1.0);
       }
     }
   }
@@ -91,7 +93,8 @@ OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const
   for (gen = 1; gen <= s.max_generations; ++gen) {
     std::vector<int> order(static_cast<size_t>(P));
     std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(), [&](int a, int b) { return cost[static_cast<size_t>(a)] < cost[static_cast<size_t>(b)]; });
+    std::sort(order.begin(), order.end(),
+              [&](int a, int b) { return cost[static_cast<size_t>(a)] < cost[static_cast<size_t>(b)]; });
     const double gb = cost[static_cast<size_t>(order[0])];
     if (gb < best * (1.0 - 1e-6) || best_g.empty()) {
       stall = 0;
@@ -112,7 +115,8 @@ OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const
     };
     std::vector<std::vector<double>> next;
     next.reserve(static_cast<size_t>(P));
-    for (int e = 0; e < std::min(s.elite, P); ++e) next.push_back(genes[static_cast<size_t>(order[static_cast<size_t>(e)])]);
+    for (int e = 0; e < std::min(s.elite, P); ++e)
+      next.push_back(genes[static_cast<size_t>(order[static_cast<size_t>(e)])]);
     // Mutation shrinks over the run: explore first, then polish.
     const double sigma = 0.15 * std::pow(0.97, gen) + 0.005;
     while (static_cast<int>(next.size()) < P) {
@@ -146,7 +150,8 @@ OptResult geneticAlgorithm(const CostFn& f, const std::vector<double>& lo, const
     // Distinct runners-up from the last population (for multi-start refinement).
     std::vector<int> order(static_cast<size_t>(P));
     std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(), [&](int a, int b) { return cost[static_cast<size_t>(a)] < cost[static_cast<size_t>(b)]; });
+    std::sort(order.begin(), order.end(),
+              [&](int a, int b) { return cost[static_cast<size_t>(a)] < cost[static_cast<size_t>(b)]; });
     std::vector<std::vector<double>> kept = {best_g};
     for (int o : order) {
       const auto& g = genes[static_cast<size_t>(o)];

@@ -32,7 +32,7 @@ struct OptResult {
   std::vector<double> x;
   double cost = 0.0;
   std::vector<std::vector<double>> runners_up;  // GA: the next best distinct individuals, best first
-  int iterations = 0;   // generations or simplex iterations
+  int iterations = 0;                           // generations or simplex iterations
   int evaluations = 0;
 };
 

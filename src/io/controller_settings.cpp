@@ -12,16 +12,24 @@ struct Setting {
   const char* name;
   T ControllerConfig::*field;
 };
-constexpr Setting<double> kDoubles[] = {
-    {"Ts", &ControllerConfig::Ts},           {"u_min", &ControllerConfig::u_min},
-    {"u_max", &ControllerConfig::u_max},     {"kp", &ControllerConfig::kp},
-    {"ki", &ControllerConfig::ki},           {"kc", &ControllerConfig::kc},
-    {"amc_inverse", &ControllerConfig::amc_inverse}, {"mbc_error_tau_s", &ControllerConfig::mbc_error_tau_s},
-    {"mbc_rate_mm_s", &ControllerConfig::mbc_rate_mm_s}, {"mbc_accel_mm_s2", &ControllerConfig::mbc_accel_mm_s2},
-    {"beta1", &ControllerConfig::beta1},     {"beta2", &ControllerConfig::beta2},
-    {"beta3", &ControllerConfig::beta3},     {"delta", &ControllerConfig::delta},
-    {"b0", &ControllerConfig::b0},           {"eso_gain", &ControllerConfig::eso_gain},
-    {"eso_tau", &ControllerConfig::eso_tau}, {"eso_wo", &ControllerConfig::eso_wo}};
+constexpr Setting<double> kDoubles[] = {{"Ts", &ControllerConfig::Ts},
+                                        {"u_min", &ControllerConfig::u_min},
+                                        {"u_max", &ControllerConfig::u_max},
+                                        {"kp", &ControllerConfig::kp},
+                                        {"ki", &ControllerConfig::ki},
+                                        {"kc", &ControllerConfig::kc},
+                                        {"amc_inverse", &ControllerConfig::amc_inverse},
+                                        {"mbc_error_tau_s", &ControllerConfig::mbc_error_tau_s},
+                                        {"mbc_rate_mm_s", &ControllerConfig::mbc_rate_mm_s},
+                                        {"mbc_accel_mm_s2", &ControllerConfig::mbc_accel_mm_s2},
+                                        {"beta1", &ControllerConfig::beta1},
+                                        {"beta2", &ControllerConfig::beta2},
+                                        {"beta3", &ControllerConfig::beta3},
+                                        {"delta", &ControllerConfig::delta},
+                                        {"b0", &ControllerConfig::b0},
+                                        {"eso_gain", &ControllerConfig::eso_gain},
+                                        {"eso_tau", &ControllerConfig::eso_tau},
+                                        {"eso_wo", &ControllerConfig::eso_wo}};
 constexpr Setting<int> kInts[] = {{"amc_horizon", &ControllerConfig::amc_horizon},
                                   {"mbc_horizon", &ControllerConfig::mbc_horizon},
                                   {"eso_order", &ControllerConfig::eso_order},

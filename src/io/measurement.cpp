@@ -61,7 +61,9 @@ Measurement Measurement::slice(size_t b, size_t e) const {
   m.source = source;
   m.Ts = Ts;
   e = std::min(e, size());
-  auto cut = [&](const std::vector<double>& v) { return std::vector<double>(v.begin() + static_cast<long>(b), v.begin() + static_cast<long>(e)); };
+  auto cut = [&](const std::vector<double>& v) {
+    return std::vector<double>(v.begin() + static_cast<long>(b), v.begin() + static_cast<long>(e));
+  };
   m.t = cut(t);
   m.u = cut(u);
   m.y = cut(y);
@@ -115,9 +117,12 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src,
     if (h.empty()) fail(src, header_line, "", "empty column name at position " + std::to_string(c + 1));
     for (size_t d = 0; d < c; ++d)
       if (header[d] == h) fail(src, header_line, h, "duplicate column");
-    if (h == "t") it = static_cast<int>(c);
-    else if (h == "u") iu = static_cast<int>(c);
-    else if (h == "y") iy = static_cast<int>(c);
+    if (h == "t")
+      it = static_cast<int>(c);
+    else if (h == "u")
+      iu = static_cast<int>(c);
+    else if (h == "y")
+      iy = static_cast<int>(c);
   }
   for (auto [idx, name] : {std::pair<int, const char*>{it, "t"}, {iu, "u"}, {iy, "y"}})
     if (idx < 0) fail(src, header_line, "", std::string("missing column '") + name + "' (the header needs t,u,y)");
@@ -132,7 +137,8 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src,
         if (warnings) warnings->push_back(src + ":" + std::to_string(l + 1) + ": truncated last line ignored");
         break;
       }
-      fail(src, l + 1, "", "expected " + std::to_string(header.size()) + " fields, found " + std::to_string(cells.size()));
+      fail(src, l + 1, "",
+           "expected " + std::to_string(header.size()) + " fields, found " + std::to_string(cells.size()));
     }
     std::vector<double> row(header.size());
     bool truncated = false;
@@ -158,10 +164,12 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src,
     for (size_t c = 0; c < row.size(); ++c) {
       if (static_cast<int>(c) == it) {
         if (std::fabs(row[c]) > kMaxTime)
-          fail(src, l + 1, header[c], "time " + cells[c] + " s is out of range (|t| must be at most " + s_of(kMaxTime) + " s)");
+          fail(src, l + 1, header[c],
+               "time " + cells[c] + " s is out of range (|t| must be at most " + s_of(kMaxTime) + " s)");
       } else if (std::fabs(row[c]) > kMaxDataValue) {
-        fail(src, l + 1, header[c], "value " + cells[c] + " is too large to identify a model from (|" + header[c] +
-                                        "| must be at most " + s_of(kMaxDataValue) + ")");
+        fail(src, l + 1, header[c],
+             "value " + cells[c] + " is too large to identify a model from (|" + header[c] + "| must be at most " +
+                 s_of(kMaxDataValue) + ")");
       }
     }
     // Time must increase with an even step.
@@ -169,7 +177,9 @@ Measurement parseMeasurementCsv(const std::string& text, const std::string& src,
     const double tv = row[static_cast<size_t>(it)];
     if (!tc.empty()) {
       const double dt = tv - tc.back();
-      if (!(dt > 0)) fail(src, l + 1, "t", "time does not increase (" + s_of(tc.back()) + " then " + cells[static_cast<size_t>(it)] + ")");
+      if (!(dt > 0))
+        fail(src, l + 1, "t",
+             "time does not increase (" + s_of(tc.back()) + " then " + cells[static_cast<size_t>(it)] + ")");
       if (tc.size() >= 2) {
         const double dt0 = (tc.back() - tc.front()) / static_cast<double>(tc.size() - 1);
         if (std::fabs(dt - dt0) > 0.02 * dt0 + 1e-12)
@@ -225,7 +235,8 @@ bool writeAndSync(int fd, const std::string& content) {
 void makeDirectory(const std::string& dir, const std::string& what) {
   ::mkdir(dir.c_str(), 0755);
   struct stat sb {};
-  if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode)) throw std::runtime_error(dir + ": cannot create the " + what);
+  if (::stat(dir.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode))
+    throw std::runtime_error(dir + ": cannot create the " + what);
 }
 
 void writeFileAtomic(const std::string& path, const std::string& content) {

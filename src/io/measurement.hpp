@@ -19,7 +19,7 @@ struct Measurement {
   std::string source;
   std::vector<double> t, u, y;
   std::map<std::string, std::vector<double>> extra;  // further columns by header name
-  double Ts = 0.0;                                    // sampling step read from the time column
+  double Ts = 0.0;                                   // sampling step read from the time column
 
   size_t size() const { return t.size(); }
   bool has(const std::string& col) const { return extra.count(col) > 0; }

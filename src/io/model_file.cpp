@@ -15,9 +15,12 @@ std::string printable(const std::string& s) {
   std::string out;
   for (const char c : s) {
     const auto u = static_cast<unsigned char>(c);
-    if (c == '\n') out += "\\n";
-    else if (c == '\r') out += "\\r";
-    else if (c == '\t') out += "\\t";
+    if (c == '\n')
+      out += "\\n";
+    else if (c == '\r')
+      out += "\\r";
+    else if (c == '\t')
+      out += "\\t";
     else if (u < 0x20 || u == 0x7F) {
       static constexpr char kHex[] = "0123456789abcdef";
       out += "\\x";
@@ -61,7 +64,8 @@ model::OperatingRange rangeFromJson(const nlohmann::json& j, const std::string& 
   auto fail = [&](const std::string& what) { throw InputError(where + ": range: " + what); };
   if (!j.is_object()) fail("must be an object with 'input', 'output' and 'input_rate'");
   model::OperatingRange r;
-  const std::pair<const char*, model::Interval*> keys[] = {{"input", &r.input}, {"output", &r.output}, {"input_rate", &r.rate}};
+  const std::pair<const char*, model::Interval*> keys[] = {
+      {"input", &r.input}, {"output", &r.output}, {"input_rate", &r.rate}};
   for (const auto& [key, dst] : keys) {
     if (!j.contains(key)) fail(std::string("missing '") + key + "'");
     const auto& v = j[key];
@@ -73,7 +77,8 @@ model::OperatingRange rangeFromJson(const nlohmann::json& j, const std::string& 
       fail(std::string("'") + key + "' must be finite with low <= high");
   }
   for (auto it = j.begin(); it != j.end(); ++it)
-    if (it.key() != "input" && it.key() != "output" && it.key() != "input_rate") fail("unknown key '" + printable(it.key()) + "'");
+    if (it.key() != "input" && it.key() != "output" && it.key() != "input_rate")
+      fail("unknown key '" + printable(it.key()) + "'");
   r.known = true;
   return r;
 }

@@ -20,12 +20,12 @@
 namespace pamc::model {
 
 struct BoucWenParams {
-  double k = 5.0;       // stiffness coefficient [mm/V]
-  double rho = 0.8;     // weight of the elastic part [-]
-  double b = 20.0;      // offset [mm]
-  double alpha = 1.0;   // [-]
-  double beta = 0.3;    // [1/V]
-  double gamma = 0.3;   // [1/V]
+  double k = 5.0;      // stiffness coefficient [mm/V]
+  double rho = 0.8;    // weight of the elastic part [-]
+  double b = 20.0;     // offset [mm]
+  double alpha = 1.0;  // [-]
+  double beta = 0.3;   // [1/V]
+  double gamma = 0.3;  // [1/V]
 };
 
 constexpr int kBoucWenParams = 6;

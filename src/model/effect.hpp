@@ -27,17 +27,17 @@ enum class Stage { Input, Output };
 //  unit, "-" dimensionless (bounds as given).
 struct ParamSpec {
   std::string name;
-  double lo;    // identification bound (for a 40 mm / 10 V / 1 kHz rig; scaled to the data)
-  double hi;    // identification bound
-  double def;   // default value
+  double lo;   // identification bound (for a 40 mm / 10 V / 1 kHz rig; scaled to the data)
+  double hi;   // identification bound
+  double def;  // default value
   std::string unit;
 };
 
 // Per-sample signals besides the command that some effects need.
 struct StepContext {
-  double Ts = 1e-3;     // sample time [s]
-  double load = 0.0;    // measured external load (file units, e.g. N) - 0 when absent
-  double u_eff = 0.0;   // effective command of this sample (set by the model for output effects)
+  double Ts = 1e-3;    // sample time [s]
+  double load = 0.0;   // measured external load (file units, e.g. N) - 0 when absent
+  double u_eff = 0.0;  // effective command of this sample (set by the model for output effects)
 };
 
 constexpr int kMaxEffectStates = 260;  // per effect; storage is fixed so a step never allocates
@@ -98,7 +98,8 @@ inline constexpr const char* kDirectionalSuffix = "_updown";
 // "pressure_lag" for "pressure_lag_updown"; empty for a name that is no direction-dependent version.
 inline std::string directionalBase(const std::string& name) {
   const std::string suffix = kDirectionalSuffix;
-  const bool updown = name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
+  const bool updown =
+      name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
   return updown ? name.substr(0, name.size() - suffix.size()) : std::string();
 }
 // Throws std::invalid_argument when `inner` has no such version.

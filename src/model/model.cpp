@@ -9,9 +9,12 @@ namespace pamc::model {
 const char* outputFormName(OutputForm f) noexcept { return f == OutputForm::Aligned ? "aligned" : "printed"; }
 
 bool parseOutputForm(const std::string& name, OutputForm& out) noexcept {
-  if (name == "aligned") out = OutputForm::Aligned;
-  else if (name == "printed") out = OutputForm::Printed;
-  else return false;
+  if (name == "aligned")
+    out = OutputForm::Aligned;
+  else if (name == "printed")
+    out = OutputForm::Printed;
+  else
+    return false;
   return true;
 }
 
@@ -51,15 +54,16 @@ void Model::addEffect(const std::string& name) {
   for (const auto& s : effects_) {
     const char* mine = e->alternativeTo();
     const char* theirs = s.impl->alternativeTo();
-    if ((mine && s.impl->name() == std::string(mine)) || (theirs && name == theirs) || refinesEffect(*e, s.impl->name()) ||
-        refinesEffect(*s.impl, name))
+    if ((mine && s.impl->name() == std::string(mine)) || (theirs && name == theirs) ||
+        refinesEffect(*e, s.impl->name()) || refinesEffect(*s.impl, name))
       throw std::invalid_argument("effects '" + std::string(s.impl->name()) + "' and '" + name +
                                   "' are alternatives for the same physics; a model takes one of them");
     if (s.impl->stage() == Stage::Output) filter_states += s.impl->numFilterStates();
   }
   if (filter_states > kMaxFilterStates)
     throw std::invalid_argument("effect '" + name + "' would give the model " + std::to_string(filter_states) +
-                                " output states for the estimator to carry (at most " + std::to_string(kMaxFilterStates) + ")");
+                                " output states for the estimator to carry (at most " +
+                                std::to_string(kMaxFilterStates) + ")");
   // Keep existing parameter values by name while re-laying out.
   std::vector<std::vector<double>> old;
   for (size_t i = 0; i < effects_.size(); ++i) {
@@ -109,7 +113,8 @@ void Model::relayout() {
     const int n = s.impl->numStates();
     if (n > kMaxEffectStates) throw std::logic_error(std::string("effect ") + s.impl->name() + " has too many states");
     const int nf = s.impl->numFilterStates();
-    if (nf < 0 || nf > n) throw std::logic_error(std::string("effect ") + s.impl->name() + " has a bad filter-state count");
+    if (nf < 0 || nf > n)
+      throw std::logic_error(std::string("effect ") + s.impl->name() + " has a bad filter-state count");
     if (s.impl->stage() == Stage::Output) {
       if (n_filter_ + nf > kMaxFilterStates)
         throw std::logic_error("more than " + std::to_string(kMaxFilterStates) + " filter states in one model");
@@ -163,9 +168,8 @@ bool Model::needsLoad() const {
 
 std::vector<ParamSpec> Model::paramSpecs() const {
   std::vector<ParamSpec> v = {
-      {"k", 0.01, 50.0, 5.0, "mm/V"},   {"rho", 0.0, 2.0, 0.8, "-"},
-      {"b", -100.0, 100.0, 20.0, "mm"}, {"alpha", 1.0, 1.0, 1.0, "-"},
-      {"beta", -3.0, 3.0, 0.3, "1/V"},  {"gamma", -3.0, 3.0, 0.3, "1/V"},
+      {"k", 0.01, 50.0, 5.0, "mm/V"}, {"rho", 0.0, 2.0, 0.8, "-"},     {"b", -100.0, 100.0, 20.0, "mm"},
+      {"alpha", 1.0, 1.0, 1.0, "-"},  {"beta", -3.0, 3.0, 0.3, "1/V"}, {"gamma", -3.0, 3.0, 0.3, "1/V"},
   };
   for (const auto& s : effects_) {
     for (const auto& p : s.impl->params()) {

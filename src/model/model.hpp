@@ -36,8 +36,8 @@ bool parseOutputForm(const std::string& name, OutputForm& out) noexcept;
 class Model {
  public:
   struct State {
-    double h = 0.0;           // Bouc-Wen hysteresis state [V when alpha = 1]
-    double u_eff_prev = 0.0;  // effective input of the previous sample (for u_delta)
+    double h = 0.0;                           // Bouc-Wen hysteresis state [V when alpha = 1]
+    double u_eff_prev = 0.0;                  // effective input of the previous sample (for u_delta)
     std::array<double, kMaxModelStates> s{};  // effect states, concatenated
   };
 
@@ -124,8 +124,7 @@ class Model {
   // Where the stages' parameters are in params(): the core's [0, kBoucWenParams), the input effects'
   // [kBoucWenParams, inputParamsEnd()), the output effects' from there on.
   int inputParamsEnd() const noexcept { return kBoucWenParams + in_params_; }
-  std::vector<double> simulate(const std::vector<double>& u, double Ts,
-                               const std::vector<double>& load = {}) const;
+  std::vector<double> simulate(const std::vector<double>& u, double Ts, const std::vector<double>& load = {}) const;
 
   // Human-readable one-line description ("bouc_wen + pressure_lag + creep").
   std::string describe() const;

@@ -10,7 +10,7 @@
 namespace pamc::model {
 
 template <int N>
-using SmallMat = std::array<double, static_cast<std::size_t>(N * N)>;
+using SmallMat = std::array<double, static_cast<std::size_t>(N* N)>;
 
 template <int N>
 SmallMat<N> smallMul(const SmallMat<N>& a, const SmallMat<N>& b) noexcept {

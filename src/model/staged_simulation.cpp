@@ -5,16 +5,18 @@ namespace pamc::model {
 void StagedSimulation::run(const Model& m, const double* u, const double* load, size_t n, double Ts, double* y_out) {
   p_ = m.params();
   const size_t in_end = static_cast<size_t>(m.inputParamsEnd());
-  const bool same = key_.size() == p_.size() && u == u_ && load == load_ && n == n_ && Ts == Ts_ &&
-                    m.outputForm() == form_;
+  const bool same =
+      key_.size() == p_.size() && u == u_ && load == load_ && n == n_ && Ts == Ts_ && m.outputForm() == form_;
   int changed = 0;
   bool input = !same, core = !same;
   if (same) {
     for (size_t i = 0; i < p_.size(); ++i) {
       if (p_[i] == key_[i]) continue;  // NaN: changed
       ++changed;
-      if (i < static_cast<size_t>(kBoucWenParams)) core = true;
-      else if (i < in_end) input = true;
+      if (i < static_cast<size_t>(kBoucWenParams))
+        core = true;
+      else if (i < in_end)
+        input = true;
     }
   }
   const bool keep = !same || changed > 1;

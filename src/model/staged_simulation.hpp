@@ -32,7 +32,7 @@ class StagedSimulation {
   const double* load_ = nullptr;
   size_t n_ = 0;
   double Ts_ = 0.0;
-  double rest_ = 0.0;        // u_eff at rest, of the kept stages
+  double rest_ = 0.0;  // u_eff at rest, of the kept stages
   OutputForm form_ = OutputForm::Aligned;
   std::vector<double> ue_, yc_;          // kept: u_eff and the core's output
   std::vector<double> ue_tmp_, yc_tmp_;  // a one-parameter run's own

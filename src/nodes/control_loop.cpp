@@ -114,7 +114,8 @@ void ControlLoop::startRamp(double y) noexcept {
 double ControlLoop::setpoint(double t, int ahead) const noexcept {
   const double target = traj_.at(t);
   if (!ramp_) return target;
-  const double s = static_cast<double>(cycle_ + static_cast<std::uint64_t>(ahead) - ramp_k0_) / static_cast<double>(ramp_cycles_);
+  const double s =
+      static_cast<double>(cycle_ + static_cast<std::uint64_t>(ahead) - ramp_k0_) / static_cast<double>(ramp_cycles_);
   return s >= 1.0 ? target : ramp_from_ + (target - ramp_from_) * s;
 }
 

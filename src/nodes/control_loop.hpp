@@ -2,8 +2,8 @@
 // at the SYNC, runs the controller towards the trajectory's setpoint and holds the command the valve
 // gets; after a restart (recovery, a committed parameter set) the setpoint ramps from the measured
 // position back to the trajectory and the command is rate-limited (bumpless). With Kind::Input the
-// trajectory is the valve command itself (an identification input): it ramps from the command in effect. Runs in the cycle:
-// nothing allocated, nothing thrown (configure() excepted, which runs between cycles).
+// trajectory is the valve command itself (an identification input): it ramps from the command in effect. Runs in the
+// cycle: nothing allocated, nothing thrown (configure() excepted, which runs between cycles).
 #pragma once
 
 #include <atomic>
@@ -24,8 +24,8 @@ class ControlLoop {
   ControlLoop(double ramp_mm_per_s, double ramp_slew_v) : ramp_mm_per_s_(ramp_mm_per_s), ramp_slew_v_(ramp_slew_v) {}
 
   // A new controller and trajectory; the loop starts again at the next usable position.
-  void configure(std::unique_ptr<control::Controller> c, control::Kind kind, const control::Trajectory& traj,
-                 double Ts, double preroll_s, double safe_u);
+  void configure(std::unique_ptr<control::Controller> c, control::Kind kind, const control::Trajectory& traj, double Ts,
+                 double preroll_s, double safe_u);
   void stop() noexcept;  // the node left Operational
   // Watch whether the commands and positions stay where the controller's model was identified (an
   // unknown range, or a controller that runs no model: nothing is watched).
@@ -40,7 +40,7 @@ class ControlLoop {
     double t = 0.0, yd = 0.0;
   };
   Setpoint setpointNow() noexcept;  // ends a ramp that has run its course
-  CycleRecord holdSafe(const PositionSample& s, Setpoint sp, double safe_u) noexcept;  // safe state
+  CycleRecord holdSafe(const PositionSample& s, Setpoint sp, double safe_u) noexcept;    // safe state
   CycleRecord idle(const PositionSample& s, Setpoint sp, double safe_u) const noexcept;  // not yet active
   // The controller's command (slew-limited after a restart); false when the estimator failed (a
   // non-finite command or a reset): the command is then the safe value.
@@ -72,14 +72,14 @@ class ControlLoop {
   control::Kind kind_ = control::Kind::PI;
   control::Trajectory traj_;
   double Ts_ = 1e-3;
-  bool active_ = false;        // controller activated (usable position seen)
-  bool run_started_ = false;   // past the pre-roll
-  std::uint64_t cycle_ = 0;    // cycles since activation
+  bool active_ = false;       // controller activated (usable position seen)
+  bool run_started_ = false;  // past the pre-roll
+  std::uint64_t cycle_ = 0;   // cycles since activation
   std::uint64_t preroll_cycles_ = 0;
   double last_u_ = pd::kCommandMin;  // the command in effect [V relative]
   // Bumpless return: the setpoint goes from ramp_from_ to the trajectory over ramp_cycles_.
   bool ramp_ = false;
-  bool slew_ = false;          // command rate-limited: during the ramp and until the limit no longer binds
+  bool slew_ = false;  // command rate-limited: during the ramp and until the limit no longer binds
   double ramp_from_ = 0.0;
   std::uint64_t ramp_k0_ = 0, ramp_cycles_ = 1;
   double ramp_mm_per_s_, ramp_slew_v_;

@@ -67,23 +67,25 @@ struct ChannelConfig {
 
 struct ControllerNodeConfig {
   std::string eds_path = "od/controller.eds";
-  std::uint8_t node_id = 0;           // 0: the EDS's
+  std::uint8_t node_id = 0;  // 0: the EDS's
   // Overrides of the object dictionary's defaults (unset: the EDS value).
-  int kind = -1;                      // control::Kind
-  control::ControllerConfig ctrl;     // the model (and, with gains_from_config, the gains)
-  bool gains_from_config = false;     // write ctrl's gains into the OD instead of reading them
+  int kind = -1;                   // control::Kind
+  control::ControllerConfig ctrl;  // the model (and, with gains_from_config, the gains)
+  bool gains_from_config = false;  // write ctrl's gains into the OD instead of reading them
   // Cycles from a command to the position that shows it, beyond one sample: 2 with this node's
   // timing (a synchronous valve RPDO, a sensor sending right after the SYNC); other slaves may differ.
   int delay_cycles = control::kBusDelayCycles;
   bool has_trajectory = false;
   control::Trajectory trajectory;
-  double preroll_s = 5.0;             // hold the first setpoint this long before the trajectory starts
+  double preroll_s = 5.0;  // hold the first setpoint this long before the trajectory starts
   bool produce_sync = true;
-  unsigned period_us = 0;             // SYNC period override (0: 0x1006 of the EDS)
-  int recover_cycles = 500;           // a fault must be gone this long before control resumes
-  double ramp_mm_per_s = 10.0;        // after recovery or a commit the setpoint returns at most this fast (V/s for Kind::Input)
-  double ramp_slew_v = 0.02;          // ... and the command changes at most this much per cycle [V]
-  double no_position_s = 1.0;         // no position this long after entering Operational (or after the sensor's boot): Fault::NoPosition
+  unsigned period_us = 0;    // SYNC period override (0: 0x1006 of the EDS)
+  int recover_cycles = 500;  // a fault must be gone this long before control resumes
+  double ramp_mm_per_s =
+      10.0;                   // after recovery or a commit the setpoint returns at most this fast (V/s for Kind::Input)
+  double ramp_slew_v = 0.02;  // ... and the command changes at most this much per cycle [V]
+  double no_position_s =
+      1.0;  // no position this long after entering Operational (or after the sensor's boot): Fault::NoPosition
   // The channels, in order (channel 1 first); one by default: pamc's own sensor and valve.
   std::vector<ChannelConfig> channels{ChannelConfig{}};
   // A fault of one channel puts every channel at its safe value (a rig file's `faults = all`);

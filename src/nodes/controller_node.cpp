@@ -130,7 +130,8 @@ CycleRecord ControllerNode::control(Channel& c, TimeUs now) noexcept {
     // Safe state: valve to its safe value every cycle until the causes have been gone long enough
     // (and SYNC, hence the valve, is back); then estimator and integrator restart (no jump).
     const CycleRecord rec = c.loop->holdSafe(p, sp, safe_u);
-    if (c.faults->safeCycle() && s.usable() && (c.valve->holdReasons() & ValveDriver::kHoldSync) == 0) recover(c, s.y, now);
+    if (c.faults->safeCycle() && s.usable() && (c.valve->holdReasons() & ValveDriver::kHoldSync) == 0)
+      recover(c, s.y, now);
     return rec;
   }
   if (!c.loop->active()) return c.loop->idle(p, sp, safe_u);

@@ -48,7 +48,7 @@ namespace pamc::nodes {
 
 // What the fault handling and the parameter guard did (read from the thread that runs the node).
 struct FaultCounters {
-  std::uint64_t episodes = 0;         // entries into the safe state
+  std::uint64_t episodes = 0;  // entries into the safe state
   std::uint64_t recoveries = 0;
   std::uint64_t safe_cycles = 0;      // cycles that sent the safe value
   std::uint64_t samples_missing = 0;  // cycles after activation without a usable position
@@ -58,18 +58,20 @@ struct FaultCounters {
   std::uint64_t nmt_reboots = 0;      // NMT reset communication to a slave back after a heartbeat timeout
   std::uint64_t slave_boots = 0;      // slaves checked and configured at their boot
   std::uint64_t slave_boot_failures = 0;
-  std::uint64_t valve_holds = 0;      // valve sent to Pre-operational (it outputs its error value)
-  std::uint64_t collisions = 0;       // frames on this node's own identifiers
+  std::uint64_t valve_holds = 0;  // valve sent to Pre-operational (it outputs its error value)
+  std::uint64_t collisions = 0;   // frames on this node's own identifiers
   std::uint32_t last_collision_cob = 0;
-  std::uint64_t sets_applied = 0;     // parameter sets taken into use (NMT start or commit)
+  std::uint64_t sets_applied = 0;  // parameter sets taken into use (NMT start or commit)
   std::uint64_t sets_refused = 0;
-  std::uint64_t valve_sdo_errors = 0;  // writing a changed safe value into the valve's 0x6444:01 failed (in its boot: a boot failure)
+  std::uint64_t valve_sdo_errors =
+      0;  // writing a changed safe value into the valve's 0x6444:01 failed (in its boot: a boot failure)
 };
 
 class ControllerNode {
  public:
   // clock: microseconds on the same time base the node is advanced with (for latency).
-  ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport, std::function<canopen::TimeUs()> clock);
+  ControllerNode(const ControllerNodeConfig& cfg, canopen::Transport& transport,
+                 std::function<canopen::TimeUs()> clock);
   canopen::Node& node() { return *node_; }
 
   // Boot-up, then Operational (unless 0x1F80 bit 2 says to wait for an NMT start); the slaves are booted
@@ -82,7 +84,7 @@ class ControllerNode {
   const CycleStats& stats() const noexcept { return stats_; }
   // Every channel's cycle records, CycleRecord::channel telling them apart.
   SpscRing<CycleRecord, 1 << 15>& records() noexcept { return records_; }
-  bool running() const noexcept;  // every channel past its pre-roll
+  bool running() const noexcept;                                     // every channel past its pre-roll
   double runTime() const noexcept { return ch(0).loop->runTime(); }  // trajectory seconds so far; any thread
   std::uint64_t faultsRaised() const noexcept;
   control::Kind kind() const noexcept { return ch(0).loop->kind(); }
@@ -96,7 +98,9 @@ class ControllerNode {
   // The parameters the loop uses (kp, ki, ... as taken into use).
   const control::ControllerConfig& activeParameters() const noexcept { return params_->running().ctrl; }
   double safeCommand() const noexcept { return params_->safeCommand(); }  // relative volts (-5 = 0 V)
-  std::uint32_t lastRefusal() const noexcept { return params_->lastRefusal(); }  // abort code of the last refused commit
+  std::uint32_t lastRefusal() const noexcept {
+    return params_->lastRefusal();
+  }  // abort code of the last refused commit
   // COB-ID of the last frame another node sent on this node's identifiers (0: none); any thread.
   std::uint32_t lastCollisionCob() const noexcept { return collision_pub_.load(std::memory_order_relaxed); }
   // COB-ID channel 1's position is awaited on (as configured at the last NMT start); any thread.
@@ -116,13 +120,14 @@ class ControllerNode {
     std::unique_ptr<FaultSupervisor> faults;
     std::unique_ptr<ControlLoop> loop;
     int partner = -1;
-    double offset_v = 0.0;        // a joint's co-contraction on the loop's command
-    SensorDriver::Sample sample;  // latched at this SYNC
+    double offset_v = 0.0;            // a joint's co-contraction on the loop's command
+    SensorDriver::Sample sample;      // latched at this SYNC
     double command() const noexcept;  // what the valve gets
   };
   const Channel& ch(std::size_t c) const noexcept { return channels_[c]; }
   void addChannel(const ControllerNodeConfig& cfg, std::size_t c);
-  std::unique_ptr<control::Controller> buildFor(control::Kind kind, const control::ControllerConfig& ctrl, std::size_t c) const;
+  std::unique_ptr<control::Controller> buildFor(control::Kind kind, const control::ControllerConfig& ctrl,
+                                                std::size_t c) const;
   void installHooks();
   void installStateHook();
   void configureFromOd();
@@ -150,14 +155,14 @@ class ControllerNode {
 
   std::function<canopen::TimeUs()> clock_;
   std::unique_ptr<canopen::Node> node_;
-  std::unique_ptr<canopen::NmtMaster> master_;    // of the sensors and the valves
+  std::unique_ptr<canopen::NmtMaster> master_;  // of the sensors and the valves
   std::unique_ptr<OdOverrides> overrides_;
   std::unique_ptr<ControllerParameters> params_;  // the dictionary's parameter set and its commit
   std::vector<Channel> channels_;
-  std::vector<ChannelConfig> channel_cfg_;        // what each channel runs of its own
+  std::vector<ChannelConfig> channel_cfg_;  // what each channel runs of its own
   bool fault_all_ = false;
-  std::function<void(const std::string&)> log_;   // the slaves' boot reports
-  std::uint64_t collisions_ = 0;                  // frames on this node's own identifiers
+  std::function<void(const std::string&)> log_;  // the slaves' boot reports
+  std::uint64_t collisions_ = 0;                 // frames on this node's own identifiers
   std::atomic<std::uint32_t> collision_pub_{0};
   canopen::TimeUs last_sync_ = 0;
   CycleStats stats_;

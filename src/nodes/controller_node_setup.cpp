@@ -27,9 +27,8 @@ ControllerNode::ControllerNode(const ControllerNodeConfig& cfg, canopen::Transpo
   node_ = std::make_unique<canopen::Node>(canopen::dictionaryFromEds(eds, id, cfg.dictionary), id, transport);
   master_ = std::make_unique<canopen::NmtMaster>(*node_);
   params_ = std::make_unique<ControllerParameters>(*node_, cfg.ctrl, cfg.build_off_cycle);
-  params_->setChannels(cfg.channels.size(), [this](control::Kind k, const control::ControllerConfig& c, std::size_t ch) {
-    return buildFor(k, c, ch);
-  });
+  params_->setChannels(cfg.channels.size(), [this](control::Kind k, const control::ControllerConfig& c,
+                                                   std::size_t ch) { return buildFor(k, c, ch); });
   channels_.reserve(cfg.channels.size());
   for (std::size_t c = 0; c < cfg.channels.size(); ++c) addChannel(cfg, c);
   overrides_ = std::make_unique<OdOverrides>(cfg);
@@ -45,10 +44,12 @@ void ControllerNode::addChannel(const ControllerNodeConfig& cfg, std::size_t c) 
   const ChannelConfig& cc = cfg.channels[c];
   const auto& lay = cc.layout;
   Channel ch;
-  ch.sensor = std::make_unique<SensorDriver>(*node_, *master_, cc.sensor_id, lay.scaling, cfg.no_position_s,
-                                             cc.position_rpdo, cc.position_object ? cc.position_object : positionObject(c));
-  ch.valve = std::make_unique<ValveDriver>(*node_, *master_, cc.valve_id, lay.scaling, lay.feedback, lay.error_value_index,
-                                           lay.error_value_sub, cc.feedback_rpdo, commandObject(c), pressureObject(c));
+  ch.sensor =
+      std::make_unique<SensorDriver>(*node_, *master_, cc.sensor_id, lay.scaling, cfg.no_position_s, cc.position_rpdo,
+                                     cc.position_object ? cc.position_object : positionObject(c));
+  ch.valve =
+      std::make_unique<ValveDriver>(*node_, *master_, cc.valve_id, lay.scaling, lay.feedback, lay.error_value_index,
+                                    lay.error_value_sub, cc.feedback_rpdo, commandObject(c), pressureObject(c));
   if (lay.position_step_from_device) ch.sensor->readStepAtBoot();
   ch.valve->errorValueAtBoot([this] { return params_->safeCommand(); });
   const auto number = static_cast<std::uint8_t>(cfg.channels.size() > 1 ? c + 1 : 0);
@@ -184,7 +185,8 @@ void ControllerNode::configureFromOd() {
   const ControllerNodeConfig& cfg = overrides_->config();
   ParameterSet p = params_->read();
   std::string why;
-  if (params_->check(p, &why) != canopen::kSdoOk) throw std::invalid_argument(cfg.eds_path + ": parameter set refused: " + why);
+  if (params_->check(p, &why) != canopen::kSdoOk)
+    throw std::invalid_argument(cfg.eds_path + ": parameter set refused: " + why);
   const std::uint32_t period_us = od.ref<std::uint32_t>(0x1006, 0).get();
   if (period_us == 0) throw std::invalid_argument(cfg.eds_path + ": 0x1006 communication cycle period is 0");
   // Build everything first, then swap: a failure leaves the running controllers in place.
@@ -207,9 +209,11 @@ void ControllerNode::configureFromOd() {
     const ChannelConfig& cc = channel_cfg_[c];
     const auto k = cc.kind >= 0 ? static_cast<control::Kind>(cc.kind) : kind;
     if (k == control::Kind::Mbc && !ranges[c].known && log_)
-      log_("mbc: the model records no range it was identified on (model.json without 'range'): its feedforward is "
-           "used everywhere, with no fallback to the PI");
-    const control::Trajectory own = (cc.trajectory ? *cc.trajectory : traj).mapped(cc.setpoint_scale, cc.setpoint_offset);
+      log_(
+          "mbc: the model records no range it was identified on (model.json without 'range'): its feedforward is "
+          "used everywhere, with no fallback to the PI");
+    const control::Trajectory own =
+        (cc.trajectory ? *cc.trajectory : traj).mapped(cc.setpoint_scale, cc.setpoint_offset);
     channels_[c].loop->configure(std::move(fresh[c]), k, own, Ts, cfg.preroll_s, params_->safeCommand());
     channels_[c].loop->watchRange(ranges[c]);
     channels_[c].valve->zero();

@@ -20,20 +20,21 @@ namespace {
 // The parameters in 0x2000 (gains), 0x2001 (model), 0x2002 (UKF) and 0x2022 (plausibility) by
 // sub-index 1..n, read, written and checked alike.
 constexpr double control::ControllerConfig::*kGains[] = {
-    &control::ControllerConfig::kp,    &control::ControllerConfig::ki,    &control::ControllerConfig::kc,
-    &control::ControllerConfig::beta1, &control::ControllerConfig::beta2, &control::ControllerConfig::beta3,
-    &control::ControllerConfig::delta, &control::ControllerConfig::b0,    &control::ControllerConfig::eso_gain,
+    &control::ControllerConfig::kp,      &control::ControllerConfig::ki,    &control::ControllerConfig::kc,
+    &control::ControllerConfig::beta1,   &control::ControllerConfig::beta2, &control::ControllerConfig::beta3,
+    &control::ControllerConfig::delta,   &control::ControllerConfig::b0,    &control::ControllerConfig::eso_gain,
     &control::ControllerConfig::eso_tau, &control::ControllerConfig::eso_wo};
 // 0x2000 sub 12, after the gains: the ESO's form (1 first-order, 2 as printed).
 constexpr std::uint8_t kEsoFormSub = std::size(kGains) + 1;
-constexpr double model::BoucWenParams::*kModel[] = {&model::BoucWenParams::k,     &model::BoucWenParams::rho,
-                                                    &model::BoucWenParams::b,     &model::BoucWenParams::alpha,
-                                                    &model::BoucWenParams::beta,  &model::BoucWenParams::gamma};
+constexpr double model::BoucWenParams::*kModel[] = {&model::BoucWenParams::k,    &model::BoucWenParams::rho,
+                                                    &model::BoucWenParams::b,    &model::BoucWenParams::alpha,
+                                                    &model::BoucWenParams::beta, &model::BoucWenParams::gamma};
 constexpr double estimation::ActiveModelSettings::*kUkf[] = {
-    &estimation::ActiveModelSettings::P0_h, &estimation::ActiveModelSettings::P0_f,
-    &estimation::ActiveModelSettings::Q_h, &estimation::ActiveModelSettings::Q_f, &estimation::ActiveModelSettings::R,
-    &estimation::ActiveModelSettings::Q_h_lag, &estimation::ActiveModelSettings::Q_f_lag,
-    &estimation::ActiveModelSettings::Q_out, &estimation::ActiveModelSettings::diverge};
+    &estimation::ActiveModelSettings::P0_h,    &estimation::ActiveModelSettings::P0_f,
+    &estimation::ActiveModelSettings::Q_h,     &estimation::ActiveModelSettings::Q_f,
+    &estimation::ActiveModelSettings::R,       &estimation::ActiveModelSettings::Q_h_lag,
+    &estimation::ActiveModelSettings::Q_f_lag, &estimation::ActiveModelSettings::Q_out,
+    &estimation::ActiveModelSettings::diverge};
 constexpr double ParameterSet::*kPlausibility[] = {&ParameterSet::range_steps, &ParameterSet::stuck_s,
                                                    &ParameterSet::stuck_span_v};
 
@@ -110,7 +111,8 @@ ParameterSet ControllerParameters::read() const {
   p.ctrl = running_.ctrl;
   for (std::size_t i = 0; i < std::size(kGains); ++i) p.ctrl.*kGains[i] = od.ref<double>(0x2000, sub(i)).get();
   p.ctrl.eso_order = od.ref<std::uint8_t>(0x2000, kEsoFormSub).get();
-  for (std::size_t i = 0; i < std::size(kModel); ++i) p.ctrl.model.core().*kModel[i] = od.ref<double>(0x2001, sub(i)).get();
+  for (std::size_t i = 0; i < std::size(kModel); ++i)
+    p.ctrl.model.core().*kModel[i] = od.ref<double>(0x2001, sub(i)).get();
   for (std::size_t i = 0; i < std::size(kUkf); ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, sub(i)).get();
   p.safe_u = pd::commandFromVolts(od.ref<double>(0x2020, 0).get());
   p.missing_limit = od.ref<std::uint8_t>(0x2021, 0).get();
@@ -213,7 +215,8 @@ void ControllerParameters::setChannels(std::size_t n, Builder build) {
 }
 
 // Every channel's controller of a set; false (nothing kept) when one does not build.
-bool ControllerParameters::buildAll(control::Kind kind, const control::ControllerConfig& ctrl, Controllers& into) const {
+bool ControllerParameters::buildAll(control::Kind kind, const control::ControllerConfig& ctrl,
+                                    Controllers& into) const {
   try {
     for (std::size_t c = 0; c < n_; ++c) into[c] = build_ ? build_(kind, ctrl, c) : control::makeController(kind, ctrl);
     return true;

@@ -1,10 +1,10 @@
 // The controller node's parameter objects (od/controller.eds) and their commit protocol.
 //
-//   0x2000 gains      kp ki kc beta1 beta2 beta3 delta b0 eso_gain eso_tau eso_wo, eso form (u8)     0x2010 controller choice
-//   0x2001 model      k rho b alpha beta gamma                0x2011/0x2012 trajectory
-//   0x2002 UKF        P0_h P0_f Q_h Q_f R Q_h_lag Q_f_lag Q_out diverge
-//   0x2020 safe valve voltage   0x2021 missing-PDO limit   0x2022 plausibility (range, stuck time, span)
-//   0x2003 commit: :01 = 1 commits the staged set, 0 discards it; :02 staged; :03 sets applied
+//   0x2000 gains      kp ki kc beta1 beta2 beta3 delta b0 eso_gain eso_tau eso_wo, eso form (u8)     0x2010 controller
+//   choice 0x2001 model      k rho b alpha beta gamma                0x2011/0x2012 trajectory 0x2002 UKF        P0_h
+//   P0_f Q_h Q_f R Q_h_lag Q_f_lag Q_out diverge 0x2020 safe valve voltage   0x2021 missing-PDO limit   0x2022
+//   plausibility (range, stuck time, span) 0x2003 commit: :01 = 1 commits the staged set, 0 discards it; :02 staged;
+//   :03 sets applied
 //
 // The loop never reads these entries. A set is read from the dictionary, checked as an SDO write would
 // be (plus the ranges only the application knows, and the model's stability as a whole), and adopted
@@ -31,10 +31,10 @@ namespace pamc::nodes {
 struct ParameterSet {
   control::ControllerConfig ctrl;
   double safe_u = pd::kCommandMin;  // relative volts (0 V at the valve)
-  unsigned missing_limit = 3;  // cycles without a position before the fault
-  double range_steps = 100000;  // 0x2022:01 measuring range [steps of 0.001 mm]
-  double stuck_s = 0.25;        // 0x2022:02
-  double stuck_span_v = 1.0;    // 0x2022:03 (0: off)
+  unsigned missing_limit = 3;       // cycles without a position before the fault
+  double range_steps = 100000;      // 0x2022:01 measuring range [steps of 0.001 mm]
+  double stuck_s = 0.25;            // 0x2022:02
+  double stuck_span_v = 1.0;        // 0x2022:03 (0: off)
 };
 
 // Trajectory choice 0x2011 and its parameters 0x2012 (throws on a choice outside 0..5).

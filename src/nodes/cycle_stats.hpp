@@ -60,7 +60,7 @@ struct CycleRecord {
   double t = 0, yd = 0, y = 0, u = 0, u_n = 0, u_c = 0, y_hat = 0;
   std::uint8_t fault = 0;
   float latency_us = 0;
-  double p = NAN;  // the valve's pressure feedback latched with y [bar]; NaN where the rig maps none
+  double p = NAN;            // the valve's pressure feedback latched with y [bar]; NaN where the rig maps none
   std::uint8_t channel = 0;  // the node's channel (0-based)
 };
 

@@ -28,8 +28,10 @@ std::string stem(const std::string& path) {
 std::string sanitize(const std::string& s) {
   std::string o;
   for (char c : s) {
-    if (std::isalnum(static_cast<unsigned char>(c))) o += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    else if (!o.empty() && o.back() != '_') o += '_';
+    if (std::isalnum(static_cast<unsigned char>(c)))
+      o += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    else if (!o.empty() && o.back() != '_')
+      o += '_';
   }
   while (!o.empty() && o.back() == '_') o.pop_back();
   return o;
@@ -65,7 +67,8 @@ void roleOf(PdoField& f) {
   if (f.index == 0x6004 && f.sub == 0) {
     f.role = "y", f.scale = pd::kPositionStep_mm, f.unit = "mm";  // CiA 406 position, 0.001 mm steps
   } else if (f.index == 0x6411 && f.sub == 1) {
-    f.role = "u", f.scale = pd::kValveFullScale_V / pd::kAnalogFullScaleCounts, f.offset = -pd::kValveMid_V, f.unit = "V";  // command relative to mid-range
+    f.role = "u", f.scale = pd::kValveFullScale_V / pd::kAnalogFullScaleCounts, f.offset = -pd::kValveMid_V,
+    f.unit = "V";  // command relative to mid-range
   } else if (f.index == 0x6401 && f.sub == 1) {
     f.role = "p", f.scale = pd::kPressureFullScale_bar / pd::kAnalogFullScaleCounts, f.unit = "bar";
   }
@@ -90,7 +93,8 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
       const auto cob = static_cast<std::uint32_t>(sync->asUnsigned());
       if (cob & 0x40000000u) {
         bd.sync_cob = cob & 0x7FFu;
-        if (const auto* period = od.find(0x1006, 0)) bd.sync_period_s = static_cast<double>(period->asUnsigned()) * 1e-6;
+        if (const auto* period = od.find(0x1006, 0))
+          bd.sync_period_s = static_cast<double>(period->asUnsigned()) * 1e-6;
       }
     }
     // TPDOs the node sends, and RPDOs it receives (whose sender may have no EDS here).
@@ -116,8 +120,8 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
           PdoField f;
           f.index = m.index();
           f.sub = m.sub();
-          const std::string what = canopen::entryName(map, s) + " maps " + canopen::entryName(f.index, f.sub) + " with " +
-                                   std::to_string(m.bits()) + " bits";
+          const std::string what = canopen::entryName(map, s) + " maps " + canopen::entryName(f.index, f.sub) +
+                                   " with " + std::to_string(m.bits()) + " bits";
           if (m.bits() == 0 || m.bits() % 8 != 0) fail(what + "; only whole bytes are decoded");
           f.bytes = static_cast<std::uint8_t>(m.bits() / 8);
           if (od.hasObject(f.index)) {
@@ -142,7 +146,8 @@ BusDictionary loadBusDictionary(const std::vector<std::string>& paths) {
                canopen::entryName(map, 0) + " says " + std::to_string(mapping.count) + " objects are mapped");
         // A COB-ID described twice (sender's TPDO and receiver's RPDO): keep the one with roles.
         auto it = bd.pdos.find(l.cob_id);
-        const bool has_role = std::any_of(l.fields.begin(), l.fields.end(), [](const PdoField& f) { return !f.role.empty(); });
+        const bool has_role =
+            std::any_of(l.fields.begin(), l.fields.end(), [](const PdoField& f) { return !f.role.empty(); });
         if (it == bd.pdos.end() || has_role) bd.pdos[l.cob_id] = l;
       }
     }
@@ -175,7 +180,9 @@ void addField(BusDictionary& bd, std::uint32_t cob, const std::string& dev, std:
 }  // namespace
 
 // Channel c's column of a role: "y" for channel 1, "y2" for channel 2, ...
-std::string channelRole(const char* role, std::size_t c) { return c == 0 ? std::string(role) : role + std::to_string(c + 1); }
+std::string channelRole(const char* role, std::size_t c) {
+  return c == 0 ? std::string(role) : role + std::to_string(c + 1);
+}
 
 BusDictionary busDictionaryFromRig(const RigFile& rig) {
   BusDictionary bd;
@@ -188,8 +195,8 @@ BusDictionary busDictionaryFromRig(const RigFile& rig) {
     const pd::Scaling& s = cc.layout.scaling;
     const std::string sensor = rig.slave(cc.sensor_id).name, valve = rig.slave(cc.valve_id).name;
     const std::string n = rig.channels.size() > 1 ? std::to_string(c + 1) : std::string();
-    addField(bd, cc.layout.sensor_cob, sensor, cc.sensor_id, ch.position, "position" + n, channelRole("y", c), s.position_step_mm,
-             0.0, "mm");
+    addField(bd, cc.layout.sensor_cob, sensor, cc.sensor_id, ch.position, "position" + n, channelRole("y", c),
+             s.position_step_mm, 0.0, "mm");
     // Counts -> volts over 0..10 V, relative to mid-range as the controller's u.
     const double v_per_count = pd::kValveFullScale_V / s.command_full_counts;
     addField(bd, cc.layout.valve_cob, valve, cc.valve_id, ch.command, "command" + n, channelRole("u", c), v_per_count,
@@ -314,9 +321,12 @@ DecodedRun decodeCandump(const std::vector<canopen::CandumpRecord>& log, const B
     }
     for (size_t i = 0; i < vals.size(); ++i) {
       const auto& fl = it->second.fields[i];
-      if (!fl.role.empty() && fl.role[0] == 'u') latest_u[fl.role.size() > 1 ? std::stoul(fl.role.substr(1)) - 1 : 0] = vals[i];
-      else if (!fl.role.empty()) cur[col[fl.role]] = vals[i];
-      else cur[col[fl.column]] = vals[i];
+      if (!fl.role.empty() && fl.role[0] == 'u')
+        latest_u[fl.role.size() > 1 ? std::stoul(fl.role.substr(1)) - 1 : 0] = vals[i];
+      else if (!fl.role.empty())
+        cur[col[fl.role]] = vals[i];
+      else
+        cur[col[fl.column]] = vals[i];
     }
   }
   // A node whose first PDO came a cycle or more after the first position (the valve answering late

@@ -18,8 +18,8 @@ struct PdoField {
   std::uint8_t sub = 0;
   canopen::DataType type = canopen::DataType::Unsigned8;
   std::uint8_t bytes = 0;
-  std::string column;  // "sensor.position_value"
-  std::string role;    // "y", "u", "p" or ""
+  std::string column;                // "sensor.position_value"
+  std::string role;                  // "y", "u", "p" or ""
   double scale = 1.0, offset = 0.0;  // engineering value = raw * scale + offset
   std::string unit;
 };
@@ -36,7 +36,7 @@ struct BusDictionary {
   std::map<std::uint32_t, PdoLayout> pdos;    // by COB-ID
   std::map<std::uint8_t, std::string> nodes;  // node-ID -> device name
   std::uint32_t sync_cob = 0x80;
-  double sync_period_s = 1e-3;                // 0x1006 of the SYNC producer, if any
+  double sync_period_s = 1e-3;  // 0x1006 of the SYNC producer, if any
 };
 
 // EDS files, or directories holding them. Throws canopen::EdsError / std::runtime_error.
@@ -54,7 +54,8 @@ std::string channelRole(const char* role, std::size_t c);
 bool decodePdo(const PdoLayout& l, const canopen::Frame& f, std::vector<double>& out);
 
 struct DecodedRun {
-  std::vector<std::string> columns;  // t, u, y, p, t_log, u2, y2, p2, ... (channels 2..), then every other mapped object
+  std::vector<std::string>
+      columns;  // t, u, y, p, t_log, u2, y2, p2, ... (channels 2..), then every other mapped object
   std::vector<std::vector<double>> rows;
   std::uint64_t frames = 0, syncs = 0, unknown = 0, bad_length = 0;
   std::uint64_t held = 0;  // cycles without a position PDO (last value held)

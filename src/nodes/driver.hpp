@@ -17,9 +17,9 @@ namespace pamc::nodes {
 // What a driver's supervision sees of the cycle.
 struct DriverCycle {
   canopen::TimeUs now = 0;
-  bool active = false;        // the channel's loop runs (a usable position was seen)
-  bool usable = false;        // this cycle's position is fresh and plausible
-  std::uint64_t cycle = 0;    // cycles since activation
+  bool active = false;      // the channel's loop runs (a usable position was seen)
+  bool usable = false;      // this cycle's position is fresh and plausible
+  std::uint64_t cycle = 0;  // cycles since activation
   const ParameterSet* ps = nullptr;
   double Ts = 1e-3;
 };

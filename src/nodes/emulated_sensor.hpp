@@ -18,7 +18,7 @@ namespace pamc::nodes {
 // The frames held back by a delay on the wire, in order (one delay for all, so a FIFO).
 class DelayLine {
  public:
-  void push(const canopen::Frame& f, canopen::TimeUs due);  // dropped when full
+  void push(const canopen::Frame& f, canopen::TimeUs due);    // dropped when full
   void release(canopen::Transport& to, canopen::TimeUs now);  // sends those due by now
   canopen::TimeUs nextDue() const { return count_ > 0 ? frames_[head_].due : canopen::kNever; }
   void clear() { count_ = 0; }

@@ -20,7 +20,8 @@ EmulatedValve::EmulatedValve(const EmulatorConfig& cfg, canopen::Transport& bus,
   auto& od = node_->od();
   n_ = outputs;
   for (std::size_t c = 0; c < n_; ++c) {
-    const auto cs = static_cast<std::uint8_t>(cfg.command_sub + c), ps = static_cast<std::uint8_t>(cfg.pressure_sub + c);
+    const auto cs = static_cast<std::uint8_t>(cfg.command_sub + c),
+               ps = static_cast<std::uint8_t>(cfg.pressure_sub + c);
     out_[c].pressure = od.ref<std::int16_t>(cfg.pressure_index, ps);
     out_[c].command = od.ref<std::int16_t>(cfg.command_index, cs);
     out_[c].error_mode = od.ref<std::uint8_t>(0x6443, cs);
@@ -49,7 +50,9 @@ std::uint8_t EmulatedValve::masterId() const {
 
 bool EmulatedValve::send(const Frame& f) { return inj_.valve_silent ? true : bus_.send(f); }
 
-void EmulatedValve::reportPressure(double bar, std::size_t c) { out_[c].pressure.set(cfg_.scaling.pressureCounts(bar)); }
+void EmulatedValve::reportPressure(double bar, std::size_t c) {
+  out_[c].pressure.set(cfg_.scaling.pressureCounts(bar));
+}
 
 // The output goes to its error value (CiA 401: 0x6443/0x6444) and says so: an EMCY with the cause
 // and the communication bit of the error register 0x1001, until a fresh synchronous command (RPDO1
@@ -63,8 +66,10 @@ void EmulatedValve::update(TimeUs now) {
   const bool master_lost = master != 0 && node_->heartbeatConsumer().timedOut(master);
   const bool ok = node_->nmtState() == NmtState::Operational && !sync_lost && !master_lost;
   const std::uint16_t cause = master_lost ? canopen::kEmcyHeartbeat : sync_lost ? canopen::kEmcyCommunication : 0;
-  if (!ok) enterError(cause);
-  else if (error_ && node_->rpdo(1).syncsSinceReception() == 0) leaveError();  // a fresh command
+  if (!ok)
+    enterError(cause);
+  else if (error_ && node_->rpdo(1).syncsSinceReception() == 0)
+    leaveError();  // a fresh command
   for (std::size_t c = 0; c < n_; ++c) apply(out_[c], now);
 }
 

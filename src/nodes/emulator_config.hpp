@@ -56,10 +56,10 @@ struct EmulatorConfig {
   static EmulatorConfig profileDevices(const std::string& od_dir);
   void useProfileDevices(const std::string& od_dir);  // the same on this configuration's devices
   plant::PlantConfig plant = plant::PlantConfig::defaults();
-  double sensor_silent_at_s = -1;   // < 0: never
+  double sensor_silent_at_s = -1;  // < 0: never
   double sensor_silent_for_s = 1e9;
-  double drop_pdo_prob = 0.0;       // probability of dropping a position PDO
-  int late_pdo_cycles = 0;          // position reported this many cycles late
+  double drop_pdo_prob = 0.0;  // probability of dropping a position PDO
+  int late_pdo_cycles = 0;     // position reported this many cycles late
   struct PayloadStep {
     double at_s = -1;  // < 0: no payload step
     double N = 40.0;
@@ -69,14 +69,14 @@ struct EmulatorConfig {
 
 // Faults switched at run time (by the fault rig or a test); they act from the next frame on.
 struct Injection {
-  bool sensor_silent = false;          // the sensor sends nothing and hears nothing
-  bool valve_silent = false;           // the valve sends nothing (it still receives)
-  canopen::TimeUs pdo_delay_us = 0;    // position PDOs leave this much later than sent
-  bool pdo_duplicate = false;          // every position PDO goes out twice
-  int pdo_len = -1;                    // position PDOs with this DLC (-1: as mapped)
-  int heartbeat_len = -1;              // sensor heartbeats with this DLC (-1: 1)
-  int drop_next = 0;                   // drop this many position PDOs in a row
-  double drop_prob = 0.0;              // drop each position PDO with this probability (seeded)
+  bool sensor_silent = false;        // the sensor sends nothing and hears nothing
+  bool valve_silent = false;         // the valve sends nothing (it still receives)
+  canopen::TimeUs pdo_delay_us = 0;  // position PDOs leave this much later than sent
+  bool pdo_duplicate = false;        // every position PDO goes out twice
+  int pdo_len = -1;                  // position PDOs with this DLC (-1: as mapped)
+  int heartbeat_len = -1;            // sensor heartbeats with this DLC (-1: 1)
+  int drop_next = 0;                 // drop this many position PDOs in a row
+  double drop_prob = 0.0;            // drop each position PDO with this probability (seeded)
 };
 
 }  // namespace pamc::nodes

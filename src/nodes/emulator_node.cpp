@@ -9,8 +9,7 @@ namespace pamc::nodes {
 using canopen::Frame;
 using canopen::TimeUs;
 
-EmulatorNodes::EmulatorNodes(const EmulatorConfig& cfg, canopen::Transport& transport)
-    : cfg_(cfg), clean_(cfg) {
+EmulatorNodes::EmulatorNodes(const EmulatorConfig& cfg, canopen::Transport& transport) : cfg_(cfg), clean_(cfg) {
   clean_.sensor_silent_at_s = -1, clean_.drop_pdo_prob = 0.0, clean_.late_pdo_cycles = 0;
   if (cfg_.fault_channel >= cfg_.channels()) throw std::invalid_argument("emulator: fault channel beyond the channels");
   addValves(transport);
@@ -37,8 +36,10 @@ void EmulatorNodes::addPlants() {
   };
   for (std::size_t j = 0; j < cfg_.muscles.joints.size(); ++j) {
     const auto& jc = cfg_.muscles.joints[j];
-    if (jc.flexor >= n || jc.extensor >= n || jc.flexor == jc.extensor || joint_of_[jc.flexor] >= 0 || joint_of_[jc.extensor] >= 0)
-      throw std::invalid_argument("emulator: joint " + std::to_string(j + 1) + " is not two channels of no other joint");
+    if (jc.flexor >= n || jc.extensor >= n || jc.flexor == jc.extensor || joint_of_[jc.flexor] >= 0 ||
+        joint_of_[jc.extensor] >= 0)
+      throw std::invalid_argument("emulator: joint " + std::to_string(j + 1) +
+                                  " is not two channels of no other joint");
     joints_.push_back(std::make_unique<plant::AntagonisticJoint>(jc.mech, own(jc.flexor), own(jc.extensor)));
     joint_of_[jc.flexor] = joint_of_[jc.extensor] = static_cast<int>(j);
     plant_of_[jc.flexor] = &joints_.back()->flexor();
@@ -65,7 +66,8 @@ void EmulatorNodes::addSensors(canopen::Transport& transport) {
   }
   const std::size_t faulty = sensor_of_[cfg_.fault_channel];
   for (std::size_t s = 0; s < ids.size(); ++s)
-    sensors_.push_back(std::make_unique<EmulatedSensor>(s == faulty ? cfg_ : clean_, transport, s == faulty ? inj_ : none_, ids[s]));
+    sensors_.push_back(
+        std::make_unique<EmulatedSensor>(s == faulty ? cfg_ : clean_, transport, s == faulty ? inj_ : none_, ids[s]));
 }
 
 // A muscle's encoder: its position; a joint's: its angle. measured: as its sensor measures it (noise),
@@ -100,7 +102,7 @@ void EmulatorConfig::useProfileDevices(const std::string& od_dir) {
   position_index = 0x6004, position_sub = 0;
   command_index = 0x6411, command_sub = 2;    // the valve on output 2
   pressure_index = 0x6401, pressure_sub = 2;  // the pressure sensor on input 2
-  scaling = pd::Scaling{};  // what the devices' dictionaries say replaces it (scalingFromDevices)
+  scaling = pd::Scaling{};                    // what the devices' dictionaries say replaces it (scalingFromDevices)
 }
 
 EmulatorConfig EmulatorConfig::profileDevices(const std::string& od_dir) {
@@ -136,7 +138,8 @@ void EmulatorNodes::onSync() {
   const double t = time();
   const double F = cfg_.payload.at_s >= 0 && t >= cfg_.payload.at_s ? cfg_.payload.N : 0.0;
   auto held = [this](std::size_t c) { return valves_[module_[c]]->held(output_[c]); };
-  for (std::size_t j = 0; j < joints_.size(); ++j) joints_[j]->step(held(cfg_.muscles.joints[j].flexor), held(cfg_.muscles.joints[j].extensor));
+  for (std::size_t j = 0; j < joints_.size(); ++j)
+    joints_[j]->step(held(cfg_.muscles.joints[j].flexor), held(cfg_.muscles.joints[j].extensor));
   for (std::size_t c = 0; c < plant_of_.size(); ++c)
     if (joint_of_[c] < 0) plant_of_[c]->step(held(c), F);
   for (std::size_t s = 0; s < sensors_.size(); ++s) sensors_[s]->measured(k, t, counts(s));

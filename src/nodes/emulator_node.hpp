@@ -62,14 +62,14 @@ class EmulatorNodes : public canopen::BusClient {
   EmulatorConfig cfg_;    // before the devices, which keep references to it and to inj_
   EmulatorConfig clean_;  // the sensors without faults see this one ...
   Injection inj_;
-  Injection none_;        // ... and this
+  Injection none_;                                        // ... and this
   std::vector<std::unique_ptr<EmulatedSensor>> sensors_;  // one per sensor node (a joint's two channels share one)
-  std::vector<std::size_t> sensor_of_;                     // each channel's
-  std::vector<int> sensor_joint_;                          // each sensor's joint (-1: a muscle's own)
-  std::vector<std::size_t> sensor_channel_;                // ... else its channel
-  std::vector<std::unique_ptr<EmulatedValve>> valves_;  // the modules
-  std::vector<std::size_t> module_, output_;             // each channel's module and output
-  std::vector<std::unique_ptr<plant::Plant>> plants_;               // the muscles in no joint
+  std::vector<std::size_t> sensor_of_;                    // each channel's
+  std::vector<int> sensor_joint_;                         // each sensor's joint (-1: a muscle's own)
+  std::vector<std::size_t> sensor_channel_;               // ... else its channel
+  std::vector<std::unique_ptr<EmulatedValve>> valves_;    // the modules
+  std::vector<std::size_t> module_, output_;              // each channel's module and output
+  std::vector<std::unique_ptr<plant::Plant>> plants_;     // the muscles in no joint
   std::vector<std::unique_ptr<plant::AntagonisticJoint>> joints_;  // the pairs
   std::vector<plant::Plant*> plant_of_;                            // each channel's
   std::vector<int> joint_of_;                                      // each channel's joint (-1: none)

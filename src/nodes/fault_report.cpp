@@ -7,18 +7,19 @@ namespace pamc::nodes {
 std::string describeFault(const ControllerNode& n, Fault f) {
   char b[512];
   switch (f) {
-    case Fault::None:
-      return "fault cleared: estimator and integrator restarted";
+    case Fault::None: return "fault cleared: estimator and integrator restarted";
     case Fault::IdCollision:
-      std::snprintf(b, sizeof b, "fault: %s (frame on COB-ID 0x%03X from another node) -> valve to its safe value, EMCY 0x%04X sent",
+      std::snprintf(b, sizeof b,
+                    "fault: %s (frame on COB-ID 0x%03X from another node) -> valve to its safe value, EMCY 0x%04X sent",
                     toString(f), n.lastCollisionCob(), emcyCode(f));
       return b;
     case Fault::NoPosition:
-      std::snprintf(b, sizeof b,
-                    "fault: no position within %g s of Operational: waiting for the sensor's (node %u) PDO on COB-ID 0x%03X; "
-                    "is the sensor Operational, its TPDO moved to another COB-ID, its mapping changed, or its transmission "
-                    "type asynchronous (not on SYNC)? -> valve to its safe value, EMCY 0x%04X sent",
-                    n.noPositionSeconds(), n.sensorId(), n.positionCob(), emcyCode(f));
+      std::snprintf(
+          b, sizeof b,
+          "fault: no position within %g s of Operational: waiting for the sensor's (node %u) PDO on COB-ID 0x%03X; "
+          "is the sensor Operational, its TPDO moved to another COB-ID, its mapping changed, or its transmission "
+          "type asynchronous (not on SYNC)? -> valve to its safe value, EMCY 0x%04X sent",
+          n.noPositionSeconds(), n.sensorId(), n.positionCob(), emcyCode(f));
       return b;
     default:
       std::snprintf(b, sizeof b, "fault: %s -> valve to its safe value, EMCY 0x%04X sent", toString(f), emcyCode(f));

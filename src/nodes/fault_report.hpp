@@ -14,8 +14,8 @@ namespace pamc::nodes {
 // One line for the node's present fault (None: the fault cleared), with what to look at.
 std::string describeFault(const ControllerNode& n, Fault f);
 
-// Prints a line whenever the node's fault changes, and once when the model runs outside its range. Reads only what the node publishes for other
-// threads, so it may run on a thread of its own.
+// Prints a line whenever the node's fault changes, and once when the model runs outside its range. Reads only what the
+// node publishes for other threads, so it may run on a thread of its own.
 class FaultReporter {
  public:
   explicit FaultReporter(std::function<void(const std::string&)> out) : out_(std::move(out)) {}

@@ -15,7 +15,7 @@ namespace pamc::nodes {
 class FaultSupervisor {
  public:
   struct Counters {
-    std::uint64_t episodes = 0;     // entries into the safe state
+    std::uint64_t episodes = 0;  // entries into the safe state
     std::uint64_t recoveries = 0;
     std::uint64_t safe_cycles = 0;  // cycles that sent the safe value
     std::uint64_t warnings = 0;     // warning EMCYs sent
@@ -25,7 +25,10 @@ class FaultSupervisor {
   // reports_bus: it sends the EMCYs of the bus's causes (SYNC, CAN errors, collisions, wrong lengths),
   // which every channel meets at once: one channel of a node reports them, the others only react.
   FaultSupervisor(canopen::Node& node, int recover_cycles, std::uint8_t channel = 0, bool reports_bus = true)
-      : node_(node), recover_cycles_(recover_cycles), own_clear_cycles_(recover_cycles), channel_(channel),
+      : node_(node),
+        recover_cycles_(recover_cycles),
+        own_clear_cycles_(recover_cycles),
+        channel_(channel),
         reports_bus_(reports_bus) {}
 
   void raise(Fault f, std::uint8_t detail = 0) noexcept;
@@ -70,12 +73,12 @@ class FaultSupervisor {
   std::uint8_t channel_;
   bool reports_bus_;
   Fault fault_ = Fault::None;
-  std::uint32_t pending_ = 0;   // causes raised since the last cycle (bit per Fault)
-  std::uint32_t episode_ = 0;   // causes whose EMCY went out in this episode
+  std::uint32_t pending_ = 0;  // causes raised since the last cycle (bit per Fault)
+  std::uint32_t episode_ = 0;  // causes whose EMCY went out in this episode
   std::uint8_t detail_[kFaultCount] = {};
   int clear_cycles_ = 0;
   int warn_clear_ = 0;
-  std::uint64_t raised_ = 0;    // episodes begun (faultsRaised)
+  std::uint64_t raised_ = 0;  // episodes begun (faultsRaised)
   canopen::TimeUs reacted_at_us_ = canopen::kNever;
   // What pollBus() saw of the node's counters last time, and whether the controller is bus off.
   struct BusSeen {

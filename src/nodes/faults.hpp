@@ -11,31 +11,32 @@ namespace pamc::nodes {
 
 enum class Fault : std::uint8_t {
   None = 0,
-  SensorHeartbeat = 1,   // no heartbeat from the sensor node
-  PositionMissing = 2,   // no usable position PDO for more than 0x2021 cycles
-  Estimator = 3,         // non-finite command or estimate, the UKF had to reset, or a set that does not configure
-  BusError = 4,          // CAN controller error passive
-  ValveHeartbeat = 5,    // no heartbeat from the valve node
-  SyncLost = 6,          // SYNC consumer: no SYNC within 1.5 periods
-  SensorState = 7,       // the sensor rebooted (boot-up) or is not Operational
-  ValveState = 8,        // the valve rebooted, is stopped, or does not stay Operational
-  ValvePdoMissing = 9,   // no pressure PDO from the valve for more than 0x2021 cycles
-  CanOverrun = 10,       // frames lost: this node's transmit queue full, or a controller overflow
-  BusOff = 11,           // CAN controller bus off (EMCY 0x8140 once it has restarted)
-  IdCollision = 12,      // another node sends on this node's identifiers (same node-ID)
-  SensorConflict = 13,   // two different positions in one cycle, three cycles running (two sensors)
+  SensorHeartbeat = 1,  // no heartbeat from the sensor node
+  PositionMissing = 2,  // no usable position PDO for more than 0x2021 cycles
+  Estimator = 3,        // non-finite command or estimate, the UKF had to reset, or a set that does not configure
+  BusError = 4,         // CAN controller error passive
+  ValveHeartbeat = 5,   // no heartbeat from the valve node
+  SyncLost = 6,         // SYNC consumer: no SYNC within 1.5 periods
+  SensorState = 7,      // the sensor rebooted (boot-up) or is not Operational
+  ValveState = 8,       // the valve rebooted, is stopped, or does not stay Operational
+  ValvePdoMissing = 9,  // no pressure PDO from the valve for more than 0x2021 cycles
+  CanOverrun = 10,      // frames lost: this node's transmit queue full, or a controller overflow
+  BusOff = 11,          // CAN controller bus off (EMCY 0x8140 once it has restarted)
+  IdCollision = 12,     // another node sends on this node's identifiers (same node-ID)
+  SensorConflict = 13,  // two different positions in one cycle, three cycles running (two sensors)
   // Warnings: EMCY and counted, the loop runs on (the frame itself is discarded).
-  PdoLength = 14,        // an RPDO with a wrong length (never decoded)
-  SyncLength = 15,       // a SYNC with a wrong length (consumer)
+  PdoLength = 14,   // an RPDO with a wrong length (never decoded)
+  SyncLength = 15,  // a SYNC with a wrong length (consumer)
   // Safety faults of the position's plausibility (0x2022).
-  SensorStuck = 16,      // the position has not changed while the command moved by 0x2022:03 V
-  PositionRange = 17,    // more than 0x2021 positions in a row outside the measuring range 0x2022:01
+  SensorStuck = 16,    // the position has not changed while the command moved by 0x2022:03 V
+  PositionRange = 17,  // more than 0x2021 positions in a row outside the measuring range 0x2022:01
   // Warning: the slave is left stopped (the loop cannot start with it; a running loop meets ...State).
-  SlaveBoot = 18,        // a slave's identity did not match, or it refused or lost its configuration at boot
+  SlaveBoot = 18,  // a slave's identity did not match, or it refused or lost its configuration at boot
   // Safety fault: the loop never started.
-  NoPosition = 19,       // no position PDO within ControllerNodeConfig::no_position_s of entering Operational (or of the sensor's boot)
+  NoPosition = 19,  // no position PDO within ControllerNodeConfig::no_position_s of entering Operational (or of the
+                    // sensor's boot)
   // Safety fault of a node with several channels: it follows another channel into the safe state.
-  OtherChannel = 20,     // its joint partner (or, with faults = all, any channel) is in its safe state
+  OtherChannel = 20,  // its joint partner (or, with faults = all, any channel) is in its safe state
 };
 inline constexpr int kFaultCount = 21;
 
@@ -83,7 +84,9 @@ constexpr bool faultTableInOrder() {
 }
 static_assert(faultTableInOrder(), "kFaults must list every fault in the enum's order");
 
-constexpr const FaultInfo& faultInfo(Fault f) { return kFaults[static_cast<int>(f) < kFaultCount ? static_cast<int>(f) : 0]; }
+constexpr const FaultInfo& faultInfo(Fault f) {
+  return kFaults[static_cast<int>(f) < kFaultCount ? static_cast<int>(f) : 0];
+}
 constexpr const char* toString(Fault f) { return faultInfo(f).text; }
 constexpr std::uint16_t emcyCode(Fault f) { return faultInfo(f).emcy; }
 constexpr bool isWarning(Fault f) { return faultInfo(f).warning; }

@@ -46,7 +46,8 @@ void Monitor::feed(const canopen::Frame& f, double t) {
     char b[160];
     const auto it = dict_.nodes.find(static_cast<std::uint8_t>(id - 0x80));
     std::snprintf(b, sizeof b, "%10.3f s  node %u (%s): EMCY 0x%04X, error register 0x%02X%s", t, id - 0x80,
-                  it == dict_.nodes.end() ? "?" : it->second.c_str(), code, f.data[2], code == 0 ? " (error reset)" : "");
+                  it == dict_.nodes.end() ? "?" : it->second.c_str(), code, f.data[2],
+                  code == 0 ? " (error reset)" : "");
     emcy_log_.push_back(b);
     if (emcy_log_.size() > 8) emcy_log_.pop_front();
     return;

@@ -11,11 +11,11 @@
 
 namespace pamc::nodes::pd {
 
-inline constexpr double kPositionStep_mm = 0.001;       // 0x6004 position value: counts of 1 um
-inline constexpr double kAnalogFullScaleCounts = 32767;  // 0x6411 / 0x6401: 0..32767 = 0..full scale
+inline constexpr double kPositionStep_mm = 0.001;                        // 0x6004 position value: counts of 1 um
+inline constexpr double kAnalogFullScaleCounts = 32767;                  // 0x6411 / 0x6401: 0..32767 = 0..full scale
 inline constexpr double kValveFullScale_V = control::kValveFullScale_V;  // 0x6411:01 setpoint, 0..10 V
 inline constexpr double kValveMid_V = control::kValveMid_V;  // u = 0 is the valve's mid-range: volts = 5 V + u
-inline constexpr double kPressureFullScale_bar = 10.0;   // 0x6401:01 pressure feedback, 0..10 bar
+inline constexpr double kPressureFullScale_bar = 10.0;       // 0x6401:01 pressure feedback, 0..10 bar
 inline constexpr double kCommandMin = control::kCommandMin;  // u of 0 V at the valve
 inline constexpr double kCommandMax = control::kCommandMax;
 
@@ -47,11 +47,11 @@ constexpr double countsToBar(double counts) { return counts * kPressureFullScale
 // The same conversions for slaves that count otherwise (a rig file's position step and valve scaling);
 // the defaults are the constants above.
 struct Scaling {
-  double position_step_mm = kPositionStep_mm;                                  // mm per position count
-  double position_offset_mm = 0.0;  // mm at 0 counts (a joint's angle as a muscle's contraction)
-  double command_full_counts = kAnalogFullScaleCounts;  // valve counts at full scale (10 V) above the zero
-  double command_zero_counts = 0.0;                     // counts for 0 V
-  double pressure_full_counts = kAnalogFullScaleCounts; // pressure feedback counts at full scale (10 bar)
+  double position_step_mm = kPositionStep_mm;            // mm per position count
+  double position_offset_mm = 0.0;                       // mm at 0 counts (a joint's angle as a muscle's contraction)
+  double command_full_counts = kAnalogFullScaleCounts;   // valve counts at full scale (10 V) above the zero
+  double command_zero_counts = 0.0;                      // counts for 0 V
+  double pressure_full_counts = kAnalogFullScaleCounts;  // pressure feedback counts at full scale (10 bar)
 
   double mm(double counts) const noexcept { return position_offset_mm + counts * position_step_mm; }
   // Command u [V relative to mid-range] -> the valve's counts (clamped to 0..10 V and to 16 bits).
@@ -66,7 +66,8 @@ struct Scaling {
   }
   // The sensor's counts for a position, the valve's feedback counts for a pressure (clamped as above).
   std::int32_t positionCounts(double y_mm) const noexcept {
-    return static_cast<std::int32_t>(std::lround(std::clamp((y_mm - position_offset_mm) / position_step_mm, -2.0e9, 2.0e9)));
+    return static_cast<std::int32_t>(
+        std::lround(std::clamp((y_mm - position_offset_mm) / position_step_mm, -2.0e9, 2.0e9)));
   }
   std::int16_t pressureCounts(double bar) const noexcept {
     return static_cast<std::int16_t>(
@@ -74,8 +75,8 @@ struct Scaling {
   }
   double bar(double counts) const noexcept { return counts * kPressureFullScale_bar / pressure_full_counts; }
   bool isDefault() const noexcept {
-    return position_step_mm == kPositionStep_mm && position_offset_mm == 0.0 && command_full_counts == kAnalogFullScaleCounts &&
-           command_zero_counts == 0.0;
+    return position_step_mm == kPositionStep_mm && position_offset_mm == 0.0 &&
+           command_full_counts == kAnalogFullScaleCounts && command_zero_counts == 0.0;
   }
 };
 

@@ -48,11 +48,11 @@ class RangeWatch {
     if (first_.excess == model::RangeExcess::RateLow || first_.excess == model::RangeExcess::RateHigh)
       v = first_.rate, lo = r.rate.lo, hi = r.rate.hi, unit = "V/s";
     char b[400];
-    std::snprintf(b, sizeof b,
-                  "note: the model runs outside the range it was identified on from t = %.3f s: %s %.4g %s, identified "
-                  "on [%.4g, %.4g] %s (its range: input [%.4g, %.4g] V, output [%.4g, %.4g] mm, input rate [%.4g, %.4g] V/s)",
-                  first_.t, q, v, unit, lo, hi, unit, r.input.lo, r.input.hi, r.output.lo, r.output.hi, r.rate.lo,
-                  r.rate.hi);
+    std::snprintf(
+        b, sizeof b,
+        "note: the model runs outside the range it was identified on from t = %.3f s: %s %.4g %s, identified "
+        "on [%.4g, %.4g] %s (its range: input [%.4g, %.4g] V, output [%.4g, %.4g] mm, input rate [%.4g, %.4g] V/s)",
+        first_.t, q, v, unit, lo, hi, unit, r.input.lo, r.input.hi, r.output.lo, r.output.hi, r.rate.lo, r.rate.hi);
     return b;
   }
 

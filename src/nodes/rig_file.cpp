@@ -37,18 +37,21 @@ std::string objName(std::uint16_t index, std::uint8_t sub) { return hex(index, 4
 // Keys each section takes (one table: a typo is an error, not a silently ignored setting).
 const std::set<std::string> kBusKeys = {"interface", "bitrate", "period_us"};
 const std::set<std::string> kControllerKeys = {"node_id", "eds", "startup", "boot_time_ms", "faults"};
-const std::set<std::string> kSlaveCommon = {"node_id",  "eds",    "device_type", "vendor_id",    "product_code",
-                                            "revision", "serial", "heartbeat_ms", "master_heartbeat_ms",
-                                            "boot",     "mandatory", "keep_alive", "retries"};
+const std::set<std::string> kSlaveCommon = {
+    "node_id",   "eds",        "device_type",  "vendor_id",           "product_code",
+    "revision",  "serial",     "heartbeat_ms", "master_heartbeat_ms", "boot",
+    "mandatory", "keep_alive", "retries"};
 const std::set<std::string> kSensorKeys = {"position", "position_step_mm", "tpdo", "cob_id"};
-const std::set<std::string> kValveKeys = {"command", "command_full_counts", "command_zero_counts", "rpdo", "cob_id",
-                                          "feedback", "feedback_full_counts", "feedback_tpdo", "feedback_cob_id"};
+const std::set<std::string> kValveKeys = {
+    "command",  "command_full_counts",  "command_zero_counts", "rpdo",           "cob_id",
+    "feedback", "feedback_full_counts", "feedback_tpdo",       "feedback_cob_id"};
 // [slave.NAME]: the slave keys of both kinds but the objects, which the channels name.
-const std::set<std::string> kSlaveKeys = {"position_step_mm", "tpdo", "cob_id", "command_full_counts", "command_zero_counts",
-                                          "rpdo", "feedback_full_counts", "feedback_tpdo", "feedback_cob_id"};
-const std::set<std::string> kChannelKeys = {"sensor", "position", "valve", "command", "feedback",
+const std::set<std::string> kSlaveKeys = {
+    "position_step_mm",     "tpdo",          "cob_id",         "command_full_counts", "command_zero_counts", "rpdo",
+    "feedback_full_counts", "feedback_tpdo", "feedback_cob_id"};
+const std::set<std::string> kChannelKeys = {"sensor",  "position",   "valve", "command",   "feedback",
                                             "partner", "controller", "model", "trajectory"};
-const std::set<std::string> kJointKeys = {"muscles", "sensor", "angle", "angle_step_deg", "angle_zero_counts",
+const std::set<std::string> kJointKeys = {"muscles",  "sensor",  "angle",       "angle_step_deg", "angle_zero_counts",
                                           "lever_mm", "rest_mm", "stiffness_v", "trajectory"};
 
 class Reader {
@@ -70,8 +73,9 @@ class Reader {
       std::string n = k.name;
       std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
       if (n == "reset")  // the key of the former reading of 0x1F81 bit 4
-        fail(k.line, "reset: 0x1F81 bit 4 is keep alive (CiA 302-2); a slave back after a heartbeat loss is reset "
-                     "unless keep_alive = yes");
+        fail(k.line,
+             "reset: 0x1F81 bit 4 is keep alive (CiA 302-2); a slave back after a heartbeat loss is reset "
+             "unless keep_alive = yes");
       if (a.count(n) == 0 && b.count(n) == 0) fail(k.line, "unknown key '" + k.name + "' in [" + s.name + "]");
     }
   }
@@ -80,9 +84,11 @@ class Reader {
     const IniKey* k = s.find(key);
     if (k == nullptr) return def;
     std::uint64_t v = 0;
-    if (!canopen::parseIniUnsigned(k->value, v)) fail(k->line, std::string(key) + " '" + k->value + "' is not a number");
+    if (!canopen::parseIniUnsigned(k->value, v))
+      fail(k->line, std::string(key) + " '" + k->value + "' is not a number");
     if (v < lo || v > hi)
-      fail(k->line, std::string(key) + " " + k->value + " is outside " + std::to_string(lo) + ".." + std::to_string(hi));
+      fail(k->line,
+           std::string(key) + " " + k->value + " is outside " + std::to_string(lo) + ".." + std::to_string(hi));
     return v;
   }
   std::optional<std::uint32_t> optionalU32(const IniSection& s, const char* key) const {
@@ -186,15 +192,17 @@ void pdoWrites(const Reader& r, SlaveBuild& s, int line, bool transmit, unsigned
     r.fail(line, s.eds + " has no " + what + " " + std::to_string(n) + " (" + hex(comm, 4) + " / " + hex(map, 4) + ")");
   std::size_t bytes = 0;
   for (const canopen::Entry* e : mapped) {
-    if (!e->pdoMappable()) r.fail(line, s.eds + ": " + objName(e->index(), e->subIndex()) + " cannot be mapped into a PDO");
+    if (!e->pdoMappable())
+      r.fail(line, s.eds + ": " + objName(e->index(), e->subIndex()) + " cannot be mapped into a PDO");
     bytes += e->size();
   }
   if (bytes > 8)
-    r.fail(line, s.eds + ": " + std::to_string(mapped.size()) + " channels need " + std::to_string(bytes) + " bytes in " +
-                     what + " " + std::to_string(n) + ", a PDO carries 8");
+    r.fail(line, s.eds + ": " + std::to_string(mapped.size()) + " channels need " + std::to_string(bytes) +
+                     " bytes in " + what + " " + std::to_string(n) + ", a PDO carries 8");
   for (std::size_t i = 1; i <= mapped.size(); ++i)
     if (s.od.find(map, static_cast<std::uint8_t>(i)) == nullptr)
-      r.fail(line, s.eds + ": " + what + " " + std::to_string(n) + " maps fewer than " + std::to_string(mapped.size()) + " objects");
+      r.fail(line, s.eds + ": " + what + " " + std::to_string(n) + " maps fewer than " + std::to_string(mapped.size()) +
+                       " objects");
   auto& w = s.boot.writes;
   w.push_back(dcfValue(comm, 1, cob | 0x80000000u, 4));  // CiA 301: change a PDO only while it is disabled
   w.push_back(dcfValue(comm, 2, 1, 1));                  // synchronous, every SYNC
@@ -349,12 +357,13 @@ const canopen::Entry& channelObject(const Reader& r, const SlaveBuild& s, const 
   const auto [idx, sub] = r.object(k);
   const canopen::Entry& e = entry(r, s, k.line, idx, sub);
   const std::string name = s.eds + ": " + objName(idx, sub);
-  if (std::string(what) == "position" &&
-      (e.size() != 4 || !(e.dataType() == canopen::DataType::Integer32 || e.dataType() == canopen::DataType::Unsigned32)))
+  if (std::string(what) == "position" && (e.size() != 4 || !(e.dataType() == canopen::DataType::Integer32 ||
+                                                             e.dataType() == canopen::DataType::Unsigned32)))
     r.fail(k.line, name + " is not 32 bits: the controller takes 32-bit positions");
   if (std::string(what) == "command" && (e.size() != 2 || !e.writable()))
     r.fail(k.line, name + " is not a writable 16-bit object: the controller sends 16-bit commands");
-  if (std::string(what) == "feedback" && e.size() != 2) r.fail(k.line, name + " is not 16 bits: the controller takes 16-bit feedback");
+  if (std::string(what) == "feedback" && e.size() != 2)
+    r.fail(k.line, name + " is not 16 bits: the controller takes 16-bit feedback");
   return e;
 }
 
@@ -390,7 +399,8 @@ void channelOwn(const Reader& r, const IniSection& sec, std::size_t count, std::
                 const std::string& dir) {
   if (sec.find("partner")) {
     cc.partner = static_cast<int>(r.unsignedKey(sec, "partner", 0, 1, count)) - 1;
-    if (cc.partner == static_cast<int>(c)) r.fail(sec.find("partner")->line, "partner: a channel is not its own partner");
+    if (cc.partner == static_cast<int>(c))
+      r.fail(sec.find("partner")->line, "partner: a channel is not its own partner");
   }
   try {
     if (const IniKey* k = sec.find("controller")) cc.kind = static_cast<int>(control::kindFromString(k->value));
@@ -418,7 +428,8 @@ void channelOwn(const Reader& r, const IniSection& sec, std::size_t count, std::
 std::pair<std::size_t, std::size_t> jointMuscles(const Reader& r, const IniKey& k, std::size_t count) {
   unsigned a = 0, b = 0;
   char extra = 0;
-  if (std::sscanf(k.value.c_str(), " %u , %u %c", &a, &b, &extra) != 2 || a < 1 || b < 1 || a > count || b > count || a == b)
+  if (std::sscanf(k.value.c_str(), " %u , %u %c", &a, &b, &extra) != 2 || a < 1 || b < 1 || a > count || b > count ||
+      a == b)
     r.fail(k.line, "muscles '" + k.value + "' is not two channels (flexor, extensor), e.g. 1, 2");
   return {a - 1, b - 1};
 }
@@ -431,7 +442,8 @@ void readJoints(const Reader& r, const canopen::IniFile& ini, std::size_t count,
     std::tie(jt.flexor, jt.extensor) = jointMuscles(r, r.needKey(*sec, "muscles"), count);
     for (const auto& other : fb.joints)
       for (std::size_t m : {other.flexor, other.extensor})
-        if (m == jt.flexor || m == jt.extensor) r.fail(sec->find("muscles")->line, "muscles: channel " + std::to_string(m + 1) + " is in two joints");
+        if (m == jt.flexor || m == jt.extensor)
+          r.fail(sec->find("muscles")->line, "muscles: channel " + std::to_string(m + 1) + " is in two joints");
     const std::size_t sensor = slaveNamed(r, fb, r.needKey(*sec, "sensor"));
     fb.joint_angles.push_back(&channelObject(r, fb.slaves[sensor], r.needKey(*sec, "angle"), "position"));
     jt.sensor_id = fb.slaves[sensor].id;
@@ -454,8 +466,8 @@ bool jointMuscle(const Reader& r, const IniSection& sec, std::size_t c, const Fi
     if (c != jt.flexor && c != jt.extensor) continue;
     for (const char* key : {"sensor", "position", "partner", "trajectory"})
       if (const IniKey* k = sec.find(key))
-        r.fail(k->line, std::string(key) + ": channel " + std::to_string(c + 1) + " is a muscle of [joint." + std::to_string(j + 1) +
-                            "], whose angle and pair say it");
+        r.fail(k->line, std::string(key) + ": channel " + std::to_string(c + 1) + " is a muscle of [joint." +
+                            std::to_string(j + 1) + "], whose angle and pair say it");
     const double sign = c == jt.flexor ? 1.0 : -1.0;
     const double mm_per_deg = sign * jt.lever_mm * M_PI / 180.0;
     for (std::size_t s = 0; s < fb.slaves.size(); ++s)
@@ -495,7 +507,8 @@ void readSlavesAndChannels(const Reader& r, const canopen::IniFile& ini, RigFile
   std::size_t count = 0;
   while (ini.find("channel." + std::to_string(count + 1)) != nullptr) ++count;
   if (count == 0) r.fail(0, "no [channel.1] section (or [sensor] and [valve] for one muscle)");
-  if (count > kMaxChannels) r.fail(0, std::to_string(count) + " channels: the controller runs at most " + std::to_string(kMaxChannels));
+  if (count > kMaxChannels)
+    r.fail(0, std::to_string(count) + " channels: the controller runs at most " + std::to_string(kMaxChannels));
   readJoints(r, ini, count, fb);
   for (std::size_t c = 0; c < count; ++c) {
     const IniSection& sec = *ini.find("channel." + std::to_string(c + 1));
@@ -518,8 +531,8 @@ void readSlavesAndChannels(const Reader& r, const canopen::IniFile& ini, RigFile
   for (std::size_t c = 0; c < count; ++c) {
     const int p = fb.channels[c].out.cfg.partner;
     if (p >= 0 && fb.channels[static_cast<std::size_t>(p)].out.cfg.partner != static_cast<int>(c))
-      r.fail(fb.channels[c].line, "partner: channel " + std::to_string(p + 1) + " does not name channel " +
-                                      std::to_string(c + 1) + " back");
+      r.fail(fb.channels[c].line,
+             "partner: channel " + std::to_string(p + 1) + " does not name channel " + std::to_string(c + 1) + " back");
   }
 }
 
@@ -535,7 +548,8 @@ void sensorSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*
   const IniSection& ss = *s.sec;
   const unsigned tpdo = static_cast<unsigned>(r.unsignedKey(ss, "tpdo", 1, 1, 512));
   const int tpdo_line = ss.find("tpdo") ? ss.find("tpdo")->line : chans[0]->line;
-  const auto cob = static_cast<std::uint32_t>(r.unsignedKey(ss, "cob_id", defaultPdoCob(r, tpdo_line, true, tpdo, s.id), 1, 0x7FF));
+  const auto cob =
+      static_cast<std::uint32_t>(r.unsignedKey(ss, "cob_id", defaultPdoCob(r, tpdo_line, true, tpdo, s.id), 1, 0x7FF));
   // Each object once: the two muscles of a joint read one angle.
   std::vector<const canopen::Entry*> mapped;
   for (const ChannelBuild* c : chans)
@@ -584,7 +598,8 @@ void valveSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*>
   const IniSection& vs = *s.sec;
   const unsigned rpdo = static_cast<unsigned>(r.unsignedKey(vs, "rpdo", 1, 1, 512));
   const int rpdo_line = vs.find("rpdo") ? vs.find("rpdo")->line : chans[0]->line;
-  const auto cob = static_cast<std::uint32_t>(r.unsignedKey(vs, "cob_id", defaultPdoCob(r, rpdo_line, false, rpdo, s.id), 1, 0x7FF));
+  const auto cob =
+      static_cast<std::uint32_t>(r.unsignedKey(vs, "cob_id", defaultPdoCob(r, rpdo_line, false, rpdo, s.id), 1, 0x7FF));
   std::vector<const canopen::Entry*> cmds, fbs;
   for (const ChannelBuild* c : chans) {
     cmds.push_back(c->command);
@@ -611,7 +626,8 @@ void valveSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*>
       lay.error_value_index = 0x6444;
       lay.error_value_sub = csub;
       if (const auto* mode = s.od.find(0x6443, csub); mode != nullptr && mode->writable())
-        s.boot.writes.push_back(dcfValue(0x6443, csub, 1, mode->size()));  // output the error value on a communication error
+        s.boot.writes.push_back(
+            dcfValue(0x6443, csub, 1, mode->size()));  // output the error value on a communication error
     }
     c->out.command = RigObject{cidx, csub, c->command->dataType()};
     c->out.command_offset = offset;
@@ -624,7 +640,8 @@ void valveSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*>
   }
   const unsigned tpdo = static_cast<unsigned>(r.unsignedKey(vs, "feedback_tpdo", 1, 1, 512));
   const int line = vs.find("feedback_tpdo") ? vs.find("feedback_tpdo")->line : chans[0]->line;
-  const auto fcob = static_cast<std::uint32_t>(r.unsignedKey(vs, "feedback_cob_id", defaultPdoCob(r, line, true, tpdo, s.id), 1, 0x7FF));
+  const auto fcob = static_cast<std::uint32_t>(
+      r.unsignedKey(vs, "feedback_cob_id", defaultPdoCob(r, line, true, tpdo, s.id), 1, 0x7FF));
   otherTpdosOff(s, tpdo);
   pdoWrites(r, s, line, true, tpdo, fcob, fbs);
   const double full = r.doubleKey(vs, "feedback_full_counts", pd::kAnalogFullScaleCounts, 1, 65535);
@@ -643,7 +660,8 @@ void checkUnique(const Reader& r, const RigFile& rig, const FileBuild& fb) {
   std::set<std::uint8_t> ids = {rig.controller_id};
   for (const auto& s : fb.slaves) {
     if (ids.insert(s.id).second) continue;
-    if (rig.one_muscle_form) r.fail(fb.slaves[1].sec->find("node_id")->line, "node-IDs of controller, sensor and valve must differ");
+    if (rig.one_muscle_form)
+      r.fail(fb.slaves[1].sec->find("node_id")->line, "node-IDs of controller, sensor and valve must differ");
     r.fail(s.sec->find("node_id")->line, "node-ID " + std::to_string(s.id) + " of [" + s.sec->name + "] is taken");
   }
   std::set<std::uint32_t> cobs;
@@ -676,8 +694,10 @@ void controllerPdos(const Reader& r, RigFile& rig, FileBuild& fb) {
   }
   unsigned rpdos = 0;
   for (auto& c : fb.channels) {
-    c.out.cfg.position_rpdo = static_cast<unsigned>(std::find(sensors.begin(), sensors.end(), c.sensor) - sensors.begin()) + 1;
-    c.out.cfg.command_tpdo = static_cast<unsigned>(std::find(valves.begin(), valves.end(), c.valve) - valves.begin()) + 1;
+    c.out.cfg.position_rpdo =
+        static_cast<unsigned>(std::find(sensors.begin(), sensors.end(), c.sensor) - sensors.begin()) + 1;
+    c.out.cfg.command_tpdo =
+        static_cast<unsigned>(std::find(valves.begin(), valves.end(), c.valve) - valves.begin()) + 1;
   }
   rpdos = static_cast<unsigned>(sensors.size());
   for (std::size_t v : valves) {
@@ -705,7 +725,9 @@ RigFile fromIni(const canopen::IniFile& ini) {
     const std::string n = lower(s.name);
     const bool named = n.rfind("slave.", 0) == 0 || n.rfind("channel.", 0) == 0 || n.rfind("joint.", 0) == 0;
     if (known.count(n) == 0 && !named)
-      r.fail(s.line, "unknown section [" + s.name + "] (known: bus, controller, sensor, valve, sensor.sdo, valve.sdo, slave.NAME, slave.NAME.sdo, channel.N, joint.N)");
+      r.fail(s.line, "unknown section [" + s.name +
+                         "] (known: bus, controller, sensor, valve, sensor.sdo, valve.sdo, slave.NAME, slave.NAME.sdo, "
+                         "channel.N, joint.N)");
     one = one || n == "sensor" || n == "valve";
     several = several || named;
   }
@@ -715,12 +737,15 @@ RigFile fromIni(const canopen::IniFile& ini) {
   readBusAndController(r, ini, rig);
   rig.one_muscle_form = !several;
   FileBuild fb;
-  if (rig.one_muscle_form) readOneMuscle(r, ini, rig, fb);
-  else readSlavesAndChannels(r, ini, rig, fb);
+  if (rig.one_muscle_form)
+    readOneMuscle(r, ini, rig, fb);
+  else
+    readSlavesAndChannels(r, ini, rig, fb);
   for (std::size_t i = 0; i < fb.slaves.size(); ++i) {
     const auto as_sensor = channelsOf(fb, i, true), as_valve = channelsOf(fb, i, false);
     if (!as_sensor.empty() && !as_valve.empty())
-      r.fail(fb.slaves[i].sec->line, "[" + fb.slaves[i].sec->name + "] is a sensor of one channel and a valve of another");
+      r.fail(fb.slaves[i].sec->line,
+             "[" + fb.slaves[i].sec->name + "] is a sensor of one channel and a valve of another");
     if (!as_sensor.empty()) sensorSlave(r, fb.slaves[i], as_sensor);
     if (!as_valve.empty()) valveSlave(r, fb.slaves[i], as_valve);
     slaveTail(r, ini, fb.slaves[i], rig.controller_id);
@@ -774,14 +799,16 @@ void slaveValues(const RigFile& rig, canopen::ConciseDcf& v) {
 }
 
 // One of the controller's PDOs: on cob (bit 31: off), mapped to its channels' objects in order.
-void controllerPdo(canopen::ConciseDcf& v, bool transmit, unsigned n, std::uint32_t cob, const std::vector<std::uint32_t>& map) {
+void controllerPdo(canopen::ConciseDcf& v, bool transmit, unsigned n, std::uint32_t cob,
+                   const std::vector<std::uint32_t>& map) {
   using canopen::dcfValue;
   const auto comm = static_cast<std::uint16_t>((transmit ? 0x1800 : 0x1400) + n - 1);
   const auto mapping = static_cast<std::uint16_t>((transmit ? 0x1A00 : 0x1600) + n - 1);
   v.push_back(dcfValue(comm, 1, cob, 4));
   if (map.empty()) return;
   v.push_back(dcfValue(mapping, 0, 0, 1));
-  for (std::size_t i = 0; i < map.size(); ++i) v.push_back(dcfValue(mapping, static_cast<std::uint8_t>(i + 1), map[i], 4));
+  for (std::size_t i = 0; i < map.size(); ++i)
+    v.push_back(dcfValue(mapping, static_cast<std::uint8_t>(i + 1), map[i], 4));
   v.push_back(dcfValue(mapping, 0, map.size(), 1));
 }
 

@@ -55,7 +55,7 @@ struct RigSlave {
 // byte offsets there (several channels may share one PDO).
 struct RigChannel {
   ChannelConfig cfg;
-  RigObject position, command, feedback;  // feedback.index 0: none
+  RigObject position, command, feedback;                                  // feedback.index 0: none
   unsigned position_offset = 0, command_offset = 0, feedback_offset = 0;  // bytes into the PDO
 };
 

@@ -10,22 +10,31 @@ using canopen::TimeUs;
 
 SensorDriver::SensorDriver(canopen::Node& node, canopen::NmtMaster& master, std::uint8_t id, const pd::Scaling& scaling,
                            double no_position_s, unsigned rpdo, std::uint16_t object)
-    : node_(node), master_(master), id_(id), rpdo_(rpdo), object_(object), scaling_(scaling), no_position_s_(no_position_s) {
+    : node_(node),
+      master_(master),
+      id_(id),
+      rpdo_(rpdo),
+      object_(object),
+      scaling_(scaling),
+      no_position_s_(no_position_s) {
   master_.addSlave(id_);
 }
 
 void SensorDriver::readStepAtBoot() {
   // CiA 406: 0x6005:01 is the measuring step in nm; the loop sees it before the sensor starts.
-  master_.addReads(id_, {canopen::SlaveBoot::Read{0x6005, 1, [this](const std::uint8_t* d, std::size_t len, std::string* why) {
-    std::uint32_t nm = 0;
-    for (std::size_t i = 0; i < len && i < 4; ++i) nm |= static_cast<std::uint32_t>(d[i]) << (8 * i);
-    if (len != 4 || nm == 0) {
-      *why = "measuring step " + std::to_string(nm) + " nm (" + std::to_string(len) + " bytes) is not a step";
-      return false;
-    }
-    scaling_.position_step_mm = nm * 1e-6;
-    return true;
-  }}});
+  master_.addReads(
+      id_, {canopen::SlaveBoot::Read{0x6005, 1, [this](const std::uint8_t* d, std::size_t len, std::string* why) {
+                                       std::uint32_t nm = 0;
+                                       for (std::size_t i = 0; i < len && i < 4; ++i)
+                                         nm |= static_cast<std::uint32_t>(d[i]) << (8 * i);
+                                       if (len != 4 || nm == 0) {
+                                         *why = "measuring step " + std::to_string(nm) + " nm (" + std::to_string(len) +
+                                                " bytes) is not a step";
+                                         return false;
+                                       }
+                                       scaling_.position_step_mm = nm * 1e-6;
+                                       return true;
+                                     }}});
 }
 
 void SensorDriver::onOperational(TimeUs now) noexcept {
@@ -37,15 +46,9 @@ void SensorDriver::onEvent(canopen::SlaveEvent ev, TimeUs now, FaultSupervisor& 
   using canopen::SlaveEvent;
   switch (ev) {
     case SlaveEvent::Configured:
-    case SlaveEvent::KeptAlive:
-      onBooted(now);
-      break;
-    case SlaveEvent::BootFailed:
-      f.raise(Fault::SlaveBoot, id_);
-      break;
-    case SlaveEvent::Lost:
-      f.raise(Fault::SensorHeartbeat, id_);
-      break;
+    case SlaveEvent::KeptAlive: onBooted(now); break;
+    case SlaveEvent::BootFailed: f.raise(Fault::SlaveBoot, id_); break;
+    case SlaveEvent::Lost: f.raise(Fault::SensorHeartbeat, id_); break;
     case SlaveEvent::BootUp:
     case SlaveEvent::LeftOperational:
     case SlaveEvent::Stopped:

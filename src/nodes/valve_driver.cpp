@@ -24,9 +24,11 @@ void ValveDriver::errorValueAtBoot(std::function<double()> safe_u) {
   safe_u_ = safe_u;
   if (error_value_index_ == 0) return;
   // CiA 401: the valve outputs 0x6444:n (INTEGER32) on a communication error.
-  master_.addConfig(id_, {canopen::SlaveBoot::Write{error_value_index_, error_value_sub_, 4, [this, safe_u = std::move(safe_u)] {
-                      return static_cast<std::uint32_t>(static_cast<std::int32_t>(scaling_.commandCounts(safe_u())));
-                    }}});
+  master_.addConfig(
+      id_, {canopen::SlaveBoot::Write{error_value_index_, error_value_sub_, 4, [this, safe_u = std::move(safe_u)] {
+                                        return static_cast<std::uint32_t>(
+                                            static_cast<std::int32_t>(scaling_.commandCounts(safe_u())));
+                                      }}});
 }
 
 void ValveDriver::pushErrorValue(double safe_u) noexcept {
@@ -38,9 +40,10 @@ void ValveDriver::pushErrorValue(double safe_u) noexcept {
   if (sdo.busy() || !master_.configured(id_)) return;
   push_ = false;
   if (error_value_index_ == 0) return;
-  sdo.downloadValue<std::int32_t>(id_, error_value_index_, error_value_sub_, v, [this](std::uint32_t code, const std::uint8_t*, std::size_t) {
-    if (code != canopen::kSdoOk) ++sdo_errors_;
-  });
+  sdo.downloadValue<std::int32_t>(id_, error_value_index_, error_value_sub_, v,
+                                  [this](std::uint32_t code, const std::uint8_t*, std::size_t) {
+                                    if (code != canopen::kSdoOk) ++sdo_errors_;
+                                  });
 }
 
 // Kept alive and running, the valve was not configured by this boot: its error value goes out now -
@@ -49,18 +52,13 @@ void ValveDriver::pushErrorValue(double safe_u) noexcept {
 void ValveDriver::onEvent(canopen::SlaveEvent ev, TimeUs, FaultSupervisor& f, bool active) noexcept {
   using canopen::SlaveEvent;
   switch (ev) {
-    case SlaveEvent::Configured:
-      break;
+    case SlaveEvent::Configured: break;
     case SlaveEvent::KeptAlive:
       errorValueDue();
       if (safe_u_) pushErrorValue(safe_u_());
       break;
-    case SlaveEvent::BootFailed:
-      f.raise(Fault::SlaveBoot, id_);
-      break;
-    case SlaveEvent::Lost:
-      f.raise(Fault::ValveHeartbeat, id_);
-      break;
+    case SlaveEvent::BootFailed: f.raise(Fault::SlaveBoot, id_); break;
+    case SlaveEvent::Lost: f.raise(Fault::ValveHeartbeat, id_); break;
     case SlaveEvent::BootUp:
       if (!master_.boots(id_)) errorValueDue();
       if (active) f.raise(Fault::ValveState, id_);

@@ -101,7 +101,7 @@ class ReferenceModel {
   double chain(const PhysicsState& x, PhysicsState* dx, PhysicsState* rest) const noexcept;
 
   const PhysicsConfig* c_;
-  double wn_ms_, wn_fl_;  // rad/s
+  double wn_ms_, wn_fl_;                          // rad/s
   double stiff_per_V_ = 0.0, stiff_per_N_ = 0.0;  // of the rate-independent elements, per unit input travel
 };
 

@@ -190,16 +190,16 @@ void validate(const PhysicsConfig& c, const std::string& where) {
       fail(we, "'pressure_lag.tau' is too short for 'reference_substeps'");
     double w = 0.0;
     if (e.mass_spring.enabled) w = 2.0 * kPi * e.mass_spring.fn;
-    if (e.force_loop.enabled)
-      w = 2.0 * kPi * e.force_loop.fn * std::sqrt(1.0 + e.force_loop.zmax / e.force_loop.delta);
+    if (e.force_loop.enabled) w = 2.0 * kPi * e.force_loop.fn * std::sqrt(1.0 + e.force_loop.zmax / e.force_loop.delta);
     if (w * h > 0.5) fail(we, "the payload's natural frequency is too high for 'reference_substeps'");
   }
   if (c.mode == Mode::Rig) {
     Effects copy = c.effects;
     for (const auto& x : effectTable(copy))
       if (*x.enabled && !x.in_rig)
-        fail(we + "." + x.name, "not switchable in mode 'rig' (its physics is part of the rig); there: creep, delay, "
-                                "dead_band, warm_up");
+        fail(we + "." + x.name,
+             "not switchable in mode 'rig' (its physics is part of the rig); there: creep, delay, "
+             "dead_band, warm_up");
   }
 }
 

@@ -123,8 +123,7 @@ void PhysicsPlant::integrate(double cmd_first, double cmd_second, double t_switc
       double t = a;
       while (t < b) {
         while (i_u * h_uniform <= t) ++i_u;
-        const double next =
-            std::min(std::min(b, i_u * h_uniform), std::min(tv.next(t, a, tau), tf.next(t, a, tau)));
+        const double next = std::min(std::min(b, i_u * h_uniform), std::min(tv.next(t, a, tau), tf.next(t, a, tau)));
         rk.do_step([&](const PhysicsState& x, PhysicsState& dx, double tt) { m.rhs(x, dx, d, tt); }, x_, t, next - t);
         m.setFastStages(x_, d, next);
         t = next;

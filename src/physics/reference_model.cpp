@@ -161,8 +161,8 @@ double ReferenceModel::chain(const PhysicsState& x, PhysicsState* dx, PhysicsSta
       const double zmax = e.force_loop.zmax;
       (*dx)[kMy] = s[kMyd];
       (*dx)[kMyd] = wn_fl_ * wn_fl_ * (y - s[kMy] - s[kFz]) - 2.0 * e.force_loop.zeta * wn_fl_ * s[kMyd];
-      (*dx)[kFz] = zmax > 0.0 ? zmax / e.force_loop.delta * std::max(0.0, 1.0 - sgn(s[kMyd]) * s[kFz] / zmax) * s[kMyd]
-                              : 0.0;
+      (*dx)[kFz] =
+          zmax > 0.0 ? zmax / e.force_loop.delta * std::max(0.0, 1.0 - sgn(s[kMyd]) * s[kFz] / zmax) * s[kMyd] : 0.0;
     }
     y = s[kMy];
   }

@@ -9,8 +9,8 @@ namespace pamc::physics {
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kRhoAnr = 1.185;   // air density at ISO 8778 standard reference atmosphere [kg/m^3]
-constexpr double kRAir = 287.05;    // specific gas constant of air [J/(kg K)]
+constexpr double kRhoAnr = 1.185;  // air density at ISO 8778 standard reference atmosphere [kg/m^3]
+constexpr double kRAir = 287.05;   // specific gas constant of air [J/(kg K)]
 
 // ISO 6358 flow function of the pressure ratio r = p_down / p_up: choked (1) below the critical
 // ratio b, the elliptic subsonic law above it, and linear in the pressure difference above r_lam,
@@ -85,8 +85,10 @@ void RigModel::rhs(const PhysicsState& x, PhysicsState& dx, double cmd, double f
   dx[kXv] = (std::clamp((setpoint_Pa(cmd) - p) / band_Pa_, -1.0, 1.0) - xv) / g.tau_s;
   // Mass flow through the opened fraction of the path: supply -> muscle, or muscle -> atmosphere.
   double mdot = 0.0;
-  if (xv > 0.0) mdot = xv * c_rho0_ * p_sup_ * flowFunction(p / p_sup_, g.critical_ratio, g.laminar_ratio);
-  else if (xv < 0.0) mdot = xv * c_rho0_ * p * flowFunction(p_atm_ / p, g.critical_ratio, g.laminar_ratio);
+  if (xv > 0.0)
+    mdot = xv * c_rho0_ * p_sup_ * flowFunction(p / p_sup_, g.critical_ratio, g.laminar_ratio);
+  else if (xv < 0.0)
+    mdot = xv * c_rho0_ * p * flowFunction(p_atm_ / p, g.critical_ratio, g.laminar_ratio);
 
   const double y = x[kY], v = x[kYd];
   const double p_gauge = p - p_atm_;

@@ -7,7 +7,8 @@
 namespace pamc::plant {
 
 PlantConfig AntagonisticJoint::withInertia(PlantConfig p, const JointConfig& j) {
-  if (p.kind != PlantKind::Physics) throw std::invalid_argument("joint: its muscles must be plants of the physics kind");
+  if (p.kind != PlantKind::Physics)
+    throw std::invalid_argument("joint: its muscles must be plants of the physics kind");
   const double r = j.lever_mm * 1e-3;
   p.physics.payload.mass_kg += j.inertia_kg_m2 / (r * r) / 2.0;
   p.physics.payload.gravity_m_per_s2 = 0.0;  // the other muscle is the load, through the cable
@@ -18,7 +19,8 @@ PlantConfig AntagonisticJoint::withInertia(PlantConfig p, const JointConfig& j) 
 
 AntagonisticJoint::AntagonisticJoint(const JointConfig& cfg, PlantConfig flexor, PlantConfig extensor)
     : cfg_(cfg), flexor_(withInertia(std::move(flexor), cfg)), extensor_(withInertia(std::move(extensor), cfg)) {
-  if (!(cfg.lever_mm > 0) || !(cfg.cable_N_per_mm > 0)) throw std::invalid_argument("joint: lever and cable stiffness must be above 0");
+  if (!(cfg.lever_mm > 0) || !(cfg.cable_N_per_mm > 0))
+    throw std::invalid_argument("joint: lever and cable stiffness must be above 0");
 }
 
 void AntagonisticJoint::reset(double u0) noexcept {

@@ -15,11 +15,11 @@
 namespace pamc::plant {
 
 struct JointConfig {
-  double lever_mm = 25.0;          // pulley radius
-  double rest_mm = 15.0;           // each muscle's contraction at angle 0 with the cable slack
-  double cable_N_per_mm = 200.0;   // the cable's stiffness
-  double cable_N_s_per_mm = 2.0;   // ... its damping
-  double inertia_kg_m2 = 0.01;     // the link's inertia about the joint
+  double lever_mm = 25.0;         // pulley radius
+  double rest_mm = 15.0;          // each muscle's contraction at angle 0 with the cable slack
+  double cable_N_per_mm = 200.0;  // the cable's stiffness
+  double cable_N_s_per_mm = 2.0;  // ... its damping
+  double inertia_kg_m2 = 0.01;    // the link's inertia about the joint
 };
 
 class AntagonisticJoint {

@@ -65,7 +65,8 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
     for (int i = 0; i < c.truth.numEffects(); ++i) {
       const auto& eff = c.truth.effect(i);
       std::vector<std::pair<std::string, double>> ps;
-      for (size_t q = 0; q < eff.params().size(); ++q) ps.emplace_back(eff.params()[q].name, c.truth.effectParams(i)[q]);
+      for (size_t q = 0; q < eff.params().size(); ++q)
+        ps.emplace_back(eff.params()[q].name, c.truth.effectParams(i)[q]);
       keep.emplace_back(eff.name(), ps);
     }
     std::set<std::string> enabled;
@@ -76,8 +77,10 @@ void apply(PlantConfig& c, const nlohmann::json& j, const std::string& where) {
       if (!it.value().is_object()) fail(w, "expected an object");
       bool on = true;
       if (it.value().contains("enabled")) on = flag(it.value()["enabled"], "enabled", w);
-      if (on) enabled.insert(it.key());
-      else enabled.erase(it.key());
+      if (on)
+        enabled.insert(it.key());
+      else
+        enabled.erase(it.key());
     }
     for (const auto& name : enabled) {
       try {
@@ -196,8 +199,7 @@ PlantConfig PlantConfig::fromJson(const nlohmann::json& j, const std::string& wh
   } catch (const std::invalid_argument& e) {
     std::string what = e.what();
     // A model plant's file without its kind: say what it would take.
-    if (j.is_object() && (j.contains("core") || j.contains("effects") || j.contains("sensor")) &&
-        !j.contains("kind"))
+    if (j.is_object() && (j.contains("core") || j.contains("effects") || j.contains("sensor")) && !j.contains("kind"))
       what += " (a plant file of the model kind says \"kind\": \"model\")";
     throw std::invalid_argument(what);
   }
@@ -250,7 +252,9 @@ nlohmann::json PlantConfig::toJson() const {
   }
   j["effects"] = e;
   j["stroke"] = {{"enabled", stroke_limits}, {"min_mm", stroke_min_mm}, {"max_mm", stroke_max_mm}};
-  j["sensor"] = {{"noise", sensor_noise}, {"noise_std_mm", noise_std_mm}, {"quantization", quantization},
+  j["sensor"] = {{"noise", sensor_noise},
+                 {"noise_std_mm", noise_std_mm},
+                 {"quantization", quantization},
                  {"quantum_mm", quantum_mm}};
   j["valve"] = {{"u_min", u_min}, {"u_max", u_max}, {"pressure_max_bar", pressure_max_bar}};
   j["seed"] = seed;

@@ -53,9 +53,9 @@ struct PlantConfig {
   // is stepped at for either kind (a bus with another SYNC period sets it); the physics plant's own
   // Ts, command range, sensor and seed are read into the fields below when a file is read.
   physics::PhysicsConfig physics;
-  double Ts = 1e-3;             // sample time [s]
+  double Ts = 1e-3;  // sample time [s]
   // Kind model:
-  model::Model truth;           // core + effects
+  model::Model truth;  // core + effects
   bool stroke_limits = true;
   double stroke_min_mm = 0.0;
   double stroke_max_mm = 40.0;
@@ -63,8 +63,8 @@ struct PlantConfig {
   double noise_std_mm = 0.004;
   bool quantization = true;
   double quantum_mm = 0.001;
-  double u_min = -5.0, u_max = 5.0;   // valve command range [V] (valve voltage = 5 V + u)
-  double pressure_max_bar = 8.0;      // regulator output at the top of the range
+  double u_min = -5.0, u_max = 5.0;  // valve command range [V] (valve voltage = 5 V + u)
+  double pressure_max_bar = 8.0;     // regulator output at the top of the range
   std::uint64_t seed = 1;
   // Kind external (the command range above applies to it too):
   ExternalPlant external;
@@ -92,9 +92,7 @@ class Plant {
   double step(double u, double force_N = 0.0) noexcept;
   // What the position sensor reads now (noise, quantisation) [mm].
   double measure() noexcept;
-  double position() const noexcept {
-    return physics_ ? physics_->position() : external_ ? external_->position() : y_;
-  }
+  double position() const noexcept { return physics_ ? physics_->position() : external_ ? external_->position() : y_; }
   // Muscle pressure: the physics plant's; the model's effective command after the input effects, scaled
   // to the regulator.
   double pressure_bar() const noexcept;

@@ -71,7 +71,8 @@ void plotSeries(std::ostringstream& gp, const Panel& p, bool titles) {
   for (const auto& s : p.series) {
     const int xc = columnIndex(s.csv, s.xcol), yc = columnIndex(s.csv, s.ycol);
     if (xc < 0 || yc < 0) continue;
-    gp << (first ? "" : ", ") << quote(s.csv) << " skip 1 every " << std::max(1, p.every) << " using " << xc << ":" << yc << " with " << s.style;
+    gp << (first ? "" : ", ") << quote(s.csv) << " skip 1 every " << std::max(1, p.every) << " using " << xc << ":"
+       << yc << " with " << s.style;
     if (!s.color.empty()) gp << " lc rgb " << quote(s.color);
     gp << (titles ? " title " + quote(s.title) : std::string(" notitle"));
     first = false;
@@ -85,9 +86,12 @@ void plotPanel(std::ostringstream& gp, const Panel& p, double y0, double h) {
   gp << "set origin 0," << y0 << "\nset size " << (p.equal_axes ? "ratio -1" : "noratio") << " 1," << h << "\n";
   gp << "set title " << quote(p.title) << "\nset xlabel " << quote(p.xlabel) << "\nset ylabel " << quote(p.ylabel)
      << "\nset key outside right top\n";
-  if (p.x_hi > p.x_lo) gp << "set xrange [" << p.x_lo << ":" << p.x_hi << "]\nset autoscale y\n";
-  else gp << "set autoscale x\nset autoscale y\n";
-  gp << (p.log_y ? "set logscale y\nset format y '%.0e'\n" : "unset logscale y\nset format y '% h'\n") << (p.log_x ? "set logscale x\n" : "unset logscale x\n");
+  if (p.x_hi > p.x_lo)
+    gp << "set xrange [" << p.x_lo << ":" << p.x_hi << "]\nset autoscale y\n";
+  else
+    gp << "set autoscale x\nset autoscale y\n";
+  gp << (p.log_y ? "set logscale y\nset format y '%.0e'\n" : "unset logscale y\nset format y '% h'\n")
+     << (p.log_x ? "set logscale x\n" : "unset logscale x\n");
   plotSeries(gp, p, true);
   if (p.inset_hi <= p.inset_lo) return;
   gp << "set origin 0.40," << y0 + 0.30 * h << "\nset size noratio 0.40," << 0.60 * h << "\n";
@@ -115,13 +119,14 @@ bool renderFigure(const std::string& png, const std::string& title, const std::v
   gp << "set datafile separator ','\nset grid\nset key noenhanced\nset termoption noenhanced\n";
   gp << "set multiplot title " << quote(title) << "\n";
   const double h = static_cast<double>(panel_height) / height;
-  for (size_t i = 0; i < panels.size(); ++i) plotPanel(gp, panels[i], 1.0 - static_cast<double>(title_px) / height - h * (i + 1), h);
+  for (size_t i = 0; i < panels.size(); ++i)
+    plotPanel(gp, panels[i], 1.0 - static_cast<double>(title_px) / height - h * (i + 1), h);
   gp << "unset multiplot\nset output\n";
   return runGnuplot(gp.str(), png, tmp_png, error);
 }
 
-bool renderBars(const std::string& png, const std::string& title, const std::string& csv, int label_col,
-                int value_col, const std::string& ylabel, std::string& error) {
+bool renderBars(const std::string& png, const std::string& title, const std::string& csv, int label_col, int value_col,
+                const std::string& ylabel, std::string& error) {
   if (!haveGnuplot()) {
     error = "gnuplot not found (apt-get install gnuplot-nox); figures skipped";
     return false;
@@ -165,7 +170,8 @@ double halfRange(const std::vector<Heatmap>& maps, double centre) {
 std::string heatmapPanel(const Heatmap& m, const std::string& block) {
   const size_t rows = m.z.size(), cols = m.z.empty() ? 0 : m.z[0].size();
   std::ostringstream gp;
-  gp << "set title " << quote(m.title) << "\nset xlabel " << quote(m.xlabel) << "\nset ylabel " << quote(m.ylabel) << "\n";
+  gp << "set title " << quote(m.title) << "\nset xlabel " << quote(m.xlabel) << "\nset ylabel " << quote(m.ylabel)
+     << "\n";
   gp << "set xrange [-0.5:" << cols - 0.5 << "]\nset yrange [-0.5:" << rows - 0.5 << "]\n";
   gp << "set xtics " << ticks(m.xticks) << "\nset ytics " << ticks(m.yticks) << "\n";
   gp << "plot " << block << " using 1:2:3 with image notitle, " << block

@@ -8,7 +8,7 @@
 namespace pamc::report {
 
 struct Series {
-  std::string csv;      // data file
+  std::string csv;         // data file
   std::string xcol, ycol;  // column names in the CSV header
   std::string title;
   std::string style = "lines";
@@ -33,8 +33,8 @@ bool renderFigure(const std::string& png, const std::string& title, const std::v
                   std::string& error, int width = 1000, int panel_height = 330);
 
 // A bar chart of one CSV column against a label column (1-based column numbers), one bar per row.
-bool renderBars(const std::string& png, const std::string& title, const std::string& csv, int label_col,
-                int value_col, const std::string& ylabel, std::string& error);
+bool renderBars(const std::string& png, const std::string& title, const std::string& csv, int label_col, int value_col,
+                const std::string& ylabel, std::string& error);
 
 // A heat map: z[row][col], rows along y (row 0 at the bottom) and columns along x, named by the ticks.
 struct Heatmap {

@@ -22,7 +22,6 @@ using canopen::Frame;
 using canopen::TimeUs;
 using canopen::VirtualBus;
 
-
 constexpr TimeUs kPeriod = 1000;
 constexpr double kSafeVolts = 0.0;  // 0x2020 default: vented
 

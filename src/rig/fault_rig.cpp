@@ -24,7 +24,6 @@
 #include "nodes/emulator_node.hpp"
 #include "plant/plant.hpp"
 
-
 namespace pamc::rig {
 
 using namespace detail;
@@ -67,8 +66,8 @@ const FaultSpec kFaultSpecs[] = {
      [](Rig& r) { r.flood->end(); }},
     {BusFault::PdoShortOnce, "pdo-short", "one position PDO with DLC 3", 0.001, kPlain,
      [](Rig& r) { inj(r).pdo_len = 3; }, [](Rig& r) { inj(r).pdo_len = -1; }},
-    {BusFault::PdoLong, "pdo-long", "position PDOs with DLC 8, 200 ms", 0.2, kPlain,
-     [](Rig& r) { inj(r).pdo_len = 8; }, [](Rig& r) { inj(r).pdo_len = -1; }},
+    {BusFault::PdoLong, "pdo-long", "position PDOs with DLC 8, 200 ms", 0.2, kPlain, [](Rig& r) { inj(r).pdo_len = 8; },
+     [](Rig& r) { inj(r).pdo_len = -1; }},
     {BusFault::SyncWrongLength, "sync-length", "SYNC with DLC 1, 100 ms (controller consumes SYNC)", 0.1, kSyncSource,
      [](Rig& r) { r.sync->len = 1; }, [](Rig& r) { r.sync->len = 0; }},
     {BusFault::HeartbeatWrongLength, "heartbeat-length", "sensor heartbeats with DLC 2, 1 s", 1.0, kPlain,
@@ -178,8 +177,10 @@ FaultRun runOne(BusFault setup, BusFault f, double fault_s, const FaultRigOption
   out.rmse_end = rmse(r, t_stop - 2'000'000, t_stop);
   out.emcy.clear();
   for (std::uint16_t c : r.emcy) {
-    if (c == 0) out.emcy_reset = true;
-    else if (std::find(out.emcy.begin(), out.emcy.end(), c) == out.emcy.end()) out.emcy.push_back(c);
+    if (c == 0)
+      out.emcy_reset = true;
+    else if (std::find(out.emcy.begin(), out.emcy.end(), c) == out.emcy.end())
+      out.emcy.push_back(c);
   }
   out.recovered = r.ctrl->fault() == Fault::None && r.ctrl->running();
   std::uint64_t cycles = 0;
@@ -244,11 +245,13 @@ std::string faultTableMarkdown(const std::vector<FaultRun>& runs) {
       "|---|---|---|---|---|---|---|---|---|---|\n";
   char b[512];
   for (const auto& r : runs) {
-    std::string reaction = r.first != Fault::None ? toString(r.first) : (r.emcy.empty() ? "none (not detected)" : "warning only");
+    std::string reaction =
+        r.first != Fault::None ? toString(r.first) : (r.emcy.empty() ? "none (not detected)" : "warning only");
     std::string detect = r.detect_cycles >= 0 ? (std::snprintf(b, sizeof b, "%.1f", r.detect_cycles), b) : "-";
     std::string safe = r.safe_cycles >= 0 ? (std::snprintf(b, sizeof b, "%.1f", r.safe_cycles), b) : "-";
     std::string back = r.resume_s >= 0 ? (std::snprintf(b, sizeof b, "%.3f s", r.resume_s), b) : "-";
-    std::snprintf(b, sizeof b, "%llu sample%s", static_cast<unsigned long long>(r.samples_lost), r.samples_lost == 1 ? "" : "s");
+    std::snprintf(b, sizeof b, "%llu sample%s", static_cast<unsigned long long>(r.samples_lost),
+                  r.samples_lost == 1 ? "" : "s");
     std::string lost = b;
     if (r.cycles_without_sync > 0) {
       std::snprintf(b, sizeof b, ", %llu cycles without SYNC", static_cast<unsigned long long>(r.cycles_without_sync));

@@ -24,7 +24,6 @@
 #include "nodes/emulator_node.hpp"
 #include "plant/plant.hpp"
 
-
 namespace pamc::rig {
 
 using namespace detail;
@@ -128,8 +127,10 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
   row("0x2003:02 staged flag (ro)", kAbortReadOnly, sdo.writeU8(0x2003, 2, 1), unchanged());
   row("0x2004 (no such object)", kAbortNoObject, sdo.writeU8(0x2004, 0, 1), unchanged());
   row("0x2000:0D (no such sub-index)", kAbortNoSubIndex, sdo.writeDouble(0x2000, 13, 1.0), unchanged());
-  row("kp 0x2000:01 = 20 V/mm (above the EDS limit 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 20.0), unchanged());
-  row("kp 0x2000:01 = 5000 (far above the EDS limit 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 5000.0), unchanged());
+  row("kp 0x2000:01 = 20 V/mm (above the EDS limit 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 20.0),
+      unchanged());
+  row("kp 0x2000:01 = 5000 (far above the EDS limit 10)", kAbortValueTooHigh, sdo.writeDouble(0x2000, 1, 5000.0),
+      unchanged());
   row("kp 0x2000:01 = -1", kAbortValueTooLow, sdo.writeDouble(0x2000, 1, -1.0), unchanged());
   row("ki 0x2000:02 = NaN", kAbortValueRange, sdo.writeDouble(0x2000, 2, nan), unchanged());
   row("ESO b0 0x2000:08 = 0", kAbortValueTooLow, sdo.writeDouble(0x2000, 8, 0.0), unchanged());
@@ -138,7 +139,8 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
   row("UKF R0 0x2002:05 = 0", kAbortValueTooLow, sdo.writeDouble(0x2002, 5, 0.0), unchanged());
   row("UKF divergence bound 0x2002:09 = -1", kAbortValueTooLow, sdo.writeDouble(0x2002, 9, -1.0), unchanged());
   row("model k 0x2001:01 = inf", kAbortValueRange, sdo.writeDouble(0x2001, 1, inf), unchanged());
-  row("stuck-sensor span 0x2022:03 = 20 V (above 10)", kAbortValueTooHigh, sdo.writeDouble(0x2022, 3, 20.0), unchanged());
+  row("stuck-sensor span 0x2022:03 = 20 V (above 10)", kAbortValueTooHigh, sdo.writeDouble(0x2022, 3, 20.0),
+      unchanged());
   row("measuring range 0x2022:01 = 0", kAbortValueTooLow, sdo.writeDouble(0x2022, 1, 0.0), unchanged());
   row("safe valve voltage 0x2020 = 12 V", kAbortValueTooHigh, sdo.writeDouble(0x2020, 0, 12.0), unchanged());
   row("controller 0x2010 = 1 (PI) while Operational", kAbortDeviceState, sdo.writeU8(0x2010, 0, 1),
@@ -162,9 +164,10 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
       half_written_seen = od.entry(0x2000, 1).get<double>() != kp0;
     });
     for (int k = 0; k < 50; ++k) r.step(kPeriod);
-    std::snprintf(b, sizeof b, "%s; staged (0x2003:02 = %u): after 50 cycles the loop still uses kp = %g",
-                  half_written_seen ? "ENTRY CHANGED BEFORE THE LAST SEGMENT" : "entry unchanged until the last segment",
-                  od.entry(0x2003, 2).get<std::uint8_t>(), r.ctrl->activeParameters().kp);
+    std::snprintf(
+        b, sizeof b, "%s; staged (0x2003:02 = %u): after 50 cycles the loop still uses kp = %g",
+        half_written_seen ? "ENTRY CHANGED BEFORE THE LAST SEGMENT" : "entry unchanged until the last segment",
+        od.entry(0x2003, 2).get<std::uint8_t>(), r.ctrl->activeParameters().kp);
     row("kp 0x2000:01 = 0.12, segmented, 3 SYNCs between its segments", kSdoOk, c, b);
   }
   row("ki 0x2000:02 = 1.8", kSdoOk, sdo.writeDouble(0x2000, 2, 1.8), "staged");
@@ -172,7 +175,8 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
     // Commit: checked in the SDO server, taken by the loop at the next SYNC.
     const double step_before = [&] {
       double m = 0;
-      for (std::size_t i = r.recs.size() - 500; i < r.recs.size(); ++i) m = std::max(m, std::fabs(r.recs[i].u - r.recs[i - 1].u));
+      for (std::size_t i = r.recs.size() - 500; i < r.recs.size(); ++i)
+        m = std::max(m, std::fabs(r.recs[i].u - r.recs[i - 1].u));
       return m;
     }();
     const std::uint8_t applied0 = od.entry(0x2003, 3).get<std::uint8_t>();
@@ -183,7 +187,8 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
     while (r.ctrl->activeParameters().kp != 0.12 && cycles < 10) r.step(kPeriod), ++cycles;
     for (int k = 0; k < 3000; ++k) r.step(kPeriod);
     double m = 0;
-    for (std::size_t i = std::max<std::size_t>(from, 1); i < r.recs.size(); ++i) m = std::max(m, std::fabs(r.recs[i].u - r.recs[i - 1].u));
+    for (std::size_t i = std::max<std::size_t>(from, 1); i < r.recs.size(); ++i)
+      m = std::max(m, std::fabs(r.recs[i].u - r.recs[i - 1].u));
     std::snprintf(b, sizeof b,
                   "kp %g until the cycle boundary, then kp %g, ki %g in use; 0x2003:03 %u -> %u; largest command step "
                   "in the next 3 s %.4f V (before %.4f V)",
@@ -203,8 +208,8 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
   }
   {
     const std::uint32_t c = sdo.writeU8(0x2003, 1, 0);
-    std::snprintf(b, sizeof b, "discarded: 0x2001:06 reads %g again, 0x2003:02 = %u",
-                  od.entry(0x2001, 6).get<double>(), od.entry(0x2003, 2).get<std::uint8_t>());
+    std::snprintf(b, sizeof b, "discarded: 0x2001:06 reads %g again, 0x2003:02 = %u", od.entry(0x2001, 6).get<double>(),
+                  od.entry(0x2003, 2).get<std::uint8_t>());
     row("discard 0x2003:01 = 0", kSdoOk, c, b);
   }
   row("0x2003:01 = 2", kAbortValueTooHigh, sdo.writeU8(0x2003, 1, 2), unchanged());
@@ -216,7 +221,8 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
     const std::uint32_t c = sdo.writeU8(0x2010, 0, 1);
     sdo.nmt(0x01);
     for (int k = 0; k < 100; ++k) r.step(kPeriod);
-    std::snprintf(b, sizeof b, "valve at %g V (its error value) while the controller was Pre-operational; %s runs after NMT start",
+    std::snprintf(b, sizeof b,
+                  "valve at %g V (its error value) while the controller was Pre-operational; %s runs after NMT start",
                   valve, control::toString(r.ctrl->kind()));
     row("controller 0x2010 = 1 (PI) in Pre-operational", kSdoOk, c, b);
   }
@@ -224,13 +230,13 @@ std::vector<GuardRow> runParameterGuards(const FaultRigOptions& o) {
 }
 
 std::string guardTableMarkdown(const std::vector<GuardRow>& rows) {
-  std::string s = "| SDO write to the running controller | expected | answer | what the loop saw |\n|---|---|---|---|\n";
+  std::string s =
+      "| SDO write to the running controller | expected | answer | what the loop saw |\n|---|---|---|---|\n";
   for (const auto& r : rows) {
-    s += "| " + r.write + " | " + hexCode(r.expected) + " | " + hexCode(r.got) + (r.got == r.expected ? "" : " (UNEXPECTED)") +
-         " | " + r.effect + " |\n";
+    s += "| " + r.write + " | " + hexCode(r.expected) + " | " + hexCode(r.got) +
+         (r.got == r.expected ? "" : " (UNEXPECTED)") + " | " + r.effect + " |\n";
   }
   return s;
 }
 
 }  // namespace pamc::rig
-

@@ -108,10 +108,10 @@ void FailureLog::add(double at_h, const char* fmt, std::va_list args) {
 struct Episode {
   BusFault fault = BusFault::None;
   TimeUs t_end = 0, t_clear = 0, next_inj = canopen::kNever;
-  TimeUs last_fault_us = 0;   // the last step the controller was in a fault
+  TimeUs last_fault_us = 0;     // the last step the controller was in a fault
   std::uint64_t episodes0 = 0;  // the controller's fault episodes at the injection
   double settle_until = 0;
-  bool settled = false;     // a record at or after settle_until came in
+  bool settled = false;  // a record at or after settle_until came in
   long check_w = -1;
   bool check_done = false;  // the check period closed and was judged
 };
@@ -390,9 +390,10 @@ void Soak::closeWindow() {
   // Between faults the tracking must stay at its level, not just come back for the check.
   if (rm > res_.baseline_rmse * (1.0 + o_.tolerance) + 0.005) {
     ++rep_.iv.clean.bad;
-    fail("tracking left its normal level without a fault: RMSE %.4f mm in the period from t = %.0f s (baseline "
-         "%.4f mm; last fault %s)",
-         rm, static_cast<double>(win_.idx) * tm_.P, res_.baseline_rmse, busFaultName(ep_.fault));
+    fail(
+        "tracking left its normal level without a fault: RMSE %.4f mm in the period from t = %.0f s (baseline "
+        "%.4f mm; last fault %s)",
+        rm, static_cast<double>(win_.idx) * tm_.P, res_.baseline_rmse, busFaultName(ep_.fault));
   }
 }
 
@@ -495,7 +496,8 @@ SoakResult Soak::finish() {
     res.timing_ok = res.cpu_drift <= o_.cpu_drift_limit;
   }
   for (BusFault f : allBusFaults())
-    if (by_fault_[static_cast<std::size_t>(f)].injected) res.per_fault.push_back(by_fault_[static_cast<std::size_t>(f)]);
+    if (by_fault_[static_cast<std::size_t>(f)].injected)
+      res.per_fault.push_back(by_fault_[static_cast<std::size_t>(f)]);
   failures_.copyTo(res.failures);
   rig_.reset();
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start_).count();

@@ -11,22 +11,24 @@ using namespace nodes;
 
 std::string soakIntervalHeader() {
   return "| h | cycles | SYNC gaps | lost outside faults | ring drops | faults (safe state) | back to normal | "
-         "worst RMSE / baseline | between faults: RMSE mean / max [mm] (periods above) | EMCY | heap [MB] | RSS [MB] | CPU [us/cycle] | "
+         "worst RMSE / baseline | between faults: RMSE mean / max [mm] (periods above) | EMCY | heap [MB] | RSS [MB] | "
+         "CPU [us/cycle] | "
          "step p99 / max [us] |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
 }
 
 std::string soakIntervalLine(const SoakInterval& i) {
   char b[512];
-  std::snprintf(b, sizeof b,
-                "| %.2f | %llu | %llu | %llu | %llu | %llu (%llu) | %llu/%llu | %.3f | %.4f / %.4f (%llu) | %llu | %.3f | %.1f | "
-                "%.2f | %.1f / %.0f |\n",
-                i.end_h, static_cast<unsigned long long>(i.cycles), static_cast<unsigned long long>(i.missed_syncs),
-                static_cast<unsigned long long>(i.lost_clean), static_cast<unsigned long long>(i.ring_dropped),
-                static_cast<unsigned long long>(i.faults), static_cast<unsigned long long>(i.reacted),
-                static_cast<unsigned long long>(i.back), static_cast<unsigned long long>(i.checked), i.worst_ratio,
-                i.clean.rmse_mean, i.clean.rmse_max, static_cast<unsigned long long>(i.clean.bad),
-                static_cast<unsigned long long>(i.emcy), i.usage.heap_mb, i.usage.rss_mb,
-                i.usage.cpu_us_per_cycle, i.usage.step_us_p99, i.usage.step_us_max);
+  std::snprintf(
+      b, sizeof b,
+      "| %.2f | %llu | %llu | %llu | %llu | %llu (%llu) | %llu/%llu | %.3f | %.4f / %.4f (%llu) | %llu | %.3f | %.1f | "
+      "%.2f | %.1f / %.0f |\n",
+      i.end_h, static_cast<unsigned long long>(i.cycles), static_cast<unsigned long long>(i.missed_syncs),
+      static_cast<unsigned long long>(i.lost_clean), static_cast<unsigned long long>(i.ring_dropped),
+      static_cast<unsigned long long>(i.faults), static_cast<unsigned long long>(i.reacted),
+      static_cast<unsigned long long>(i.back), static_cast<unsigned long long>(i.checked), i.worst_ratio,
+      i.clean.rmse_mean, i.clean.rmse_max, static_cast<unsigned long long>(i.clean.bad),
+      static_cast<unsigned long long>(i.emcy), i.usage.heap_mb, i.usage.rss_mb, i.usage.cpu_us_per_cycle,
+      i.usage.step_us_p99, i.usage.step_us_max);
   return b;
 }
 
@@ -56,14 +58,16 @@ std::string soakReport(const SoakOptions& o, const SoakResult& r, bool intervals
                 o.hours, control::toString(o.kind), static_cast<unsigned long long>(o.seed), r.wall_s, r.baseline_rmse,
                 o.baseline_periods, o.tolerance * 100.0);
   s += b;
-  std::snprintf(b, sizeof b,
-                "memory: heap in use (%s) %.3f MB after the first report, %.3f MB at the end: %+.0f bytes (limit %.0f); "
-                "RSS %.1f -> %.1f MB: %s\n",
-                r.asan ? "AddressSanitizer allocator" : "mallinfo2", heap0, heap1, r.heap_growth_bytes,
-                o.heap_growth_limit, rss0, rss1, r.memory_ok ? "ok" : "FAILED");
+  std::snprintf(
+      b, sizeof b,
+      "memory: heap in use (%s) %.3f MB after the first report, %.3f MB at the end: %+.0f bytes (limit %.0f); "
+      "RSS %.1f -> %.1f MB: %s\n",
+      r.asan ? "AddressSanitizer allocator" : "mallinfo2", heap0, heap1, r.heap_growth_bytes, o.heap_growth_limit, rss0,
+      rss1, r.memory_ok ? "ok" : "FAILED");
   s += b;
   std::uint64_t lost = 0, dropped = 0, cycles = 0, gaps = 0;
-  for (const auto& i : r.intervals) lost += i.lost_clean, dropped += i.ring_dropped, cycles += i.cycles, gaps += i.missed_syncs;
+  for (const auto& i : r.intervals)
+    lost += i.lost_clean, dropped += i.ring_dropped, cycles += i.cycles, gaps += i.missed_syncs;
   std::snprintf(b, sizeof b,
                 "cycle: %llu control cycles, %llu SYNC gaps (all during SYNC faults), %llu periods outside faults "
                 "without exactly one cycle, %llu records lost; CPU per cycle last third / first third %.2f (limit "

@@ -34,8 +34,10 @@ void VirtualRig::step(canopen::TimeUs dt_us) {
   bus_.advanceBy(dt_us);
   CycleRecord rec;
   while (ctrl_->records().pop(rec)) {
-    if (sink_) sink_(rec);
-    else records_.push_back(rec);
+    if (sink_)
+      sink_(rec);
+    else
+      records_.push_back(rec);
   }
   reporter_.step(*ctrl_);
 }

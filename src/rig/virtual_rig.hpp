@@ -35,11 +35,11 @@ class VirtualRig {
   // Where the cycle records go; without a sink they are kept (records()).
   void setRecordSink(std::function<void(const nodes::CycleRecord&)> sink) { sink_ = std::move(sink); }
 
-  void start();                                    // boot-up of the emulator nodes, then the controller
-  void startEmulator();                            // the two halves of start(): slaves first, e.g. to
-  void startController();                          // change them over SDO before the controller comes
-  void step(canopen::TimeUs dt_us = 1000);         // advance the bus, collect the records
-  void runFor(double seconds) {                    // steps of 1 ms
+  void start();                             // boot-up of the emulator nodes, then the controller
+  void startEmulator();                     // the two halves of start(): slaves first, e.g. to
+  void startController();                   // change them over SDO before the controller comes
+  void step(canopen::TimeUs dt_us = 1000);  // advance the bus, collect the records
+  void runFor(double seconds) {             // steps of 1 ms
     for (long k = 0, n = static_cast<long>(seconds * 1000.0 + 0.5); k < n; ++k) step();
   }
 
@@ -84,7 +84,7 @@ struct VirtualRigResult {
   std::uint64_t frames = 0;
   std::uint64_t faults = 0;
   nodes::Fault final_fault = nodes::Fault::None;
-  canopen::Counters counters;  // the controller node's
+  canopen::Counters counters;       // the controller node's
   canopen::TimeUs bus_busy_us = 0;  // with a bitrate: time the bus carried frames
   // Paced in real time: how late each wake-up came, and how many came a whole period late or more.
   nodes::Histogram wake_late_us;

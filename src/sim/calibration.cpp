@@ -34,12 +34,24 @@ void setMass(plant::PlantConfig& p, double v) { p.physics.payload.mass_kg = v; }
 std::vector<CalibrationAxis> buildAxes() {
   const auto& d = physicsDefaults();
   return {
-      {"hysteresis_scale", "-", "braid friction level: muscle.hysteresis_N and hysteresis_N_per_bar times this",
-       {0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.5}, 1.0, setHysteresisScale},
-      {"hysteresis_travel_mm", "mm", "pre-sliding travel of the braid friction (muscle.hysteresis_travel_mm)",
-       {0.1, 0.3, 1.0, 3.0, 6.0}, d.muscle.hysteresis_travel_mm, setTravel},
-      {"conductance_dm3_per_s_bar", "dm^3/(s bar)", "sonic conductance of valve and tube (regulator.conductance_dm3_per_s_bar)",
-       {0.2, 0.4, 0.8, 1.6, 3.2}, d.regulator.conductance_dm3_per_s_bar, setConductance},
+      {"hysteresis_scale",
+       "-",
+       "braid friction level: muscle.hysteresis_N and hysteresis_N_per_bar times this",
+       {0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.5},
+       1.0,
+       setHysteresisScale},
+      {"hysteresis_travel_mm",
+       "mm",
+       "pre-sliding travel of the braid friction (muscle.hysteresis_travel_mm)",
+       {0.1, 0.3, 1.0, 3.0, 6.0},
+       d.muscle.hysteresis_travel_mm,
+       setTravel},
+      {"conductance_dm3_per_s_bar",
+       "dm^3/(s bar)",
+       "sonic conductance of valve and tube (regulator.conductance_dm3_per_s_bar)",
+       {0.2, 0.4, 0.8, 1.6, 3.2},
+       d.regulator.conductance_dm3_per_s_bar,
+       setConductance},
       {"mass_kg", "kg", "payload mass (payload.mass_kg)", {2.0, 4.0, 8.0, 16.0, 32.0}, d.payload.mass_kg, setMass},
   };
 }
@@ -52,7 +64,8 @@ std::string key(const CalibratedReading& r) {
 
 }  // namespace
 
-std::vector<CalibrationPoint> evaluateCalibrationPlant(const CalibrationSettings& s, const std::vector<double>& values) {
+std::vector<CalibrationPoint> evaluateCalibrationPlant(const CalibrationSettings& s,
+                                                       const std::vector<double>& values) {
   ExperimentSettings es = s.base;
   es.plant = plantWith(values);
   es.figures = false;
@@ -95,7 +108,8 @@ std::vector<std::vector<CalibrationPoint>> evaluateOnThreads(const CalibrationSe
     for (size_t i = next++; i < batch.size(); i = next++) {
       out[i] = evaluateCalibrationPlant(s, batch[i]);
       std::lock_guard<std::mutex> lock(m);
-      if (s.log) s.log("calibrate: plant " + key({batch[i], 0}) + " best distance " + fmt("%.3f", bestDistance(out[i])));
+      if (s.log)
+        s.log("calibrate: plant " + key({batch[i], 0}) + " best distance " + fmt("%.3f", bestDistance(out[i])));
     }
   };
   std::vector<std::thread> pool;
@@ -108,7 +122,8 @@ std::vector<std::vector<CalibrationPoint>> evaluateOnThreads(const CalibrationSe
 void evaluateBatch(const CalibrationSettings& s, const std::vector<std::vector<double>>& batch,
                    std::map<std::string, std::vector<CalibrationPoint>>& cache) {
   auto points = s.evaluate ? s.evaluate(batch) : evaluateOnThreads(s, batch);
-  if (points.size() != batch.size()) throw std::runtime_error("calibrate: the evaluator returned another number of plants");
+  if (points.size() != batch.size())
+    throw std::runtime_error("calibrate: the evaluator returned another number of plants");
   for (size_t i = 0; i < batch.size(); ++i) cache[key({batch[i], 0})] = std::move(points[i]);
 }
 
@@ -153,8 +168,9 @@ CalibrationResult runCalibration(const CalibrationSettings& s) {
         c[ai] = v;
         if (!cache.count(key({c, 0}))) batch.push_back(c);
       }
-      if (s.log) s.log("calibrate: pass " + std::to_string(pass + 1) + ", " + axes[ai].name + ": " +
-                       std::to_string(batch.size()) + " new plants");
+      if (s.log)
+        s.log("calibrate: pass " + std::to_string(pass + 1) + ", " + axes[ai].name + ": " +
+              std::to_string(batch.size()) + " new plants");
       evaluateBatch(s, batch, cache);
       double best = INFINITY;
       for (double v : axes[ai].values) {
@@ -172,11 +188,13 @@ CalibrationResult runCalibration(const CalibrationSettings& s) {
 }
 
 nlohmann::json calibrationPointToJson(const CalibrationPoint& p) {
-  return {{"plant_values", p.reading.plant_values}, {"ki", p.reading.ki}, {"summary", p.summary}, {"distance", p.distance}};
+  return {
+      {"plant_values", p.reading.plant_values}, {"ki", p.reading.ki}, {"summary", p.summary}, {"distance", p.distance}};
 }
 
 CalibrationPoint calibrationPointFromJson(const nlohmann::json& j) {
-  return {{j.at("plant_values").get<std::vector<double>>(), j.at("ki").get<double>()}, j.at("summary"),
+  return {{j.at("plant_values").get<std::vector<double>>(), j.at("ki").get<double>()},
+          j.at("summary"),
           j.at("distance").get<double>()};
 }
 
@@ -207,7 +225,8 @@ std::string formatCalibration(const CalibrationResult& r) {
   t += " |\n";
   std::vector<size_t> order(r.tried.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return r.tried[a].distance < r.tried[b].distance; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return r.tried[a].distance < r.tried[b].distance; });
   for (size_t i : order) {
     const auto& p = r.tried[i];
     const std::string b = i == r.best ? "**" : "";

@@ -38,7 +38,8 @@ Panel loopPanel(const Context& x, const std::string& tag, const std::vector<cont
 Panel stepsPanel(const Context& x, const std::string& tag, const std::vector<control::Kind>& kinds) {
   // y against yd is degenerate for steps: every step's response overlaid instead.
   Panel p{"(b) every step overlaid: response in % of the jump", "time since the step [s]", "response [%]", {}};
-  for (auto k : kinds) p.series.push_back({csvOf(x, tag + "_steps", k), "t_step", "response_pct", label(k), "lines", colour(k)});
+  for (auto k : kinds)
+    p.series.push_back({csvOf(x, tag + "_steps", k), "t_step", "response_pct", label(k), "lines", colour(k)});
   p.x_lo = 0;
   p.x_hi = 2.0;
   return p;
@@ -111,12 +112,17 @@ void figurePayload(const Context& x, const std::string& tag, const std::string& 
 
 void figureTable1(const Context& x, const std::string& csv, const std::string& png, const std::string& title) {
   if (!x.figures) return;
-  Panel time{"time plot", "t [s]", "y [mm]",
+  Panel time{"time plot",
+             "t [s]",
+             "y [mm]",
              {{csv, "t", "y", "measured", "lines", kMeasured},
               {csv, "t", "y_reference", "reference model", "lines", "#9467bd"},
               {csv, "t", "y_active", "active model (UKF posterior)", "lines", colour(control::Kind::PiAmc)}}};
-  Panel loop{"hysteresis loop", "u [V]", "y [mm]",
-             {{csv, "u", "y", "measured", "lines", kMeasured}, {csv, "u", "y_reference", "reference model", "lines", "#9467bd"}}};
+  Panel loop{"hysteresis loop",
+             "u [V]",
+             "y [mm]",
+             {{csv, "u", "y", "measured", "lines", kMeasured},
+              {csv, "u", "y_reference", "reference model", "lines", "#9467bd"}}};
   render(x, png, title + "\nplant: " + plantText(x.s.plant), {time, loop});
 }
 

@@ -36,7 +36,7 @@ struct Context {
 };
 
 void runTable1(Context& x);
-void useModel(Context& x);  // the model file without Table 1's records
+void useModel(Context& x);     // the model file without Table 1's records
 void runTriangle(Context& x);  // Table 2's triangle row alone
 void buildController(Context& x);
 void runTable2(Context& x);

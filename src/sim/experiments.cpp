@@ -41,9 +41,10 @@ std::string esoText(const control::ControllerConfig& c) {
 
 std::string gainsText(const control::ControllerConfig& c) {
   return "kp " + fmt("%g", c.kp) + " V/mm, ki " + fmt("%g", c.ki) + " V/(mm s), kc " + fmt("%g", c.kc) + " V/mm" +
-         (c.amc_bus_aware ? " (eq. 17 through the commands on the bus)"
-                            : c.amc_as_printed ? " (eq. 17 as printed)" : " (eq. 17 as increment)") + ", " + esoText(c) + ", delay " +
-         std::to_string(c.delay_cycles) + " cycles";
+         (c.amc_bus_aware    ? " (eq. 17 through the commands on the bus)"
+          : c.amc_as_printed ? " (eq. 17 as printed)"
+                             : " (eq. 17 as increment)") +
+         ", " + esoText(c) + ", delay " + std::to_string(c.delay_cycles) + " cycles";
 }
 
 // The plant in one line: its kind and, for a model plant, the effects that are on.
@@ -90,10 +91,13 @@ void identify(Context& x) {
   const auto fr = identifyOnRecord(x.dir + "ident_u0.csv", x.s.fit, x.s.log);
   x.ref = fr.model;
   io::writeModelFile(x.dir + "model.json", x.ref,
-                     {{"data", "ident_u0.csv"}, {"rmse", fr.rmse}, {"generations", fr.generations},
-                      {"evaluations", fr.evaluations}, {"seconds", fr.seconds}});
-  x.log("table1: fitted in " + fmt("%.2f", fr.seconds) + " s, " + std::to_string(fr.generations) + " generations, RMSE " +
-        fmt("%.4f", fr.rmse) + " mm -> " + x.dir + "model.json");
+                     {{"data", "ident_u0.csv"},
+                      {"rmse", fr.rmse},
+                      {"generations", fr.generations},
+                      {"evaluations", fr.evaluations},
+                      {"seconds", fr.seconds}});
+  x.log("table1: fitted in " + fmt("%.2f", fr.seconds) + " s, " + std::to_string(fr.generations) +
+        " generations, RMSE " + fmt("%.4f", fr.rmse) + " mm -> " + x.dir + "model.json");
   x.json["fit"] = {{"rmse", fr.rmse}, {"generations", fr.generations}, {"seconds", fr.seconds}};
 }
 
@@ -103,14 +107,15 @@ void printModel(Context& x) {
         << "  k = " << fmt("%.4f", c.k) << " mm/V, rho = " << fmt("%.4f", c.rho) << ", b = " << fmt("%.4f", c.b)
         << " mm, alpha = " << fmt("%.3f", c.alpha) << ", beta = " << fmt("%.4f", c.beta)
         << " 1/V, gamma = " << fmt("%.4f", c.gamma) << " 1/V\n"
-        << "  (gain of u: k rho = " << fmt("%.4f", c.k * c.rho) << " mm/V; gain of h: k (1 - rho) = "
-        << fmt("%.4f", c.k * (1 - c.rho)) << " mm/V)\n\n";
+        << "  (gain of u: k rho = " << fmt("%.4f", c.k * c.rho)
+        << " mm/V; gain of h: k (1 - rho) = " << fmt("%.4f", c.k * (1 - c.rho)) << " mm/V)\n\n";
   x.json["model"] = io::modelToJson(x.ref);
 }
 
 void printTable1(Context& x, const ModelAccuracy (&acc)[3]) {
-  x.txt << "Table 1. Modelling RMSE (mm) on the plant; paper's values in brackets.\n"
-        << "                                   u0                 u1                 u2\n  Reference model             ";
+  x.txt
+      << "Table 1. Modelling RMSE (mm) on the plant; paper's values in brackets.\n"
+      << "                                   u0                 u1                 u2\n  Reference model             ";
   for (int i = 0; i < 3; ++i)
     x.txt << fmt("%8.3f", acc[i].reference_rmse) << " [" << fmt("%6.3f", PaperNumbers::table1_reference[i]) << "]";
   x.txt << "\n  Active model (posterior)    ";
@@ -167,8 +172,8 @@ void buildController(Context& x) {
                         {"plant", plantText(x.s.plant)},
                         {"calibrated_on", x.s.calibrated_on}};
   x.readings_line = gainsText(x.cc) + "\nplant: " + plantText(x.s.plant) + "; sines start at the " + start;
-  x.txt << "Readings: " << gainsText(x.cc) << "\n  plant: " << plantText(x.s.plant) << "\n  sines start at the " << start
-        << "\n  calibrated on: " << x.s.calibrated_on << "\n\n";
+  x.txt << "Readings: " << gainsText(x.cc) << "\n  plant: " << plantText(x.s.plant) << "\n  sines start at the "
+        << start << "\n  calibrated on: " << x.s.calibrated_on << "\n\n";
 }
 
 namespace {
@@ -184,8 +189,11 @@ void judge(Context& x) {
         << " predictions reproduced; docs/EXPERIMENTS.md):\n"
         << formatClaims(results);
   x.json["claims"] = claimsJson(results);
-  x.json["claims_count"] = {{"predicted", n.predicted}, {"reproduced", n.reproduced}, {"calibrated", n.calibrated},
-                            {"calibrated_met", n.calibrated_held}, {"not_run", n.not_run}};
+  x.json["claims_count"] = {{"predicted", n.predicted},
+                            {"reproduced", n.reproduced},
+                            {"calibrated", n.calibrated},
+                            {"calibrated_met", n.calibrated_held},
+                            {"not_run", n.not_run}};
 }
 
 }  // namespace
@@ -274,11 +282,15 @@ ExperimentReport runExperiments(const ExperimentSettings& s) {
   x.dir = s.out_dir + "/";
   x.figures = s.figures && report::haveGnuplot();
   if (s.figures && !x.figures) x.warn("gnuplot not found (apt-get install gnuplot-nox); figures skipped");
-  if (s.table1 || s.model_file.empty()) detail::runTable1(x);
-  else detail::useModel(x);
+  if (s.table1 || s.model_file.empty())
+    detail::runTable1(x);
+  else
+    detail::useModel(x);
   detail::buildController(x);
-  if (detail::wanted(s, "table2")) detail::runTable2(x);
-  else if (detail::wanted(s, "triangle")) detail::runTriangle(x);
+  if (detail::wanted(s, "table2"))
+    detail::runTable2(x);
+  else if (detail::wanted(s, "triangle"))
+    detail::runTriangle(x);
   if (detail::wanted(s, "discontinuous")) detail::runDiscontinuous(x);
   if (detail::wanted(s, "payload")) detail::runPayload(x);
   detail::judge(x);

@@ -39,7 +39,7 @@ struct ExperimentSettings {
   // settings, all ControllerConfig's defaults; the model comes from table1's fit.
   control::ControllerConfig ctrl;
   ident::FitSettings fit{};
-  std::string model_file;            // use this model instead of identifying one
+  std::string model_file;  // use this model instead of identifying one
   SineStart sine_start = SineStart::Centre;
   bool figures = true;
   // Empty: all. Else any of table1 (always runs), table2, triangle (Table 2's triangle row alone),

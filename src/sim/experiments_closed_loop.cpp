@@ -12,8 +12,8 @@ namespace pamc::sim::detail {
 
 namespace {
 
-using io::fmt;
 using control::Kind;
+using io::fmt;
 
 // The paper's four, then pamc's model-based controller (no paper values; docs/CONTROL.md).
 const std::vector<Kind> kAllKinds = {Kind::OpenLoop, Kind::PI, Kind::PidEso, Kind::PiAmc, Kind::Mbc};
@@ -29,7 +29,7 @@ SineStart otherStart(SineStart s) { return s == SineStart::Trough ? SineStart::C
 nlohmann::json table2Entry(const Record& r, const ClosedLoopRun& run) {
   const double from = scoredFrom(r, run);
   const auto st = tracking(r, from), whole = tracking(r);
-  return {{"max", st.max_abs},       {"rmse", st.rmse},          {"scored_from_s", from},
+  return {{"max", st.max_abs},          {"rmse", st.rmse},          {"scored_from_s", from},
           {"whole_max", whole.max_abs}, {"whole_rmse", whole.rmse}, {"turn_max", turningPointError(r, kTurnWindowS)}};
 }
 
@@ -58,8 +58,10 @@ nlohmann::json table2Row(Context& x, const TrackingCase& c, size_t prow) {
     row[control::toString(kAllKinds[i])] = table2Entry(r, c.run);
     const auto& e = row[control::toString(kAllKinds[i])];
     x.txt << "  " << fmt("%6.3f", e["max"].get<double>()) << "/" << fmt("%-6.4f", e["rmse"].get<double>());
-    if (i < std::size(paper)) x.txt << "[" << fmt("%.2f", paper[i][0]) << "/" << fmt("%.2f", paper[i][1]) << "]";
-    else x.txt << "           ";
+    if (i < std::size(paper))
+      x.txt << "[" << fmt("%.2f", paper[i][0]) << "/" << fmt("%.2f", paper[i][1]) << "]";
+    else
+      x.txt << "           ";
   }
   // The paper does not define its open-loop law; a line through the static characteristic is the
   // closest honest variant of "no knowledge of the hysteresis".
@@ -88,8 +90,9 @@ nlohmann::json otherStartRows(Context& x) {
       const Record r = x.run(k, c.run, c.tag, nullptr, c.tag + "_" + startName(other) + "_" + control::toString(k));
       const auto e = table2Entry(r, c.run);
       rows[c.tag][control::toString(k)] = e;
-      x.txt << "  " << label(k) << " " << fmt("%.3f", e["max"].get<double>()) << "/" << fmt("%.4f", e["rmse"].get<double>())
-            << " | " << fmt("%.3f", e["whole_max"].get<double>()) << "/" << fmt("%.4f", e["whole_rmse"].get<double>());
+      x.txt << "  " << label(k) << " " << fmt("%.3f", e["max"].get<double>()) << "/"
+            << fmt("%.4f", e["rmse"].get<double>()) << " | " << fmt("%.3f", e["whole_max"].get<double>()) << "/"
+            << fmt("%.4f", e["whole_rmse"].get<double>());
     }
     x.txt << "\n";
   }
@@ -116,8 +119,11 @@ void writeStepOverlay(const Record& r, const std::string& path) {
 }
 
 nlohmann::json stepEntry(const StepStats& st) {
-  return {{"overshoot_pct", st.overshoot_pct}, {"settling_s", st.settling_s}, {"steps", st.steps},
-          {"unsettled_steps", st.unsettled}, {"max_error_crossings", st.max_error_crossings},
+  return {{"overshoot_pct", st.overshoot_pct},
+          {"settling_s", st.settling_s},
+          {"steps", st.steps},
+          {"unsettled_steps", st.unsettled},
+          {"max_error_crossings", st.max_error_crossings},
           {"max_u_reversals", st.max_u_reversals}};
 }
 
@@ -136,8 +142,8 @@ nlohmann::json discontinuousWave(Context& x, const TrackingCase& c) {
     x.txt << padded(tag, 10) << (dirn > 0 ? " forward " : " backward");
     for (size_t i = 0; i < kClosedKinds.size(); ++i) {
       const auto st = stepResponse(recs[i], dirn, 1.0, 0.02);
-      x.txt << "  " << fmt("%6.1f", st.overshoot_pct) << " % / " << (st.unsettled ? ">" : " ") << fmt("%4.2f", st.settling_s)
-            << " s";
+      x.txt << "  " << fmt("%6.1f", st.overshoot_pct) << " % / " << (st.unsettled ? ">" : " ")
+            << fmt("%4.2f", st.settling_s) << " s";
       dj[dirn > 0 ? "forward" : "backward"][control::toString(kClosedKinds[i])] = stepEntry(st);
     }
     x.txt << "\n";
@@ -214,13 +220,16 @@ void runPayload(Context& x) {
     const Record r = x.run(k, run, "payload");
     const auto st = recovery(r, run.force_step_time_s, 0.05);
     const double hold = windowRmse(r, 2.0, run.force_step_time_s);
-    x.txt << "  " << fmt("%6.3f", st.peak_dev_mm) << " mm / " << (st.recovered ? " " : ">") << fmt("%4.2f", st.recovery_s)
-          << " s / " << fmt("%.4f", hold);
-    pj[control::toString(k)] = {{"peak_deviation_mm", st.peak_dev_mm}, {"recovery_s", st.recovery_s},
-                                {"recovered", st.recovered}, {"hold_rms_mm", hold}};
+    x.txt << "  " << fmt("%6.3f", st.peak_dev_mm) << " mm / " << (st.recovered ? " " : ">")
+          << fmt("%4.2f", st.recovery_s) << " s / " << fmt("%.4f", hold);
+    pj[control::toString(k)] = {{"peak_deviation_mm", st.peak_dev_mm},
+                                {"recovery_s", st.recovery_s},
+                                {"recovered", st.recovered},
+                                {"hold_rms_mm", hold}};
   }
   x.txt << "\n\n";
-  figurePayload(x, "payload", "Payload step of 40 N while holding 15 mm (Fig. 11)", kClosedKinds, run.force_step_time_s);
+  figurePayload(x, "payload", "Payload step of 40 N while holding 15 mm (Fig. 11)", kClosedKinds,
+                run.force_step_time_s);
   x.json["payload"] = pj;
 }
 

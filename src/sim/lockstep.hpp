@@ -58,7 +58,7 @@ class Lockstep {
   void start();
   const control::ControlOutput& step();
   bool done() const { return k_ >= n_; }
-  long cycle() const { return k_; }            // cycles stepped since start()
+  long cycle() const { return k_; }                    // cycles stepped since start()
   double lastMeasurement() const { return y_given_; }  // what the controller was given in the last step
   double lastApplied() const { return pipe_[static_cast<size_t>(d_)]; }  // the command the valve holds
   const Record& record() const { return rec_; }
@@ -87,9 +87,11 @@ Record runClosedLoop(control::Controller& ctrl, plant::Plant& plant, const Close
 
 // Open loop: command u(t) straight to the valve; row k holds u_k and the position measured at
 // the end of the sample it was held for.
-Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s, const Trajectory* force_N = nullptr);
+Record runOpenLoopInput(plant::Plant& plant, const Trajectory& u, double duration_s,
+                        const Trajectory* force_N = nullptr);
 // The same for a command given sample by sample (a recorded input replayed); force_N may be null.
-Record runOpenLoopSamples(plant::Plant& plant, const std::vector<double>& u, const std::vector<double>* force_N = nullptr);
+Record runOpenLoopSamples(plant::Plant& plant, const std::vector<double>& u,
+                          const std::vector<double>* force_N = nullptr);
 
 struct TrackingStats {
   double rmse = 0, max_abs = 0;
@@ -109,10 +111,10 @@ double turningPointError(const Record& r, double window_s);
 double windowRmse(const Record& r, double t0, double t1);
 
 struct StepStats {
-  double overshoot_pct = 0;   // mean over the steps
-  double settling_s = 0;      // mean time to stay within the band
+  double overshoot_pct = 0;  // mean over the steps
+  double settling_s = 0;     // mean time to stay within the band
   int steps = 0;
-  int unsettled = 0;          // steps still outside the band when the next one came
+  int unsettled = 0;  // steps still outside the band when the next one came
   // Ringing, the worst step: how often the error changes side of the target (counted when it leaves a
   // band of 1 % of the jump on the other side; an overshoot that comes back is 2), and how often the
   // valve command, seen through a 20 Hz low-pass, reverses its direction by more than 0.05 V (a clean

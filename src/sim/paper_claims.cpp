@@ -19,10 +19,11 @@ using K = ClaimTest::Kind;
 constexpr double kRmseFactor = 1.3;
 constexpr double kMaxFactor = 1.5;
 constexpr double kApproxFactor = 1.3;
-constexpr double kBandPct = 2.0;          // "negligible" / "without" overshoot: inside the 2 % settling band
-constexpr double kComparable = 1.5;       // "comparable": within 1.5x of each other
-constexpr double kSignificant = 0.2;      // "significantly improved": at most a fifth of the open loop's
-constexpr double kResolutionMm = 0.01;    // "the resolution of the displacement sensor is 0.01 mm ... approximated to zero"
+constexpr double kBandPct = 2.0;      // "negligible" / "without" overshoot: inside the 2 % settling band
+constexpr double kComparable = 1.5;   // "comparable": within 1.5x of each other
+constexpr double kSignificant = 0.2;  // "significantly improved": at most a fifth of the open loop's
+constexpr double kResolutionMm =
+    0.01;  // "the resolution of the displacement sensor is 0.01 mm ... approximated to zero"
 
 const char* const kRowTag[3] = {"tri", "sine05", "sine10"};
 const char* const kRowName[3] = {"triangle 0.05 Hz", "sine 0.05 Hz", "sine 0.1 Hz"};
@@ -35,8 +36,8 @@ std::string sq(const char* wave, const char* dir, const char* k, const char* wha
   return std::string("discontinuous/") + wave + "/" + dir + "/" + k + "/" + what;
 }
 
-Claim near(std::string id, std::string where, std::string claim, std::string paper, ClaimRole role, const std::string& path,
-           double value, double factor) {
+Claim near(std::string id, std::string where, std::string claim, std::string paper, ClaimRole role,
+           const std::string& path, double value, double factor) {
   Claim c{std::move(id), std::move(where), std::move(claim), std::move(paper), role, {}};
   c.test.kind = K::Near;
   c.test.a = {path};
@@ -58,7 +59,8 @@ Claim below(std::string id, std::string where, std::string claim, std::string pa
   return below(std::move(id), std::move(where), std::move(claim), std::move(paper), std::vector<std::string>{a},
                std::move(b), factor);
 }
-Claim atMost(std::string id, std::string where, std::string claim, std::string paper, std::vector<std::string> a, double hi) {
+Claim atMost(std::string id, std::string where, std::string claim, std::string paper, std::vector<std::string> a,
+             double hi) {
   Claim c{std::move(id), std::move(where), std::move(claim), std::move(paper), ClaimRole::Predicted, {}};
   c.test.kind = K::AtMost;
   c.test.a = std::move(a);
@@ -74,13 +76,15 @@ void addTable1(std::vector<Claim>& t) {
   for (int i = 0; i < 3; ++i)
     t.push_back(near(std::string("t1_") + u[i], "Table 1", std::string("reference model RMSE on ") + what[i],
                      fmt("%.3f mm", PaperNumbers::table1_reference[i]), ClaimRole::Calibrated,
-                     std::string("table1/") + u[i] + "/reference_rmse", PaperNumbers::table1_reference[i], kRmseFactor));
-  t.push_back(atMost("t1_active", "Table 1, Sec. 5.3",
-                     "the active model (UKF) output almost coincides with the measurement: its RMSE is below the "
-                     "sensor's resolution on u0, u1 and u2",
-                     "1.4e-4 mm, 'approximated to zero' below the 0.01 mm resolution",
-                     {"table1/u0/active_posterior_rmse", "table1/u1/active_posterior_rmse", "table1/u2/active_posterior_rmse"},
-                     kResolutionMm));
+                     std::string("table1/") + u[i] + "/reference_rmse", PaperNumbers::table1_reference[i],
+                     kRmseFactor));
+  t.push_back(
+      atMost("t1_active", "Table 1, Sec. 5.3",
+             "the active model (UKF) output almost coincides with the measurement: its RMSE is below the "
+             "sensor's resolution on u0, u1 and u2",
+             "1.4e-4 mm, 'approximated to zero' below the 0.01 mm resolution",
+             {"table1/u0/active_posterior_rmse", "table1/u1/active_posterior_rmse", "table1/u2/active_posterior_rmse"},
+             kResolutionMm));
 }
 
 void addTable2Numbers(std::vector<Claim>& t) {
@@ -89,32 +93,38 @@ void addTable2Numbers(std::vector<Claim>& t) {
       for (int m = 1; m >= 0; --m) {  // RMSE first, then max
         const ClaimRole role = row == 0 ? ClaimRole::Calibrated : ClaimRole::Predicted;
         const double v = PaperNumbers::table2[row][col][m];
-        t.push_back(near(std::string("t2_") + kRowTag[row] + "_" + PaperNumbers::table2_cols[col] + (m ? "_rmse" : "_max"),
-                         "Table 2", std::string(kColName[col]) + " " + (m ? "RMSE" : "max error") + " on the " + kRowName[row],
-                         fmt(m ? "%.4f mm" : "%.3f mm", v), role, t2(row, col, m ? "rmse" : "max"), v,
-                         m ? kRmseFactor : kMaxFactor));
+        t.push_back(
+            near(std::string("t2_") + kRowTag[row] + "_" + PaperNumbers::table2_cols[col] + (m ? "_rmse" : "_max"),
+                 "Table 2", std::string(kColName[col]) + " " + (m ? "RMSE" : "max error") + " on the " + kRowName[row],
+                 fmt(m ? "%.4f mm" : "%.3f mm", v), role, t2(row, col, m ? "rmse" : "max"), v,
+                 m ? kRmseFactor : kMaxFactor));
       }
 }
 
 void addTable2Orderings(std::vector<Claim>& t) {
   for (int row = 1; row < 3; ++row) {
     const std::string tag = kRowTag[row], name = kRowName[row];
-    t.push_back(below("order_" + tag + "_amc_pi_rmse", "Sec. 5.5, Table 2",
-                      "in each case the AMC improves the nominal controller: PID+AMC RMSE below PID's on the " + name,
-                      fmt("%.4f", PaperNumbers::table2[row][3][1]) + " < " + fmt("%.4f", PaperNumbers::table2[row][1][1]),
-                      t2(row, 3, "rmse"), {t2(row, 1, "rmse")}));
-    t.push_back(below("order_" + tag + "_amc_pi_max", "Sec. 5.5, Table 2", "PID+AMC max error below PID's on the " + name,
-                      fmt("%.3f", PaperNumbers::table2[row][3][0]) + " < " + fmt("%.3f", PaperNumbers::table2[row][1][0]),
-                      t2(row, 3, "max"), {t2(row, 1, "max")}));
-    t.push_back(below("order_" + tag + "_eso_pi_rmse", "Table 2", "PID+ESO RMSE below PID's on the " + name,
-                      fmt("%.4f", PaperNumbers::table2[row][2][1]) + " < " + fmt("%.4f", PaperNumbers::table2[row][1][1]),
-                      t2(row, 2, "rmse"), {t2(row, 1, "rmse")}));
-    t.push_back(below("order_" + tag + "_amc_eso_rmse", "Table 2", "PID+AMC RMSE below PID+ESO's on the " + name,
-                      fmt("%.4f", PaperNumbers::table2[row][3][1]) + " < " + fmt("%.4f", PaperNumbers::table2[row][2][1]),
-                      t2(row, 3, "rmse"), {t2(row, 2, "rmse")}));
+    t.push_back(
+        below("order_" + tag + "_amc_pi_rmse", "Sec. 5.5, Table 2",
+              "in each case the AMC improves the nominal controller: PID+AMC RMSE below PID's on the " + name,
+              fmt("%.4f", PaperNumbers::table2[row][3][1]) + " < " + fmt("%.4f", PaperNumbers::table2[row][1][1]),
+              t2(row, 3, "rmse"), {t2(row, 1, "rmse")}));
+    t.push_back(
+        below("order_" + tag + "_amc_pi_max", "Sec. 5.5, Table 2", "PID+AMC max error below PID's on the " + name,
+              fmt("%.3f", PaperNumbers::table2[row][3][0]) + " < " + fmt("%.3f", PaperNumbers::table2[row][1][0]),
+              t2(row, 3, "max"), {t2(row, 1, "max")}));
+    t.push_back(
+        below("order_" + tag + "_eso_pi_rmse", "Table 2", "PID+ESO RMSE below PID's on the " + name,
+              fmt("%.4f", PaperNumbers::table2[row][2][1]) + " < " + fmt("%.4f", PaperNumbers::table2[row][1][1]),
+              t2(row, 2, "rmse"), {t2(row, 1, "rmse")}));
+    t.push_back(
+        below("order_" + tag + "_amc_eso_rmse", "Table 2", "PID+AMC RMSE below PID+ESO's on the " + name,
+              fmt("%.4f", PaperNumbers::table2[row][3][1]) + " < " + fmt("%.4f", PaperNumbers::table2[row][2][1]),
+              t2(row, 3, "rmse"), {t2(row, 2, "rmse")}));
     t.push_back(below("closed_" + tag + "_vs_open", "Sec. 5.5, Figs. 8-9",
                       "the tracking is significantly improved by the controllers: every closed loop's RMSE at most a "
-                      "fifth of the open loop's on the " + name,
+                      "fifth of the open loop's on the " +
+                          name,
                       "0.19-0.47 against 6.6-6.9 mm", {t2(row, 1, "rmse"), t2(row, 2, "rmse"), t2(row, 3, "rmse")},
                       {t2(row, 0, "rmse")}, kSignificant));
   }
@@ -133,7 +143,8 @@ void addTransients(std::vector<Claim>& t) {
                     {t2(1, 2, "max")}));
   t.push_back(below("sine10_amc_further", "Sec. 5.5, Fig. 9",
                     "0.1 Hz sine: 'the transient tracking performances can be further improved with active modeling': "
-                    "PID+AMC max error below PID+ESO's", "1.922 < 2.010 mm", t2(2, 3, "max"), {t2(2, 2, "max")}));
+                    "PID+AMC max error below PID+ESO's",
+                    "1.922 < 2.010 mm", t2(2, 3, "max"), {t2(2, 2, "max")}));
   t.push_back(below("tri_eso_turning", "Sec. 5.5, Fig. 7",
                     "triangle: PID has slight overshoots at the turning points, PID+ESO suppresses them (largest "
                     "error within 1 s after a turning point below PID's)",
@@ -145,10 +156,10 @@ void addTransients(std::vector<Claim>& t) {
 
 void addSquare(std::vector<Claim>& t) {
   t.push_back(near("square_fwd_pi_overshoot", "Sec. 5.5, Fig. 10a", "square wave forward: PID overshoots about 17.3 %",
-                   "~17.3 %", ClaimRole::Predicted, sq("square", "forward", "pi", "overshoot_pct"), 17.3, kApproxFactor));
-  t.push_back(near("square_fwd_pi_settling", "Sec. 5.5, Fig. 10a",
-                   "square wave forward: PID settles in about 0.8 s", "~0.8 s", ClaimRole::Predicted,
-                   sq("square", "forward", "pi", "settling_s"), 0.8, kApproxFactor));
+                   "~17.3 %", ClaimRole::Predicted, sq("square", "forward", "pi", "overshoot_pct"), 17.3,
+                   kApproxFactor));
+  t.push_back(near("square_fwd_pi_settling", "Sec. 5.5, Fig. 10a", "square wave forward: PID settles in about 0.8 s",
+                   "~0.8 s", ClaimRole::Predicted, sq("square", "forward", "pi", "settling_s"), 0.8, kApproxFactor));
   t.push_back(near("square_fwd_eso_overshoot", "Sec. 5.5, Fig. 10a",
                    "square wave forward: PID+ESO reduces the overshoot to about 5.7 %", "~5.7 %", ClaimRole::Predicted,
                    sq("square", "forward", "eso", "overshoot_pct"), 5.7, kApproxFactor));
@@ -158,9 +169,12 @@ void addSquare(std::vector<Claim>& t) {
   t.push_back(atMost("square_fwd_amc_0.5s", "Sec. 5.5, Fig. 10a",
                      "square wave forward: PID+AMC converges within 0.5 s (2 % band)", "< 0.5 s",
                      {sq("square", "forward", "amc", "settling_s")}, 0.5));
-  Claim comp{"square_bwd_comparable", "Sec. 5.5, Fig. 10a",
+  Claim comp{"square_bwd_comparable",
+             "Sec. 5.5, Fig. 10a",
              "square wave backward: the performances of all the controllers are comparable (settling times)",
-             "comparable", ClaimRole::Predicted, {}};
+             "comparable",
+             ClaimRole::Predicted,
+             {}};
   comp.test.kind = K::Spread;
   comp.test.a = {sq("square", "backward", "pi", "settling_s"), sq("square", "backward", "eso", "settling_s"),
                  sq("square", "backward", "amc", "settling_s")};
@@ -176,18 +190,19 @@ void addSquare(std::vector<Claim>& t) {
 }
 
 void addSawtoothPayloadNoise(std::vector<Claim>& t) {
-  t.push_back(below("sawtooth_pi_slow", "Sec. 5.5, Fig. 10b",
-                    "sawtooth: the nominal controller responds slowly at the turning point (PID+AMC settles before PID)",
-                    "words only", sq("sawtooth", "backward", "amc", "settling_s"),
-                    {sq("sawtooth", "backward", "pi", "settling_s")}));
+  t.push_back(below(
+      "sawtooth_pi_slow", "Sec. 5.5, Fig. 10b",
+      "sawtooth: the nominal controller responds slowly at the turning point (PID+AMC settles before PID)",
+      "words only", sq("sawtooth", "backward", "amc", "settling_s"), {sq("sawtooth", "backward", "pi", "settling_s")}));
   t.push_back(below("sawtooth_amc_best_settling", "Sec. 5.5, Fig. 10b",
                     "sawtooth: PID+AMC offers the best transient: the shortest settling of the three", "words only",
                     sq("sawtooth", "backward", "amc", "settling_s"),
                     {sq("sawtooth", "backward", "pi", "settling_s"), sq("sawtooth", "backward", "eso", "settling_s")}));
-  t.push_back(below("sawtooth_amc_best_overshoot", "Sec. 5.5, Fig. 10b",
-                    "sawtooth: PID+AMC offers the best transient: the smallest overshoot of the three", "words only",
-                    sq("sawtooth", "backward", "amc", "overshoot_pct"),
-                    {sq("sawtooth", "backward", "pi", "overshoot_pct"), sq("sawtooth", "backward", "eso", "overshoot_pct")}));
+  t.push_back(
+      below("sawtooth_amc_best_overshoot", "Sec. 5.5, Fig. 10b",
+            "sawtooth: PID+AMC offers the best transient: the smallest overshoot of the three", "words only",
+            sq("sawtooth", "backward", "amc", "overshoot_pct"),
+            {sq("sawtooth", "backward", "pi", "overshoot_pct"), sq("sawtooth", "backward", "eso", "overshoot_pct")}));
   t.push_back(below("payload_amc_faster_pi", "Sec. 5.5, Fig. 11",
                     "40 N payload: PID+AMC converges quickly, it takes longer for PID (recovery time)", "words only",
                     "payload/amc/recovery_s", {"payload/pi/recovery_s"}));

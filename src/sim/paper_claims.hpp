@@ -82,10 +82,9 @@ struct PaperNumbers {
   // Table 2, max / RMSE [mm], rows triangle 0.05 Hz, sine 0.05 Hz, sine 0.1 Hz; columns open, PI, ESO, AMC.
   static constexpr const char* table2_rows[3] = {"triangle_0.05Hz", "sine_0.05Hz", "sine_0.1Hz"};
   static constexpr const char* table2_cols[4] = {"open", "pi", "eso", "amc"};
-  static constexpr double table2[3][4][2] = {
-      {{10.978, 6.395}, {1.097, 0.3461}, {1.100, 0.3243}, {0.924, 0.3209}},
-      {{10.357, 6.873}, {3.769, 0.2450}, {2.322, 0.2005}, {1.323, 0.1934}},
-      {{10.046, 6.592}, {3.272, 0.4670}, {2.010, 0.3911}, {1.922, 0.3803}}};
+  static constexpr double table2[3][4][2] = {{{10.978, 6.395}, {1.097, 0.3461}, {1.100, 0.3243}, {0.924, 0.3209}},
+                                             {{10.357, 6.873}, {3.769, 0.2450}, {2.322, 0.2005}, {1.323, 0.1934}},
+                                             {{10.046, 6.592}, {3.272, 0.4670}, {2.010, 0.3911}, {1.922, 0.3803}}};
 };
 
 }  // namespace pamc::sim

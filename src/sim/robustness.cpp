@@ -229,8 +229,13 @@ void runVariants(const RobustnessSettings& s, const std::vector<TrackingCase>& c
 // ---------------------------------------------------------------- the settings of a set of cells
 
 nlohmann::json axisToJson(const RobustnessAxis& a) {
-  return {{"name", a.name}, {"label", a.label}, {"unit", a.unit}, {"field", a.field}, {"nominal", a.nominal},
-          {"values", a.values}, {"physics_only", a.physics_only}};
+  return {{"name", a.name},
+          {"label", a.label},
+          {"unit", a.unit},
+          {"field", a.field},
+          {"nominal", a.nominal},
+          {"values", a.values},
+          {"physics_only", a.physics_only}};
 }
 
 // The table's axis of that name (for what it sets) with the values and nominal of the record.
@@ -248,7 +253,8 @@ std::vector<RobustnessAxis> axesOf(const RobustnessSettings& s) {
   if (axes.empty()) throw std::invalid_argument("no axis to run");
   for (const auto& a : axes)
     if (a.physics_only && s.plant.kind != plant::PlantKind::Physics)
-      throw std::invalid_argument("axis '" + a.name + "' changes the physics plant; the plant is of kind model "
+      throw std::invalid_argument("axis '" + a.name +
+                                  "' changes the physics plant; the plant is of kind model "
                                   "(--only-axes noise,model)");
   return axes;
 }
@@ -260,7 +266,8 @@ std::vector<RobustnessAxis> axesOf(const RobustnessSettings& s) {
 nlohmann::json identifyAt(const RobustnessSettings& s, const std::string& dir, double amplitude) {
   const auto log = s.log;
   const std::string tag = detail::amplitudeTag(amplitude), csv = "ident_A" + tag + ".csv";
-  if (log) log("identifying the model on u = " + tag + " sin(0.2 pi t) + 0.2 V (" + fmt("%.0f", kIdentDuration) + " s)");
+  if (log)
+    log("identifying the model on u = " + tag + " sin(0.2 pi t) + 0.2 V (" + fmt("%.0f", kIdentDuration) + " s)");
   recordOpenLoop(s.plant, identInput(amplitude), kIdentDuration, dir + csv);
   const ident::FitResult fr = identifyOnRecord(dir + csv, s.fit, log);
   if (log) log("  fitted in " + fmt("%.1f", fr.seconds) + " s, RMSE " + fmt("%.4f", fr.rmse) + " mm");
@@ -291,7 +298,8 @@ std::map<double, ControllerSet> prepareControllers(const RobustnessSettings& s, 
   for (const auto& v : variants) {
     const double amplitude = modelAmplitude(v);
     if (sets.count(amplitude)) continue;
-    const model::Model m = amplitude == kIdentAmplitude ? nominalModel(s, dir, doc) : modelAt(s, dir, amplitude, doc["models"]);
+    const model::Model m =
+        amplitude == kIdentAmplitude ? nominalModel(s, dir, doc) : modelAt(s, dir, amplitude, doc["models"]);
     sets.emplace(amplitude, controllerSet(s, m));
   }
   return sets;
@@ -325,15 +333,17 @@ std::vector<Variant> partOf(const std::vector<Variant>& all, const Shard& shard)
 }
 
 // The pairs grid's variants, chosen from the axes' cells (all of which must be there).
-std::vector<Variant> pairVariants(const RobustnessSettings& s, const std::vector<RobustnessAxis>& axes, const Cells& cells,
-                                  std::string& phase) {
+std::vector<Variant> pairVariants(const RobustnessSettings& s, const std::vector<RobustnessAxis>& axes,
+                                  const Cells& cells, std::string& phase) {
   if (!detail::allIn(detail::axisVariants(axes), cells))
     throw std::invalid_argument("the axes' cells are not all there: merge every part of the axes first");
   const auto results = detail::axisResults(cells, axes);
   const auto strong = detail::strongestTwo(results);
   if (!s.grid || strong.size() < 2) return {};
-  const RobustnessAxis& rows = *std::find_if(axes.begin(), axes.end(), [&](auto& a) { return a.name == strong[0]->axis.name; });
-  const RobustnessAxis& cols = *std::find_if(axes.begin(), axes.end(), [&](auto& a) { return a.name == strong[1]->axis.name; });
+  const RobustnessAxis& rows =
+      *std::find_if(axes.begin(), axes.end(), [&](auto& a) { return a.name == strong[0]->axis.name; });
+  const RobustnessAxis& cols =
+      *std::find_if(axes.begin(), axes.end(), [&](auto& a) { return a.name == strong[1]->axis.name; });
   phase = "grid " + rows.name + " x " + cols.name + ", variant";
   return detail::gridVariants(rows, cols);
 }
@@ -391,7 +401,8 @@ RobustnessSettings robustnessSettingsFromJson(const nlohmann::json& j) {
 nlohmann::json runRobustnessCells(const RobustnessSettings& given, const nlohmann::json* axes_cells) {
   const auto t0 = Clock::now();
   RobustnessSettings s = given;
-  nlohmann::json doc = {{"format", detail::kCellsFormat}, {"models", nlohmann::json::object()}, {"inherited_seconds", 0.0}};
+  nlohmann::json doc = {
+      {"format", detail::kCellsFormat}, {"models", nlohmann::json::object()}, {"inherited_seconds", 0.0}};
   if (axes_cells) {
     s = robustnessSettingsFromJson(axes_cells->at("settings"));
     s.out_dir = given.out_dir, s.shard = given.shard, s.threads = given.threads, s.log = given.log;

@@ -56,20 +56,20 @@ Shard parseShard(const std::string& text);
 
 struct RobustnessSettings {
   std::string out_dir = "robustness";
-  plant::PlantConfig plant = ExperimentSettings{}.plant;  // the nominal plant
+  plant::PlantConfig plant = ExperimentSettings{}.plant;       // the nominal plant
   control::ControllerConfig ctrl = ExperimentSettings{}.ctrl;  // gains; the model is identified or read
   ident::FitSettings fit = ExperimentSettings{}.fit;
-  std::string model_file;                 // the nominal model from this file instead of identifying one
-  std::vector<std::string> only_axes;     // empty: every axis of the table
-  std::vector<RobustnessAxis> axes;       // empty: robustnessAxes(plant) (tests pass reduced ones)
-  double duration_scale = 1.0;            // trajectories shortened for tests
+  std::string model_file;              // the nominal model from this file instead of identifying one
+  std::vector<std::string> only_axes;  // empty: every axis of the table
+  std::vector<RobustnessAxis> axes;    // empty: robustnessAxes(plant) (tests pass reduced ones)
+  double duration_scale = 1.0;         // trajectories shortened for tests
   // The three runs of a trajectory scored over the same window: from the latest of their first reaches
   // (false: each from its own, Table 2's rule; see scoreCase in robustness.cpp).
   bool common_window = true;
-  bool grid = true;                       // the 5x5 grid of the two strongest axes
+  bool grid = true;  // the 5x5 grid of the two strongest axes
   bool figures = true;
-  int threads = 2;                        // worker threads over the independent runs
-  Shard shard;                            // the part of the phase's cells to run (runRobustnessCells)
+  int threads = 2;  // worker threads over the independent runs
+  Shard shard;      // the part of the phase's cells to run (runRobustnessCells)
   std::function<void(const std::string&)> log;
 };
 
@@ -86,7 +86,7 @@ struct RobustnessScore {
 struct AxisResult {
   RobustnessAxis axis;
   std::vector<std::vector<RobustnessScore>> scores;  // [value][trajectory]
-  std::vector<double> mean_amc_over_pi;             // per value, over the trajectories
+  std::vector<double> mean_amc_over_pi;              // per value, over the trajectories
   double spread = 0.0;                               // max - min of mean_amc_over_pi
 };
 

@@ -42,8 +42,12 @@ double numberAt(const nlohmann::json& j, const char* key, const std::string& whe
 RobustnessScore scoreFromJson(const nlohmann::json& j, const std::string& where) {
   if (!j.is_object() || !j.contains("trajectory") || !j.at("trajectory").is_string())
     io::json_fields::fail(where, "a score without its trajectory");
-  return {j.at("trajectory").get<std::string>(), numberAt(j, "pi", where), numberAt(j, "eso", where),
-          numberAt(j, "amc", where),           numberAt(j, "mbc", where), numberAt(j, "scored_from_s", where)};
+  return {j.at("trajectory").get<std::string>(),
+          numberAt(j, "pi", where),
+          numberAt(j, "eso", where),
+          numberAt(j, "amc", where),
+          numberAt(j, "mbc", where),
+          numberAt(j, "scored_from_s", where)};
 }
 
 }  // namespace
@@ -53,7 +57,11 @@ nlohmann::json cellsToJson(const Cells& c) {
   for (const auto& [key, scores] : c) {
     nlohmann::json row = nlohmann::json::array();
     for (const auto& sc : scores)
-      row.push_back({{"trajectory", sc.trajectory}, {"pi", sc.pi}, {"eso", sc.eso}, {"amc", sc.amc}, {"mbc", sc.mbc},
+      row.push_back({{"trajectory", sc.trajectory},
+                     {"pi", sc.pi},
+                     {"eso", sc.eso},
+                     {"amc", sc.amc},
+                     {"mbc", sc.mbc},
                      {"scored_from_s", numberOrNull(sc.scored_from_s)}});
     j[key] = row;
   }
@@ -117,7 +125,8 @@ std::vector<AxisResult> axisResults(const Cells& cells, const std::vector<Robust
 std::vector<const AxisResult*> strongestTwo(const std::vector<AxisResult>& axes) {
   std::vector<const AxisResult*> order;
   for (const auto& a : axes) order.push_back(&a);
-  std::stable_sort(order.begin(), order.end(), [](const AxisResult* x, const AxisResult* y) { return x->spread > y->spread; });
+  std::stable_sort(order.begin(), order.end(),
+                   [](const AxisResult* x, const AxisResult* y) { return x->spread > y->spread; });
   if (order.size() > 2) order.resize(2);
   return order;
 }

@@ -35,7 +35,8 @@ void writeAxisCsv(const std::string& dir, const AxisResult& r) {
 }
 
 void writeGridCsv(const std::string& dir, const GridResult& g) {
-  std::string out = g.row_axis + "," + g.col_axis + ",trajectory,pi_rmse,eso_rmse,amc_rmse,amc_over_pi,eso_over_pi,mbc_rmse,mbc_over_pi\n";
+  std::string out = g.row_axis + "," + g.col_axis +
+                    ",trajectory,pi_rmse,eso_rmse,amc_rmse,amc_over_pi,eso_over_pi,mbc_rmse,mbc_over_pi\n";
   for (size_t r = 0; r < g.row_values.size(); ++r)
     for (size_t c = 0; c < g.col_values.size(); ++c)
       for (const auto& sc : g.scores[r][c])
@@ -94,7 +95,8 @@ void renderAxis(const std::string& dir, const AxisResult& r, std::string& error)
   const std::vector<report::Heatmap> maps = {axisMap(r, &RobustnessScore::amcOverPi, "PI+AMC / PI"),
                                              axisMap(r, &RobustnessScore::esoOverPi, "PID+ESO / PI")};
   const std::string title = "RMSE against PI over " + r.axis.label + " (nominal " + fmt("%g", r.axis.nominal) + " " +
-                            r.axis.unit + ")" + (r.axis.changesModel() ? "; the plant is nominal" : "; the model is nominal");
+                            r.axis.unit + ")" +
+                            (r.axis.changesModel() ? "; the plant is nominal" : "; the model is nominal");
   if (!report::renderHeatmaps(dir + "axis_" + r.axis.name + ".png", title, maps, 1.0, kColourKey, error))
     throw std::runtime_error(error);
 }
@@ -105,8 +107,8 @@ void renderGrid(const std::string& dir, const GridResult& g, const RobustnessAxi
   for (size_t t = 0; t < g.scores[0][0].size(); ++t) maps.push_back(gridMap(g, rows, cols, ratio, t));
   maps.push_back(gridMap(g, rows, cols, ratio, std::string::npos));
   std::string error;
-  if (!report::renderHeatmaps(dir + name + ".png", what + " RMSE ratio over " + rows.name + " x " + cols.name, maps, 1.0,
-                              kColourKey, error, 3))
+  if (!report::renderHeatmaps(dir + name + ".png", what + " RMSE ratio over " + rows.name + " x " + cols.name, maps,
+                              1.0, kColourKey, error, 3))
     throw std::runtime_error(error);
 }
 
@@ -115,9 +117,13 @@ void renderGrid(const std::string& dir, const GridResult& g, const RobustnessAxi
 nlohmann::json scoresJson(const std::vector<RobustnessScore>& scores) {
   nlohmann::json j = nlohmann::json::object();
   for (const auto& sc : scores)
-    j[sc.trajectory] = {{"pi_rmse", sc.pi}, {"eso_rmse", sc.eso}, {"amc_rmse", sc.amc},
-                        {"amc_over_pi", sc.amcOverPi()}, {"eso_over_pi", sc.esoOverPi()},
-                        {"mbc_rmse", sc.mbc}, {"mbc_over_pi", sc.mbcOverPi()},
+    j[sc.trajectory] = {{"pi_rmse", sc.pi},
+                        {"eso_rmse", sc.eso},
+                        {"amc_rmse", sc.amc},
+                        {"amc_over_pi", sc.amcOverPi()},
+                        {"eso_over_pi", sc.esoOverPi()},
+                        {"mbc_rmse", sc.mbc},
+                        {"mbc_over_pi", sc.mbcOverPi()},
                         {"scored_from_s", sc.scored_from_s}};  // null: each run from its own first reach
   return j;
 }
@@ -125,18 +131,28 @@ nlohmann::json scoresJson(const std::vector<RobustnessScore>& scores) {
 nlohmann::json axisJson(const AxisResult& r) {
   nlohmann::json rows = nlohmann::json::array();
   for (size_t i = 0; i < r.axis.values.size(); ++i)
-    rows.push_back({{"value", r.axis.values[i]}, {"mean_amc_over_pi", r.mean_amc_over_pi[i]},
+    rows.push_back({{"value", r.axis.values[i]},
+                    {"mean_amc_over_pi", r.mean_amc_over_pi[i]},
                     {"trajectories", scoresJson(r.scores[i])}});
-  return {{"label", r.axis.label}, {"unit", r.axis.unit}, {"field", r.axis.field}, {"nominal", r.axis.nominal},
-          {"values", r.axis.values}, {"spread_of_mean_amc_over_pi", r.spread}, {"rows", rows}};
+  return {{"label", r.axis.label},
+          {"unit", r.axis.unit},
+          {"field", r.axis.field},
+          {"nominal", r.axis.nominal},
+          {"values", r.axis.values},
+          {"spread_of_mean_amc_over_pi", r.spread},
+          {"rows", rows}};
 }
 
 nlohmann::json gridJson(const GridResult& g) {
   nlohmann::json cells = nlohmann::json::array();
   for (size_t r = 0; r < g.row_values.size(); ++r)
     for (size_t c = 0; c < g.col_values.size(); ++c)
-      cells.push_back({{g.row_axis, g.row_values[r]}, {g.col_axis, g.col_values[c]}, {"trajectories", scoresJson(g.scores[r][c])}});
-  return {{"rows", g.row_axis}, {"columns", g.col_axis}, {"row_values", g.row_values}, {"column_values", g.col_values},
+      cells.push_back(
+          {{g.row_axis, g.row_values[r]}, {g.col_axis, g.col_values[c]}, {"trajectories", scoresJson(g.scores[r][c])}});
+  return {{"rows", g.row_axis},
+          {"columns", g.col_axis},
+          {"row_values", g.row_values},
+          {"column_values", g.col_values},
           {"cells", cells}};
 }
 
@@ -160,15 +176,16 @@ std::string ratioRow(const std::vector<RobustnessScore>& scores) {
 
 std::string axisText(const AxisResult& r) {
   std::ostringstream t;
-  t << "Axis " << r.axis.name << ": " << r.axis.label << " [" << r.axis.unit << "], nominal " << fmt("%g", r.axis.nominal)
-    << "; spread of the mean AMC/PI " << fmt("%.3f", r.spread) << "\n";
+  t << "Axis " << r.axis.name << ": " << r.axis.label << " [" << r.axis.unit << "], nominal "
+    << fmt("%g", r.axis.nominal) << "; spread of the mean AMC/PI " << fmt("%.3f", r.spread) << "\n";
   std::string head;
   for (const auto& sc : r.scores.front()) {
     char b[16];
     std::snprintf(b, sizeof b, "%9s", shortTag(sc.trajectory).c_str());
     head += b;
   }
-  t << "  AMC/PI, ESO/PI and PI's RMSE [mm] by trajectory\n  value        " << head << " |" << head << " |" << head << "\n";
+  t << "  AMC/PI, ESO/PI and PI's RMSE [mm] by trajectory\n  value        " << head << " |" << head << " |" << head
+    << "\n";
   for (size_t i = 0; i < r.axis.values.size(); ++i) {
     std::string pi;
     for (const auto& sc : r.scores[i]) pi += fmt("%9.3f", sc.pi);
@@ -180,7 +197,8 @@ std::string axisText(const AxisResult& r) {
 
 std::string gridText(const GridResult& g) {
   std::ostringstream t;
-  t << "Grid " << g.row_axis << " (rows) x " << g.col_axis << " (columns): AMC/PI RMSE ratio, mean over the trajectories\n";
+  t << "Grid " << g.row_axis << " (rows) x " << g.col_axis
+    << " (columns): AMC/PI RMSE ratio, mean over the trajectories\n";
   t << std::string(12, ' ');
   for (double c : g.col_values) t << fmt("%10g", c);
   t << "\n";
@@ -218,9 +236,10 @@ void writeSummary(const std::string& dir, RobustnessReport& rep, const Robustnes
   std::ostringstream t;
   t << "RMSE of PID+ESO and PI+AMC against PI (ratio < 1: better than PI) on the triangle, the two sines and the\n"
        "square wave, over plant changes the controllers were not tuned for ('*': nominal).\n"
-    << (s.common_window ? "The sines (started away from home) are scored over one window for all four controllers, from the\n"
-                          "latest of their first reaches.\n\n"
-                        : "Every run is scored from its own first reach (Table 2's rule).\n\n");
+    << (s.common_window
+            ? "The sines (started away from home) are scored over one window for all four controllers, from the\n"
+              "latest of their first reaches.\n\n"
+            : "Every run is scored from its own first reach (Table 2's rule).\n\n");
   nlohmann::json axes = nlohmann::json::object();
   for (const auto& r : rep.axes) {
     t << axisText(r);
@@ -230,13 +249,20 @@ void writeSummary(const std::string& dir, RobustnessReport& rep, const Robustnes
   for (const auto& n : rep.strongest) t << " " << n;
   t << "\n\n";
   if (!rep.grid.scores.empty()) t << gridText(rep.grid);
-  t << rep.variants << " variants x " << rep.axes.front().scores.front().size() << " trajectories x 4 controllers: "
-    << fmt("%.1f", rep.seconds) << " s of runs in " << rep.shards << (rep.shards == 1 ? " part" : " parts") << " on "
-    << s.threads << " worker threads each\n";
+  t << rep.variants << " variants x " << rep.axes.front().scores.front().size()
+    << " trajectories x 4 controllers: " << fmt("%.1f", rep.seconds) << " s of runs in " << rep.shards
+    << (rep.shards == 1 ? " part" : " parts") << " on " << s.threads << " worker threads each\n";
   if (rep.pairs_pending) t << "The pairs grid is not run yet (pamc robustness --pairs-of DIR --shard I/N).\n";
   rep.text = t.str();
-  rep.json = {{"axes", axes}, {"strongest", rep.strongest}, {"variants", rep.variants}, {"seconds", rep.seconds},
-              {"threads", s.threads}, {"shards", rep.shards}, {"pairs_pending", rep.pairs_pending}, {"score_from", s.common_window ? "common" : "own"}, {"plant", s.plant.toJson()}};
+  rep.json = {{"axes", axes},
+              {"strongest", rep.strongest},
+              {"variants", rep.variants},
+              {"seconds", rep.seconds},
+              {"threads", s.threads},
+              {"shards", rep.shards},
+              {"pairs_pending", rep.pairs_pending},
+              {"score_from", s.common_window ? "common" : "own"},
+              {"plant", s.plant.toJson()}};
   if (!rep.grid.scores.empty()) rep.json["grid"] = gridJson(rep.grid);
   io::writeFileAtomic(dir + "summary.txt", rep.text);
   io::writeFileAtomic(dir + "summary.json", rep.json.dump(2) + "\n");
@@ -247,7 +273,8 @@ void writeSummary(const std::string& dir, RobustnessReport& rep, const Robustnes
 std::string sourceOf(const nlohmann::json& d) { return d.value("source", std::string("a cells document")); }
 
 std::string partText(const nlohmann::json& d) {
-  return std::to_string(d.at("shard").at("index").get<int>()) + "/" + std::to_string(d.at("shard").at("count").get<int>());
+  return std::to_string(d.at("shard").at("index").get<int>()) + "/" +
+         std::to_string(d.at("shard").at("count").get<int>());
 }
 
 // The first top-level setting in which two documents differ.
@@ -279,7 +306,8 @@ void checkParts(const std::vector<nlohmann::json>& docs) {
   for (const auto& d : docs) {
     checkOne(d, docs.front());
     const int i = d.at("shard").at("index").get<int>();
-    if (seen.count(i)) throw std::invalid_argument("part " + partText(d) + " given twice: " + seen[i] + " and " + sourceOf(d));
+    if (seen.count(i))
+      throw std::invalid_argument("part " + partText(d) + " given twice: " + seen[i] + " and " + sourceOf(d));
     seen[i] = sourceOf(d);
   }
   const int n = docs.front().at("shard").at("count").get<int>();
@@ -310,7 +338,8 @@ nlohmann::json combine(const std::vector<nlohmann::json>& docs) {
 // The models identified, with the records they were identified on (recorded again: the same bytes).
 void writeModels(const std::string& dir, const RobustnessSettings& s, const nlohmann::json& models) {
   for (const auto& [tag, m] : models.items()) {
-    recordOpenLoop(s.plant, identInput(m.at("amplitude").get<double>()), kIdentDuration, dir + "ident_A" + tag + ".csv");
+    recordOpenLoop(s.plant, identInput(m.at("amplitude").get<double>()), kIdentDuration,
+                   dir + "ident_A" + tag + ".csv");
     io::writeModelFile(dir + "model_A" + tag + ".json", io::modelFromJson(m.at("model"), "cells: model " + tag),
                        m.at("fit"));
   }
@@ -328,8 +357,10 @@ RobustnessReport resultsOf(const nlohmann::json& merged, const RobustnessSetting
   if (s.grid && strong.size() == 2) {
     const RobustnessAxis& rows = strong[0]->axis;
     const RobustnessAxis& cols = strong[1]->axis;
-    if (detail::allIn(detail::gridVariants(rows, cols), cells)) rep.grid = detail::gridResult(cells, rows, cols);
-    else rep.pairs_pending = true;
+    if (detail::allIn(detail::gridVariants(rows, cols), cells))
+      rep.grid = detail::gridResult(cells, rows, cols);
+    else
+      rep.pairs_pending = true;
   }
   rep.variants = static_cast<int>(cells.size());
   rep.seconds = merged.value("inherited_seconds", 0.0) + merged.value("seconds", 0.0);

@@ -133,7 +133,8 @@ void BM_RigCycle(benchmark::State& state) {
   rig.setRecordSink([](const nodes::CycleRecord&) {});
   rig.start();
   for (auto _ : state) rig.step();
-  state.counters["x_realtime"] = benchmark::Counter(1e-3 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["x_realtime"] =
+      benchmark::Counter(1e-3 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
 // Bits on the wire per cycle against the 1 ms period at 1 Mbit/s.
@@ -159,7 +160,7 @@ void BM_BusLoadPerCycle(benchmark::State& state) {
   const double per = bits / static_cast<double>(cycles);
   state.counters["frames_per_cycle"] = static_cast<double>(frames) / static_cast<double>(cycles);
   state.counters["bits_per_cycle"] = per;
-  state.counters["us_at_1Mbit"] = per;           // 1 bit = 1 us at 1 Mbit/s
+  state.counters["us_at_1Mbit"] = per;  // 1 bit = 1 us at 1 Mbit/s
   state.counters["load_pct_1kHz"] = per / 1000.0 * 100.0;
 }
 }  // namespace

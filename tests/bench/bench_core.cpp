@@ -70,8 +70,8 @@ static void controllerCycle(benchmark::State& state, control::Kind kind) {
   cfg.model = paperLikeModel();
   auto c = control::makeController(kind, cfg);
   c->activate(0.0, 17.0);
-  const Excitation target(15.0, 10.0, 1);                 // 0.38 rad/s
-  const Excitation measured(15.0, 10.0, 1, 0.1, 18);      // + 0.1 mm at 6.9 rad/s
+  const Excitation target(15.0, 10.0, 1);             // 0.38 rad/s
+  const Excitation measured(15.0, 10.0, 1, 0.1, 18);  // + 0.1 mm at 6.9 rad/s
   std::size_t k = 0;
   for (auto _ : state) {
     const double yd = target[k];

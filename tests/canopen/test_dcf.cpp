@@ -18,7 +18,9 @@ std::string writeFile(const std::string& name, const std::string& bytes) {
 
 int lineOf(const std::string& text, const std::string& needle) {
   const auto at = text.find(needle);
-  return at == std::string::npos ? -1 : 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+  return at == std::string::npos
+             ? -1
+             : 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
 }
 
 const std::string kArray =
@@ -30,8 +32,10 @@ const std::string kArray =
 
 TEST(Dcf, CompactValuesNamesAndDomainBytes) {
   const std::string hex(2 * 120, 'A');  // 120 bytes in hex: a line beyond inih's 200 characters
-  const std::string text = makeEds(kArray + "[1F84Name]\nNrOfEntries=1\n2=Sensor\n\n[1F84Value]\nNrOfEntries=2\n2=0x00080196\n"
-                                   "4=$NODEID+0x100\n\n[1F22Value]\nNrOfEntries=1\n3=" + hex + " ; a comment\n");
+  const std::string text = makeEds(kArray +
+                                   "[1F84Name]\nNrOfEntries=1\n2=Sensor\n\n[1F84Value]\nNrOfEntries=2\n2=0x00080196\n"
+                                   "4=$NODEID+0x100\n\n[1F22Value]\nNrOfEntries=1\n3=" +
+                                   hex + " ; a comment\n");
   const EdsFile eds = EdsFile::parse(text, "x.dcf");
   const ObjectDictionary od = dictionaryFromEds(eds, 5);
   EXPECT_EQ(od.find(0x1F84, 2)->get<std::uint32_t>(), 0x00080196u);
@@ -50,7 +54,8 @@ TEST(Dcf, ADomainFromItsUploadFile) {
   const std::string text = makeEds(
       "[1F22]\nParameterName=Concise DCF\nObjectType=0x8\nSubNumber=2\n\n"
       "[1F22sub0]\nParameterName=Highest\nObjectType=0x7\nDataType=0x0005\nAccessType=ro\nDefaultValue=2\n\n"
-      "[1F22sub2]\nParameterName=Node 2\nObjectType=0x7\nDataType=0x000F\nAccessType=ro\nUploadFile=" + path + "\n");
+      "[1F22sub2]\nParameterName=Node 2\nObjectType=0x7\nDataType=0x000F\nAccessType=ro\nUploadFile=" +
+      path + "\n");
   const ObjectDictionary od = dictionaryFromEds(EdsFile::parse(text, "x.dcf"), 1);
   const Entry& e = *od.find(0x1F22, 2);
   ASSERT_EQ(e.size(), 13u);
@@ -89,10 +94,14 @@ TEST(Dcf, ValuesCheckedAgainstTheDevice) {
     std::string from, to, expect;
   };
   const std::vector<Case> cases = {
-      {"[1F84Value]\nNrOfEntries=1\n3=0x000C0191\n", "[1F84Value]\nNrOfEntries=1\n5=1\n", "not a sub-index of the object (1..4)"},
-      {"[1F84Value]\nNrOfEntries=1\n3=0x000C0191\n", "[1F84Value]\nNrOfEntries=2\n3=1\n", "NrOfEntries is 2 but 1 entries follow"},
-      {"[1F84Value]\nNrOfEntries=1\n3=0x000C0191\n", "[1F84Value]\nNrOfEntries=1\n3=-1\n", "'-1' is out of range for UNSIGNED32"},
-      {"HighLimit=0x0F\n", "HighLimit=0x1F\nParameterValue=0x10\n", "0x1F80:00 = 0x10 is above the device's HighLimit 0x0F"},
+      {"[1F84Value]\nNrOfEntries=1\n3=0x000C0191\n", "[1F84Value]\nNrOfEntries=1\n5=1\n",
+       "not a sub-index of the object (1..4)"},
+      {"[1F84Value]\nNrOfEntries=1\n3=0x000C0191\n", "[1F84Value]\nNrOfEntries=2\n3=1\n",
+       "NrOfEntries is 2 but 1 entries follow"},
+      {"[1F84Value]\nNrOfEntries=1\n3=0x000C0191\n", "[1F84Value]\nNrOfEntries=1\n3=-1\n",
+       "'-1' is out of range for UNSIGNED32"},
+      {"HighLimit=0x0F\n", "HighLimit=0x1F\nParameterValue=0x10\n",
+       "0x1F80:00 = 0x10 is above the device's HighLimit 0x0F"},
       {"DataType=0x0007\nAccessType=rw\nDefaultValue=1\n", "DataType=0x0006\nAccessType=rw\nDefaultValue=1\n",
        "0x1F80:00 is UNSIGNED16 here but UNSIGNED32 in device.eds"},
       {"[1F80]", "[1F81]", "the device (device.eds) has no entry 0x1F81:00"},
@@ -120,7 +129,8 @@ TEST(Dcf, ValuesCheckedAgainstTheDevice) {
 TEST(Dcf, TheMastersConciseDcfMustDecode) {
   EXPECT_EQ(checkMasterEntry(DcfEntry{0x1F22, 2, encodeConciseDcf({dcfValue(0x1017, 0, 100, 2)})}), "");
   EXPECT_EQ(checkMasterEntry(DcfEntry{0x1F22, 2, {}}), "") << "empty: nothing to write";
-  EXPECT_EQ(checkMasterEntry(DcfEntry{0x1F22, 2, {2, 0, 0, 0}}), "0x1F22:02 is not a concise DCF: entry 1 of 2: header beyond the end");
+  EXPECT_EQ(checkMasterEntry(DcfEntry{0x1F22, 2, {2, 0, 0, 0}}),
+            "0x1F22:02 is not a concise DCF: entry 1 of 2: header beyond the end");
   EXPECT_EQ(checkMasterEntry(DcfEntry{0x1F84, 2, {2, 0, 0, 0}}), "");
 }
 

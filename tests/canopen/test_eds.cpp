@@ -121,9 +121,9 @@ TEST(Eds, SyntaxErrorReportsFileAndLine) {
 TEST(Eds, SemanticErrorsNameSectionAndLine) {
   struct Case {
     std::string objects;
-    std::string needle;    // text of the reported line
-    std::string section;   // reported section
-    std::string problem;   // part of the message
+    std::string needle;   // text of the reported line
+    std::string section;  // reported section
+    std::string problem;  // part of the message
   };
   const Case cases[] = {
       {var(0x2000, "Gain", "0xZZ", "rw", "1"), "DataType=0xZZ", "2000", "is not a number"},
@@ -254,7 +254,7 @@ TEST(ObjectDictionary, RemoteWriteChecksAccessLengthLimitsAndValidators) {
   EXPECT_EQ(write(kp, 0.5), kSdoOk);
   EXPECT_EQ(kp.get<double>(), 0.5);
   EXPECT_EQ(observed, 1);
-  EXPECT_EQ(write(kp, 8.0), kAbortValueRange);      // application validator (EDS limit: 10)
+  EXPECT_EQ(write(kp, 8.0), kAbortValueRange);       // application validator (EDS limit: 10)
   EXPECT_EQ(write(kp, 5000.0), kAbortValueTooHigh);  // EDS HighLimit
   EXPECT_EQ(write(kp, -1.0), kAbortValueTooLow);     // EDS LowLimit
   EXPECT_EQ(write(kp, std::nan("")), kAbortValueRange);

@@ -13,7 +13,7 @@ TEST(Emcy, ProducerFramesErrorRegisterAndHistory) {
   const std::uint8_t mfr[5] = {1, 2, 3, 4, 5};
   EXPECT_TRUE(sensor.emcy().report(kEmcyHeartbeat, mfr));
   EXPECT_FALSE(sensor.emcy().report(kEmcyHeartbeat, mfr));  // already active: no second frame
-  EXPECT_TRUE(sensor.emcy().report(0x2310));                 // current error
+  EXPECT_TRUE(sensor.emcy().report(0x2310));                // current error
   net.bus.flush();
   EXPECT_EQ(net.recorder.take(), (Frames{"082#3081110102030405", "082#1023130000000000"}));
   EXPECT_EQ(sensor.od().entry(0x1001, 0).get<std::uint8_t>(), 0x13);

@@ -94,7 +94,12 @@ TEST(FrameBits, ReferenceIsTheTextbookCrc) {
   // The reference itself: a message followed by its CRC leaves no remainder, and the SYNC's CRC is the
   // one a bitwise shift register (a separate script) gives.
   const std::string head = frameHead(frameOf(0x080, {}));
-  EXPECT_EQ(head, "0" "00010000000" "0" "00" "0000");
+  EXPECT_EQ(head,
+            "0"
+            "00010000000"
+            "0"
+            "00"
+            "0000");
   EXPECT_EQ(crc15(head), "001110000000101");
   EXPECT_EQ(crc15(head + crc15(head)), std::string(15, '0'));
 }
@@ -126,7 +131,7 @@ TEST(FrameBits, EveryDataLengthAndKindOfAllZeroAndAllOneFrames) {
           f.len = len;
           for (auto& b : f.data) b = fill;
           EXPECT_EQ(frameBits(f), referenceBits(f)) << std::hex << f.id << " flags " << unsigned(flags) << std::dec
-                                                     << " len " << unsigned(len) << " fill " << unsigned(fill);
+                                                    << " len " << unsigned(len) << " fill " << unsigned(fill);
         }
       }
     }

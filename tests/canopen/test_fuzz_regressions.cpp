@@ -34,9 +34,8 @@ TEST(FuzzRegression, CandumpTimestampWithTooManyDigitsIsRefusedBeforeItOverflows
 // fuzz_eds: a DOMAIN or VISIBLE_STRING without DefaultValue (or with an empty one) made the dictionary
 // copy its default from a null pointer (memcpy(dst, nullptr, 0): undefined behaviour).
 TEST(FuzzRegression, EmptyStringAndDomainDefaultsBuildEmptyEntries) {
-  const std::string eds = makeEds(
-      "[2007]\nParameterName=Domain\nObjectType=0x2\nDataType=0x000F\nAccessType=rw\n\n" +
-      var(0x2008, "Text", "0x0009", "rw", ""));
+  const std::string eds = makeEds("[2007]\nParameterName=Domain\nObjectType=0x2\nDataType=0x000F\nAccessType=rw\n\n" +
+                                  var(0x2008, "Text", "0x0009", "rw", ""));
   ObjectDictionary od = odFromText(eds, 5);
   EXPECT_EQ(od.entry(0x2007, 0).size(), 0u);
   EXPECT_GE(od.entry(0x2007, 0).capacity(), 256u);
@@ -62,7 +61,7 @@ TEST(FuzzRegression, StoppedNodeSendsNoSdoTimeoutAbort) {
   net.startAll();
   EXPECT_EQ(net.exchange("609#2001200000000000"), Frames{"589#6001200000000000"});  // segmented download
   EXPECT_EQ(net.exchange("609#0031323334353637"), Frames{"589#2000000000000000"});  // first segment
-  net.send("000#0209");                                                              // NMT stop node 9
+  net.send("000#0209");                                                             // NMT stop node 9
   net.recorder.log.clear();
   net.bus.advanceBy(2'493'200);  // past the 1 s SDO timeout
   EXPECT_TRUE(net.recorder.matching("589#").empty());
@@ -79,9 +78,9 @@ TEST(FuzzRegression, UploadInterruptedByAStopIsNotResumedAfterTheStart) {
   net.startAll();
   EXPECT_EQ(net.exchange("609#4001200000000000"), Frames{"589#4101200008000000"});  // segmented upload
   EXPECT_EQ(net.exchange("609#6000000000000000"), Frames{"589#0000112233445566"});  // first segment
-  net.send("000#0209");                                                              // NMT stop node 9
-  EXPECT_TRUE(net.exchange("609#7000000000000000").empty());                         // no SDO when Stopped
-  net.send("000#0109");                                                              // NMT start node 9
+  net.send("000#0209");                                                             // NMT stop node 9
+  EXPECT_TRUE(net.exchange("609#7000000000000000").empty());                        // no SDO when Stopped
+  net.send("000#0109");                                                             // NMT start node 9
   EXPECT_EQ(net.exchange("609#7000000000000000"), Frames{"589#8001200001000405"});  // no transfer to resume
 }
 

@@ -46,9 +46,7 @@ struct Event {
   HeartbeatEvent event;
   NmtState state;
   TimeUs t;
-  bool operator==(const Event& o) const {
-    return node == o.node && event == o.event && state == o.state && t == o.t;
-  }
+  bool operator==(const Event& o) const { return node == o.node && event == o.event && state == o.state && t == o.t; }
 };
 std::ostream& operator<<(std::ostream& os, const Event& e) {
   return os << "{node " << int(e.node) << ", " << heartbeatEventName(e.event) << ", " << nmtStateName(e.state)

@@ -44,10 +44,11 @@ TEST(Nmt, SlaveStateMachineFollowsMasterCommands) {
   EXPECT_EQ(sensor.nmtState(), NmtState::PreOperational);
   net.send("000#0100");  // broadcast
   EXPECT_EQ(sensor.nmtState(), NmtState::Operational);
-  const std::vector<std::pair<NmtState, NmtState>> expected = {
-      {NmtState::Initialising, NmtState::PreOperational}, {NmtState::PreOperational, NmtState::Operational},
-      {NmtState::Operational, NmtState::Stopped},         {NmtState::Stopped, NmtState::PreOperational},
-      {NmtState::PreOperational, NmtState::Operational}};
+  const std::vector<std::pair<NmtState, NmtState>> expected = {{NmtState::Initialising, NmtState::PreOperational},
+                                                               {NmtState::PreOperational, NmtState::Operational},
+                                                               {NmtState::Operational, NmtState::Stopped},
+                                                               {NmtState::Stopped, NmtState::PreOperational},
+                                                               {NmtState::PreOperational, NmtState::Operational}};
   EXPECT_EQ(changes, expected);
 }
 

@@ -201,8 +201,8 @@ TEST(NmtMasterBoot, AKeptAliveSlaveThatRunsIsNotBootedAgainAtTheMastersStart) {
     net.bus.advanceTo(600'000);
     ASSERT_EQ(sensor.nmtState(), NmtState::Operational);
     ASSERT_EQ(master.counters().boots, 1u);
-    const auto writes = net.recorder.matching("602#2").size();  // SDO downloads
-    const auto resets = net.recorder.matching("000#82").size();   // to node 2 or to all (000#8200)
+    const auto writes = net.recorder.matching("602#2").size();   // SDO downloads
+    const auto resets = net.recorder.matching("000#82").size();  // to node 2 or to all (000#8200)
     master.end();
     master.begin(net.bus.now());
     net.bus.advanceTo(1'200'000);
@@ -438,8 +438,8 @@ TEST(NmtMasterBoot, TpdoCobIdsKeepTheDevicesBit30) {
   for (const auto& l : r.net.recorder.matching("602#")) {
     if (l.frame.compare(4, 8, "40001801") == 0 || l.frame.compare(4, 8, "23001801") == 0) cob.push_back(l.frame);
   }
-  EXPECT_EQ(cob, (Frames{"602#4000180100000000", "602#23001801820100C0", "602#2300180182010040",
-                         "602#4000180100000000"}))
+  EXPECT_EQ(cob,
+            (Frames{"602#4000180100000000", "602#23001801820100C0", "602#2300180182010040", "602#4000180100000000"}))
       << "read, disable, enable, read back";
 }
 
@@ -470,7 +470,8 @@ TEST(NmtMasterBoot, RpdoCobIdsKeepTheDevicesBit30) {
   Frames cob;
   for (const auto& l : net.recorder.matching("602#"))
     if (l.frame.compare(6, 6, "001401") == 0) cob.push_back(l.frame);
-  EXPECT_EQ(cob, (Frames{"602#4000140100000000", "602#23001401020200C0", "602#2300140102020040", "602#4000140100000000"}))
+  EXPECT_EQ(cob,
+            (Frames{"602#4000140100000000", "602#23001401020200C0", "602#2300140102020040", "602#4000140100000000"}))
       << "read, disable, enable, read back";
 }
 
@@ -517,7 +518,8 @@ TEST(NmtMasterBoot, Bit1StartsAllAtOnceOrEachByItselfOnceTheMandatorySlavesAreBo
     EXPECT_EQ(r.master.bootError(5) != nullptr, optional_absent);
     Frames starts;
     for (const auto& l : r.net.recorder.matching("000#01")) starts.push_back(l.frame);
-    EXPECT_EQ(starts, optional_absent ? Frames{"000#0102"} : Frames{"000#0100"}) << "optional_absent=" << optional_absent;
+    EXPECT_EQ(starts, optional_absent ? Frames{"000#0102"} : Frames{"000#0100"})
+        << "optional_absent=" << optional_absent;
   }
 }
 
@@ -538,7 +540,8 @@ TEST(NmtMasterBoot, TheApplicationsWritesFollowTheConfigurationAndPrecedeTheStar
     BootRig r(b);
     if (c != Refused) r.master.addConfig(2, {write});
     if (c == Refused)
-      r.sensor.od().addValidator(0x6003, 0, [](const Entry&, const std::uint8_t*, std::size_t) { return kAbortValueRange; });
+      r.sensor.od().addValidator(0x6003, 0,
+                                 [](const Entry&, const std::uint8_t*, std::size_t) { return kAbortValueRange; });
     preset = 0x01020304;  // after addConfig: taken as the write goes out
     r.start(true);
     r.net.bus.advanceTo(400'000);

@@ -112,8 +112,7 @@ TEST(Pdo, SyncStartValueDelaysTheFirstTransmission) {
 void makeEventDriven(Network& net, const char* inhibit_100us_le16, const char* event_ms_le16) {
   EXPECT_EQ(net.exchange("602#2300180182010080"), Frames{"582#6000180100000000"});  // disable
   EXPECT_EQ(net.exchange("602#2F001802FF000000"), Frames{"582#6000180200000000"});  // type 255
-  EXPECT_EQ(net.exchange(std::string("602#2B001803") + inhibit_100us_le16 + "0000"),
-            Frames{"582#6000180300000000"});
+  EXPECT_EQ(net.exchange(std::string("602#2B001803") + inhibit_100us_le16 + "0000"), Frames{"582#6000180300000000"});
   EXPECT_EQ(net.exchange(std::string("602#2B001805") + event_ms_le16 + "0000"), Frames{"582#6000180500000000"});
   EXPECT_EQ(net.exchange("602#2300180182010000"), Frames{"582#6000180100000000"});  // enable
 }
@@ -126,19 +125,19 @@ TEST(Pdo, EventDrivenTpdoWithInhibitTimeAndEventTimer) {
   makeEventDriven(net, "6400", "3200");  // inhibit 100 x 100 us = 10 ms, event timer 50 ms
   net.bus.advanceTo(1'000);
   net.recorder.log.clear();
-  net.send("000#0102");              // entering Operational sends once
+  net.send("000#0102");  // entering Operational sends once
   net.bus.advanceTo(5'000);
-  position.set(7);                   // change within the inhibit time: waits until 11 ms
+  position.set(7);  // change within the inhibit time: waits until 11 ms
   net.bus.advanceTo(30'000);
-  position.set(8);                   // inhibit over: sent at once
+  position.set(8);  // inhibit over: sent at once
   net.bus.advanceTo(30'000);
-  net.bus.advanceTo(200'000);        // no change: event timer every 50 ms
+  net.bus.advanceTo(200'000);  // no change: event timer every 50 ms
   auto tpdo = net.recorder.matching("182#");
   std::vector<std::pair<TimeUs, std::string>> got;
   for (const auto& l : tpdo) got.emplace_back(l.t, l.frame);
-  const std::vector<std::pair<TimeUs, std::string>> expected = {
-      {1'000, "182#00000000"},   {11'000, "182#07000000"},  {30'000, "182#08000000"},
-      {80'000, "182#08000000"},  {130'000, "182#08000000"}, {180'000, "182#08000000"}};
+  const std::vector<std::pair<TimeUs, std::string>> expected = {{1'000, "182#00000000"},   {11'000, "182#07000000"},
+                                                                {30'000, "182#08000000"},  {80'000, "182#08000000"},
+                                                                {130'000, "182#08000000"}, {180'000, "182#08000000"}};
   EXPECT_EQ(got, expected);
   EXPECT_TRUE(net.recorder.matching("080#").empty());
 }

@@ -180,8 +180,8 @@ TEST(SdoClient, TalksToServersOverTheBus) {
   // Longer than the 32 bytes reserved for the string: refused before any segment.
   const std::string too_long = "a longer name than the entry can hold";
   r = Result{};
-  ASSERT_TRUE(client.download(5, 0x2100, 0, reinterpret_cast<const std::uint8_t*>(too_long.data()),
-                              too_long.size(), capture(r, net.bus)));
+  ASSERT_TRUE(client.download(5, 0x2100, 0, reinterpret_cast<const std::uint8_t*>(too_long.data()), too_long.size(),
+                              capture(r, net.bus)));
   net.bus.flush();
   EXPECT_EQ(r.code, kAbortLengthTooHigh);
 

@@ -110,9 +110,10 @@ TEST(System, MissingSensorPdosAreCountedPerCycle) {
   EXPECT_EQ(sys.ctrl->rpdo(2).syncsSinceReception(), 0u);
   bus.advanceTo(1'000'000);
   // The stopped sensor still sends heartbeats (its first one already says Stopped): no timeout.
-  const std::vector<std::pair<std::uint8_t, HeartbeatEvent>> expected = {
-      {2, HeartbeatEvent::BootUp}, {3, HeartbeatEvent::BootUp}, {2, HeartbeatEvent::Started},
-      {3, HeartbeatEvent::Started}};
+  const std::vector<std::pair<std::uint8_t, HeartbeatEvent>> expected = {{2, HeartbeatEvent::BootUp},
+                                                                         {3, HeartbeatEvent::BootUp},
+                                                                         {2, HeartbeatEvent::Started},
+                                                                         {3, HeartbeatEvent::Started}};
   EXPECT_EQ(events, expected);
   EXPECT_EQ(sys.ctrl->heartbeatConsumer().remoteState(2), NmtState::Stopped);
 }

@@ -45,9 +45,9 @@ inline std::string makeEds(const std::string& objects, int node_id = 5) {
   std::string s =
       "[FileInfo]\nFileName=test.eds\nEDSVersion=4.0\n\n"
       "[DeviceInfo]\nVendorName=test\nProductName=test\n\n"
-      "[DeviceComissioning]\nNodeID=" + std::to_string(node_id) + "\n\n" +
-      list("MandatoryObjects", {0x1000, 0x1001, 0x1018}) + list("OptionalObjects", optional) +
-      list("ManufacturerObjects", manufacturer) +
+      "[DeviceComissioning]\nNodeID=" +
+      std::to_string(node_id) + "\n\n" + list("MandatoryObjects", {0x1000, 0x1001, 0x1018}) +
+      list("OptionalObjects", optional) + list("ManufacturerObjects", manufacturer) +
       "[1000]\nParameterName=Device type\nDataType=0x0007\nAccessType=ro\nDefaultValue=0\n\n"
       "[1001]\nParameterName=Error register\nDataType=0x0005\nAccessType=ro\nDefaultValue=0\n\n"
       "[1018]\nParameterName=Identity\nObjectType=0x9\nSubNumber=2\n\n"
@@ -61,8 +61,8 @@ inline std::string var(unsigned index, const std::string& name, const char* type
                        const std::string& def, int pdo = 0, const std::string& extra = "") {
   char buf[16];
   std::snprintf(buf, sizeof buf, "[%04X]\n", index);
-  return std::string(buf) + "ParameterName=" + name + "\nObjectType=0x7\nDataType=" + type + "\nAccessType=" +
-         access + "\nDefaultValue=" + def + "\nPDOMapping=" + std::to_string(pdo) + "\n" + extra + "\n";
+  return std::string(buf) + "ParameterName=" + name + "\nObjectType=0x7\nDataType=" + type + "\nAccessType=" + access +
+         "\nDefaultValue=" + def + "\nPDOMapping=" + std::to_string(pdo) + "\n" + extra + "\n";
 }
 
 inline ObjectDictionary odFromText(const std::string& text, std::uint8_t node_id) {

@@ -49,7 +49,9 @@ inline std::string rigText(const std::string& file, const Edits& edits = {}) {
 }
 
 // od/rigs/<name>, edited.
-inline std::string shippedRig(const std::string& name, const Edits& edits = {}) { return rigText("od/rigs/" + name, edits); }
+inline std::string shippedRig(const std::string& name, const Edits& edits = {}) {
+  return rigText("od/rigs/" + name, edits);
+}
 
 // The one-muscle form ([sensor], [valve]) of od/rigs/default.ini, edited: tests/data/rigs/one_muscle.ini.
 inline std::string oneMuscleRig(const Edits& edits = {}) { return rigText("tests/data/rigs/one_muscle.ini", edits); }

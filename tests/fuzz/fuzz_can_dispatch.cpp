@@ -65,15 +65,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   while (!in.empty() && bus.now() < kMaxVirtualTime) {
     const std::uint8_t op = in.u8();
     switch (op & 0x07) {
-      case 4:
-        bus.advanceBy((in.u8() + 1) * TimeUs{10});
-        break;
-      case 5:
-        bus.advanceBy((in.u8() + 1) * TimeUs{1000});
-        break;
-      case 6:
-        bus.advanceBy((in.u16() % 1500) * TimeUs{1000});
-        break;
+      case 4: bus.advanceBy((in.u8() + 1) * TimeUs{10}); break;
+      case 5: bus.advanceBy((in.u8() + 1) * TimeUs{1000}); break;
+      case 6: bus.advanceBy((in.u16() % 1500) * TimeUs{1000}); break;
       case 7:
         for (int i = 0; i <= (op >> 3); ++i) tool.send(last);
         bus.flush();

@@ -42,7 +42,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (std::size_t i = 1; i < n; ++i) {
     if (!(m.t[i] > m.t[i - 1])) finding("time does not increase");
   }
-  if (!std::isfinite(m.Ts) || !(m.Ts >= pamc::io::kMinSamplingStep)) finding("sampling step Ts = " + std::to_string(m.Ts));
+  if (!std::isfinite(m.Ts) || !(m.Ts >= pamc::io::kMinSamplingStep))
+    finding("sampling step Ts = " + std::to_string(m.Ts));
   const pamc::io::Measurement half = m.slice(n / 2, n);
   if (half.size() != n - n / 2 || half.u.size() != half.size()) finding("slice has the wrong size");
   return 0;

@@ -210,8 +210,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   while (!in.empty()) {
     const std::uint8_t op = in.u8();
     bus.sent.clear();
-    const bool communicating =
-        node.nmtState() == NmtState::PreOperational || node.nmtState() == NmtState::Operational;
+    const bool communicating = node.nmtState() == NmtState::PreOperational || node.nmtState() == NmtState::Operational;
     Frame f = makeFrame(rx, 8);
     bool request = true;  // an 8-byte request to the server that expects one answer
     bool expect_store = false;

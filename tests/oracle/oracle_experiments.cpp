@@ -55,8 +55,9 @@ int run(const Options& o) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"pamc_oracle_experiments: the paper's experiments (pamc experiments) on the test oracle's simulator "
-               "as the plant, a plant that shares no code with pamc's"};
+  CLI::App app{
+      "pamc_oracle_experiments: the paper's experiments (pamc experiments) on the test oracle's simulator "
+      "as the plant, a plant that shares no code with pamc's"};
   Options o;
   app.add_option("--cases", o.cases, "cases file holding the plant (e.g. tests/oracle/closed_loop_plant.json)")
       ->required()
@@ -64,7 +65,8 @@ int main(int argc, char** argv) {
   app.add_option("--case", o.case_name, "the case that is the plant (default: the file's only case)");
   app.add_option("--model", o.model, "model file the controllers use instead of identifying one on u0")
       ->check(CLI::ExistingFile);
-  app.add_option("--only", o.only, "comma list of: table1, table2, triangle, discontinuous, payload (as pamc experiments)")
+  app.add_option("--only", o.only,
+                 "comma list of: table1, table2, triangle, discontinuous, payload (as pamc experiments)")
       ->delimiter(',');
   app.add_option("--out-dir", o.out_dir, "output folder (CSVs, summary.txt, summary.json)")->capture_default_str();
   app.add_flag("--no-figures", o.no_figures, "skip the PNG figures");

@@ -30,8 +30,7 @@ int run(int argc, char** argv) {
       "pamc_oracle_sim: the test oracle, an independent continuous-time PAM simulator (Bouc-Wen core and "
       "physical effects, own adaptive RK45); writes a measurement CSV t,u,y[,load] (s, V, mm)"};
   app.set_help_flag("-h,--help", "Print this help and exit");
-  std::string cases_path = defaultCasesPath(), case_name, which = "train", out, core_text, input = "mixed",
-              load_spec;
+  std::string cases_path = defaultCasesPath(), case_name, which = "train", out, core_text, input = "mixed", load_spec;
   std::vector<std::string> effect_texts;
   bool list = false, list_effects = false;
   double duration = 60.0, noise = 0.005, quantum = 0.001, valve_tau = 1e-6, rtol = 1e-11;
@@ -43,8 +42,9 @@ int run(int argc, char** argv) {
   app.add_option("--record", which, "Which record of the case: train or validate")
       ->check(CLI::IsMember({"train", "validate"}));
   app.add_option("--out", out, "Output CSV (written to FILE.tmp, then renamed)");
-  app.add_option("--core", core_text, "Custom record: core parameters k=..,rho=..,b=..,alpha=..,beta=..,gamma=.. "
-                                      "(default k=6.5,rho=1.15,b=20,alpha=1,beta=0.5,gamma=0.2)");
+  app.add_option("--core", core_text,
+                 "Custom record: core parameters k=..,rho=..,b=..,alpha=..,beta=..,gamma=.. "
+                 "(default k=6.5,rho=1.15,b=20,alpha=1,beta=0.5,gamma=0.2)");
   app.add_option("--effect", effect_texts, "Custom record: an effect NAME[:param=v,param=v] (repeatable)");
   app.add_option("--input", input,
                  "Custom record: excitation SPEC, segments KIND[:key=v,...] joined by '+': steps, chirp, sine, "
@@ -126,8 +126,8 @@ int run(int argc, char** argv) {
     writeRecordCsv(out, r);
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("wrote %s: %zu samples (%.3f s), %s; noise %.6g mm (std %.6g, quantum %.6g); %ld steps, %.2f s\n",
-                out.c_str(), r.t.size(), static_cast<double>(r.t.size()) * r.Ts, what.c_str(), r.noise(),
-                r.noise_std, r.quantum, r.steps, secs);
+                out.c_str(), r.t.size(), static_cast<double>(r.t.size()) * r.Ts, what.c_str(), r.noise(), r.noise_std,
+                r.quantum, r.steps, secs);
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "pamc_oracle_sim: " << e.what() << "\n";

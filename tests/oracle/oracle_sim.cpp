@@ -21,53 +21,94 @@ namespace pamc::oracle {
 
 const std::vector<EffectInfo>& effectTable() {
   static const std::vector<EffectInfo> t = {
-      {"pressure_lag", {{"tau", 1e-3, 2.0, 0.05}, {"slew", 1.0, 1000.0, 1000.0}}, false,
+      {"pressure_lag",
+       {{"tau", 1e-3, 2.0, 0.05}, {"slew", 1.0, 1000.0, 1000.0}},
+       false,
        "effective command follows the valve command with a first-order lag and a rate limit"},
-      {"asymmetry", {{"gain", -10.0, 10.0, 1.0}, {"w_up", 0.05, 10.0, 1.0}, {"w_down", 0.05, 10.0, 0.3}}, false,
+      {"asymmetry",
+       {{"gain", -10.0, 10.0, 1.0}, {"w_up", 0.05, 10.0, 1.0}, {"w_down", 0.05, 10.0, 0.3}},
+       false,
        "extra hysteretic element of the command turning round over w_up rising, w_down falling"},
-      {"creep", {{"fraction", -0.5, 0.5, 0.05}, {"tau", 0.2, 200.0, 5.0}}, false,
+      {"creep",
+       {{"fraction", -0.5, 0.5, 0.05}, {"tau", 0.2, 200.0, 5.0}},
+       false,
        "viscoelastic drift towards a further fraction of the displacement with time constant tau"},
-      {"mass_spring", {{"fn", 0.2, 100.0, 10.0}, {"zeta", 0.01, 3.0, 0.5}}, false,
+      {"mass_spring",
+       {{"fn", 0.2, 100.0, 10.0}, {"zeta", 0.01, 3.0, 0.5}},
+       false,
        "payload inertia: second-order response of the displacement"},
       {"force_loop",
        {{"fn", 0.2, 100.0, 10.0}, {"zeta", 0.01, 1.0, 0.5}, {"zmax", 0.0, 10.0, 0.5}, {"delta", 0.01, 2.0, 0.5}},
-       false, "payload inertia with Dahl friction inside its force balance"},
-      {"friction_hysteresis", {{"zmax", 0.0, 10.0, 0.5}, {"delta", 0.01, 20.0, 0.5}}, false,
+       false,
+       "payload inertia with Dahl friction inside its force balance"},
+      {"friction_hysteresis",
+       {{"zmax", 0.0, 10.0, 0.5}, {"delta", 0.01, 20.0, 0.5}},
+       false,
        "Dahl friction driven by the output's own motion: sticks after every reversal"},
       {"delay", {{"d", 0.0, 0.25, 0.01}}, false, "pure transport delay of the command"},
       {"dead_band", {{"threshold", -5.0, 5.0, -5.0}}, false, "command cut off below the threshold"},
       {"load", {{"compliance", -10.0, 10.0, 0.05}}, true, "displacement drops by compliance x load"},
-      {"saturation", {{"knee", 0.0, 40.0, 30.0}, {"width", 0.1, 80.0, 10.0}}, false,
+      {"saturation",
+       {{"knee", 0.0, 40.0, 30.0}, {"width", 0.1, 80.0, 10.0}},
+       false,
        "displacement flattens above the knee towards knee + width"},
       {"muscle_balance",
-       {{"fn", 0.2, 100.0, 10.0}, {"zeta", 0.01, 3.0, 0.5}, {"w", -100.0, 100.0, 0.0}, {"L", 5.0, 1e4, 1e4},
-        {"f0", 0.0, 10.0, 0.0}, {"fp", 0.0, 0.2, 0.0}, {"k_slip", 0.01, 100.0, 1.0}, {"spread", 1.0, 100.0, 1.0},
-        {"lo", -1e9, 1e9, -1e9}, {"hi", -1e9, 1e9, 1e9}},
+       {{"fn", 0.2, 100.0, 10.0},
+        {"zeta", 0.01, 3.0, 0.5},
+        {"w", -100.0, 100.0, 0.0},
+        {"L", 5.0, 1e4, 1e4},
+        {"f0", 0.0, 10.0, 0.0},
+        {"fp", 0.0, 0.2, 0.0},
+        {"k_slip", 0.01, 100.0, 1.0},
+        {"spread", 1.0, 100.0, 1.0},
+        {"lo", -1e9, 1e9, -1e9},
+        {"hi", -1e9, 1e9, 1e9}},
        false,
        "payload's force balance with an exponential force-length map, elastoplastic Maxwell-slip friction whose "
        "levels grow with the pressure, and inelastic end stops"},
-      {"warm_up", {{"tau", 1.0, 3600.0, 60.0}, {"gain", -0.5, 0.5, 0.1}, {"shift", -10.0, 10.0, 0.0}}, false,
+      {"warm_up",
+       {{"tau", 1.0, 3600.0, 60.0}, {"gain", -0.5, 0.5, 0.1}, {"shift", -10.0, 10.0, 0.0}},
+       false,
        "travel grows and length shifts with a thermal time constant after the start"},
       // Outside pamc's catalogue (unseen.json): physics the model has no effect for.
-      {"dead_zone", {{"centre", -5.0, 5.0, 0.0}, {"width", 0.01, 3.0, 0.3}}, false,
+      {"dead_zone",
+       {{"centre", -5.0, 5.0, 0.0}, {"width", 0.01, 3.0, 0.3}},
+       false,
        "outside the catalogue: no response within +-width of the centre, the command shifted by the width "
        "outside (an overlapped spool)"},
-      {"piecewise_gain", {{"knee", -5.0, 5.0, 1.0}, {"gain", 0.05, 5.0, 0.5}}, false,
+      {"piecewise_gain",
+       {{"knee", -5.0, 5.0, 1.0}, {"gain", 0.05, 5.0, 0.5}},
+       false,
        "outside the catalogue: the command's gain changes to `gain` above the knee"},
-      {"input_saturation", {{"lo", -5.0, 5.0, -5.0}, {"hi", -5.0, 5.0, 5.0}}, false,
+      {"input_saturation",
+       {{"lo", -5.0, 5.0, -5.0}, {"hi", -5.0, 5.0, 5.0}},
+       false,
        "outside the catalogue: the command clipped to [lo, hi] (the regulator's range ends early)"},
-      {"direction_lag", {{"tau_up", 1e-3, 2.0, 0.05}, {"tau_down", 1e-3, 2.0, 0.2}}, false,
+      {"direction_lag",
+       {{"tau_up", 1e-3, 2.0, 0.05}, {"tau_down", 1e-3, 2.0, 0.2}},
+       false,
        "outside the catalogue: a first-order lag, faster rising (filling) than falling (venting)"},
-      {"valve_flow", {{"rate", 0.1, 100.0, 5.0}, {"eps", 1e-4, 1.0, 0.01}}, false,
+      {"valve_flow",
+       {{"rate", 0.1, 100.0, 5.0}, {"eps", 1e-4, 1.0, 0.01}},
+       false,
        "outside the catalogue: orifice flow, the effective command moves at rate sqrt(|difference|)"},
-      {"backlash", {{"width", 0.0, 10.0, 0.5}}, false,
+      {"backlash",
+       {{"width", 0.0, 10.0, 0.5}},
+       false,
        "outside the catalogue: play of `width` mm between the muscle and the sensor"},
-      {"periodic_disturbance", {{"amplitude", 0.0, 5.0, 0.05}, {"freq", 0.1, 200.0, 7.3}, {"phase", -360.0, 360.0, 0.0}},
-       false, "outside the catalogue: a sinusoidal vibration added to the position, unrelated to the command"},
+      {"periodic_disturbance",
+       {{"amplitude", 0.0, 5.0, 0.05}, {"freq", 0.1, 200.0, 7.3}, {"phase", -360.0, 360.0, 0.0}},
+       false,
+       "outside the catalogue: a sinusoidal vibration added to the position, unrelated to the command"},
       {"play_hysteresis",
-       {{"r1", 0.01, 5.0, 0.3}, {"w1", -10.0, 10.0, 0.5}, {"r2", 0.01, 5.0, 0.8}, {"w2", -10.0, 10.0, 0.4},
-        {"r3", 0.01, 5.0, 1.5}, {"w3", -10.0, 10.0, 0.3}},
-       false, "outside the catalogue: a Prandtl-Ishlinskii sum of three play operators of the command added to y"},
+       {{"r1", 0.01, 5.0, 0.3},
+        {"w1", -10.0, 10.0, 0.5},
+        {"r2", 0.01, 5.0, 0.8},
+        {"w2", -10.0, 10.0, 0.4},
+        {"r3", 0.01, 5.0, 1.5},
+        {"w3", -10.0, 10.0, 0.3}},
+       false,
+       "outside the catalogue: a Prandtl-Ishlinskii sum of three play operators of the command added to y"},
   };
   return t;
 }
@@ -151,13 +192,20 @@ EffectSpec parseEffect(const std::string& text) {
 
 Core parseCore(const std::string& text, Core c) {
   for (const auto& [k, v] : parseKeyValues(text, "core")) {
-    if (k == "k") c.k = v;
-    else if (k == "rho") c.rho = v;
-    else if (k == "b") c.b = v;
-    else if (k == "alpha") c.alpha = v;
-    else if (k == "beta") c.beta = v;
-    else if (k == "gamma") c.gamma = v;
-    else throw std::invalid_argument("core has no parameter '" + k + "' (k, rho, b, alpha, beta, gamma)");
+    if (k == "k")
+      c.k = v;
+    else if (k == "rho")
+      c.rho = v;
+    else if (k == "b")
+      c.b = v;
+    else if (k == "alpha")
+      c.alpha = v;
+    else if (k == "beta")
+      c.beta = v;
+    else if (k == "gamma")
+      c.gamma = v;
+    else
+      throw std::invalid_argument("core has no parameter '" + k + "' (k, rho, b, alpha, beta, gamma)");
   }
   return c;
 }
@@ -182,9 +230,8 @@ void validateEffects(const std::vector<EffectSpec>& effects) {
   if (seen.count("mass_spring") + seen.count("force_loop") + seen.count("muscle_balance") > 1)
     throw std::invalid_argument("mass_spring, force_loop and muscle_balance are alternatives: take one");
   if (seen.count("muscle_balance")) {
-    const EffectSpec& e = *std::find_if(effects.begin(), effects.end(), [](const EffectSpec& x) {
-      return x.name == "muscle_balance";
-    });
+    const EffectSpec& e =
+        *std::find_if(effects.begin(), effects.end(), [](const EffectSpec& x) { return x.name == "muscle_balance"; });
     auto at = [&](const char* k, double def) { return e.params.count(k) ? e.params.at(k) : def; };
     if (!(at("lo", -1e9) < at("hi", 1e9))) throw std::invalid_argument("effect muscle_balance: lo must be below hi");
   }
@@ -296,8 +343,8 @@ struct Drive {
 struct System {
   Core c;
   double tv = 1e-6;
-  bool dead = false, lag = false, asym = false, load = false, sat = false, creep = false, fric = false,
-       mass = false, floop = false, mb = false, warm = false;
+  bool dead = false, lag = false, asym = false, load = false, sat = false, creep = false, fric = false, mass = false,
+       floop = false, mb = false, warm = false;
   Balance bal;
   double delay = 0.0;
   double thr = 0, lag_tau = 0, lag_slew = 0;
@@ -318,8 +365,10 @@ struct System {
   void unseenInput(double& s, double& sd) const {
     if (dz) {
       const double e = s - dz_c;
-      if (std::fabs(e) <= dz_w) s = dz_c, sd = 0.0;
-      else s = s - sgn(e) * dz_w;
+      if (std::fabs(e) <= dz_w)
+        s = dz_c, sd = 0.0;
+      else
+        s = s - sgn(e) * dz_w;
     }
     if (pwg && s > pw_knee) s = pw_knee + pw_gain * (s - pw_knee), sd *= pw_gain;
     if (isat && (s < is_lo || s > is_hi)) s = std::clamp(s, is_lo, is_hi), sd = 0.0;
@@ -441,14 +490,20 @@ System makeSystem(const Core& core, const std::vector<EffectSpec>& effects, cons
   s.tv = opt.valve_tau;
   for (const auto& e : effects) {
     const std::string& n = e.name;
-    if (n == "delay") s.delay = param(e, "d");
-    else if (n == "dead_band") s.dead = true, s.thr = param(e, "threshold");
-    else if (n == "pressure_lag") s.lag = true, s.lag_tau = param(e, "tau"), s.lag_slew = param(e, "slew");
+    if (n == "delay")
+      s.delay = param(e, "d");
+    else if (n == "dead_band")
+      s.dead = true, s.thr = param(e, "threshold");
+    else if (n == "pressure_lag")
+      s.lag = true, s.lag_tau = param(e, "tau"), s.lag_slew = param(e, "slew");
     else if (n == "asymmetry")
       s.asym = true, s.as_gain = param(e, "gain"), s.as_wu = param(e, "w_up"), s.as_wd = param(e, "w_down");
-    else if (n == "load") s.load = true, s.compliance = param(e, "compliance");
-    else if (n == "saturation") s.sat = true, s.knee = param(e, "knee"), s.width = param(e, "width");
-    else if (n == "creep") s.creep = true, s.cr_frac = param(e, "fraction"), s.cr_tau = param(e, "tau");
+    else if (n == "load")
+      s.load = true, s.compliance = param(e, "compliance");
+    else if (n == "saturation")
+      s.sat = true, s.knee = param(e, "knee"), s.width = param(e, "width");
+    else if (n == "creep")
+      s.creep = true, s.cr_frac = param(e, "fraction"), s.cr_tau = param(e, "tau");
     else if (n == "friction_hysteresis")
       s.fric = true, s.fr_zmax = param(e, "zmax"), s.fr_delta = param(e, "delta");
     else if (n == "mass_spring")
@@ -460,11 +515,16 @@ System makeSystem(const Core& core, const std::vector<EffectSpec>& effects, cons
       s.mb = true, s.wn = 2.0 * M_PI * param(e, "fn"), s.zeta = param(e, "zeta"), s.bal = balanceOf(e);
     else if (n == "warm_up")
       s.warm = true, s.wu_tau = param(e, "tau"), s.wu_gain = param(e, "gain"), s.wu_shift = param(e, "shift");
-    else if (n == "dead_zone") s.dz = true, s.dz_c = param(e, "centre"), s.dz_w = param(e, "width");
-    else if (n == "piecewise_gain") s.pwg = true, s.pw_knee = param(e, "knee"), s.pw_gain = param(e, "gain");
-    else if (n == "input_saturation") s.isat = true, s.is_lo = param(e, "lo"), s.is_hi = param(e, "hi");
-    else if (n == "direction_lag") s.dlag = true, s.tau_up = param(e, "tau_up"), s.tau_down = param(e, "tau_down");
-    else if (n == "valve_flow") s.vflow = true, s.vf_rate = param(e, "rate"), s.vf_eps = param(e, "eps");
+    else if (n == "dead_zone")
+      s.dz = true, s.dz_c = param(e, "centre"), s.dz_w = param(e, "width");
+    else if (n == "piecewise_gain")
+      s.pwg = true, s.pw_knee = param(e, "knee"), s.pw_gain = param(e, "gain");
+    else if (n == "input_saturation")
+      s.isat = true, s.is_lo = param(e, "lo"), s.is_hi = param(e, "hi");
+    else if (n == "direction_lag")
+      s.dlag = true, s.tau_up = param(e, "tau_up"), s.tau_down = param(e, "tau_down");
+    else if (n == "valve_flow")
+      s.vflow = true, s.vf_rate = param(e, "rate"), s.vf_eps = param(e, "eps");
   }
   return s;
 }
@@ -480,7 +540,8 @@ class OutputStage {
           plays_.push_back({param(e, "r" + std::to_string(i)), param(e, "w" + std::to_string(i)), 0.0, false});
       if (e.name == "backlash") backlash_ = true, bl_w_ = param(e, "width");
       if (e.name == "periodic_disturbance")
-        per_ = true, per_a_ = param(e, "amplitude"), per_f_ = param(e, "freq"), per_ph_ = param(e, "phase") * M_PI / 180;
+        per_ = true, per_a_ = param(e, "amplitude"), per_f_ = param(e, "freq"),
+        per_ph_ = param(e, "phase") * M_PI / 180;
     }
   }
   double step(double t_end, double u, double y) {
@@ -550,12 +611,12 @@ class Integrator {
       stage(k4, t + 4 * h / 5, {{&k1, 44.0 / 45}, {&k2, -56.0 / 15}, {&k3, 32.0 / 9}});
       stage(k5, t + 8 * h / 9,
             {{&k1, 19372.0 / 6561}, {&k2, -25360.0 / 2187}, {&k3, 64448.0 / 6561}, {&k4, -212.0 / 729}});
-      stage(k6, t + h,
-            {{&k1, 9017.0 / 3168}, {&k2, -355.0 / 33}, {&k3, 46732.0 / 5247}, {&k4, 49.0 / 176},
-             {&k5, -5103.0 / 18656}});
+      stage(
+          k6, t + h,
+          {{&k1, 9017.0 / 3168}, {&k2, -355.0 / 33}, {&k3, 46732.0 / 5247}, {&k4, 49.0 / 176}, {&k5, -5103.0 / 18656}});
       for (int i = 0; i < kN; ++i)
-        xn[i] = x[i] + h * (35.0 / 384 * k1[i] + 500.0 / 1113 * k3[i] + 125.0 / 192 * k4[i] -
-                            2187.0 / 6784 * k5[i] + 11.0 / 84 * k6[i]);
+        xn[i] = x[i] + h * (35.0 / 384 * k1[i] + 500.0 / 1113 * k3[i] + 125.0 / 192 * k4[i] - 2187.0 / 6784 * k5[i] +
+                            11.0 / 84 * k6[i]);
       {
         const Drive dn = drive(t + h);
         xn[kV] = dn.v;
@@ -893,8 +954,10 @@ std::vector<double> makeSignal(const std::string& spec, double duration, double 
   double fixed = 0.0;
   int shared = 0;
   for (const auto& s : segs) {
-    if (s.dur > 0) fixed += s.dur;
-    else ++shared;
+    if (s.dur > 0)
+      fixed += s.dur;
+    else
+      ++shared;
   }
   if (fixed > duration + 1e-9) throw std::invalid_argument("excitation segments last longer than the duration");
   const double each = shared ? (duration - fixed) / shared : 0.0;
@@ -905,7 +968,8 @@ std::vector<double> makeSignal(const std::string& spec, double duration, double 
   double cum = 0.0;
   for (size_t j = 0; j < segs.size(); ++j) {
     cum += segs[j].dur > 0 ? segs[j].dur : each;
-    const size_t end = j + 1 == segs.size() && shared ? total : std::min(total, static_cast<size_t>(std::llround(cum / Ts)));
+    const size_t end =
+        j + 1 == segs.size() && shared ? total : std::min(total, static_cast<size_t>(std::llround(cum / Ts)));
     if (end > out.size()) generate(segs[j], end - out.size(), Ts, g, out);
   }
   if (out.size() < total) out.insert(out.end(), total - out.size(), out.empty() ? 0.0 : out.back());
@@ -930,11 +994,16 @@ RecordSpec parseRecordSpec(const nlohmann::json& j, const std::string& where) {
   RecordSpec r;
   if (!j.is_object()) throw std::runtime_error(where + ": expected an object");
   for (const auto& [k, v] : j.items()) {
-    if (k == "input") r.input = v.get<std::string>();
-    else if (k == "load") r.load = v.get<std::string>();
-    else if (k == "duration") r.duration = v.get<double>();
-    else if (k == "seed") r.seed = v.get<std::uint64_t>();
-    else throw std::runtime_error(where + ": unknown key '" + k + "'");
+    if (k == "input")
+      r.input = v.get<std::string>();
+    else if (k == "load")
+      r.load = v.get<std::string>();
+    else if (k == "duration")
+      r.duration = v.get<double>();
+    else if (k == "seed")
+      r.seed = v.get<std::uint64_t>();
+    else
+      throw std::runtime_error(where + ": unknown key '" + k + "'");
   }
   if (r.input.empty()) throw std::runtime_error(where + ": missing input");
   if (!(r.duration > 0)) throw std::runtime_error(where + ": duration must be > 0");
@@ -1019,8 +1088,10 @@ void writeRecordCsv(const std::string& path, const Record& r) {
   const bool with_load = !r.load.empty();
   bool ok = std::fputs(with_load ? "t,u,y,load\n" : "t,u,y\n", f) >= 0;
   for (size_t k = 0; ok && k < r.t.size(); ++k) {
-    if (with_load) ok = std::fprintf(f, "%.6f,%.9g,%.9g,%.9g\n", r.t[k], r.u[k], r.y[k], r.load[k]) > 0;
-    else ok = std::fprintf(f, "%.6f,%.9g,%.9g\n", r.t[k], r.u[k], r.y[k]) > 0;
+    if (with_load)
+      ok = std::fprintf(f, "%.6f,%.9g,%.9g,%.9g\n", r.t[k], r.u[k], r.y[k], r.load[k]) > 0;
+    else
+      ok = std::fprintf(f, "%.6f,%.9g,%.9g\n", r.t[k], r.u[k], r.y[k]) > 0;
   }
   ok = std::fflush(f) == 0 && ok;
   ok = std::fclose(f) == 0 && ok;

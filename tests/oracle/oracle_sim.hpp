@@ -80,9 +80,9 @@ struct SimOptions {
   double valve_tau = 1e-6;  // time constant of the valve stage (and of the load signal) [s]
   double rtol = 1e-11;      // integrator tolerances (relative, absolute in the state's units)
   double atol = 1e-11;
-  double max_step = 1e-3;   // largest integrator step [s]
-  double noise_std = 0.005; // Gaussian measurement noise [mm]
-  double quantum = 0.001;   // quantisation of the measurement [mm] (0: none)
+  double max_step = 1e-3;    // largest integrator step [s]
+  double noise_std = 0.005;  // Gaussian measurement noise [mm]
+  double quantum = 0.001;    // quantisation of the measurement [mm] (0: none)
   std::uint64_t noise_seed = 1;
 };
 

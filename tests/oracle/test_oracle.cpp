@@ -162,10 +162,10 @@ TEST(OracleBalance, RestsOnAStopWhenPushedIntoIt) {
   const auto u = step(500, 0.0, 2000, 3.0);
   const auto free = yClean(linearCore(), {balance("")}, u);
   const auto y = yClean(linearCore(), {balance(",hi=" + std::to_string(top))}, u);
-  const auto hit = static_cast<size_t>(
-      std::find_if(y.begin(), y.end(), [&](double v) { return v >= top - 1e-9; }) - y.begin());
+  const auto hit =
+      static_cast<size_t>(std::find_if(y.begin(), y.end(), [&](double v) { return v >= top - 1e-9; }) - y.begin());
   ASSERT_LT(hit, y.size());
-  EXPECT_GT(free[hit] - free[hit - 1], 1e-3);  // still moving fast when it arrives
+  EXPECT_GT(free[hit] - free[hit - 1], 1e-3);                                 // still moving fast when it arrives
   for (size_t k = hit; k < y.size(); ++k) ASSERT_NEAR(y[k], top, 1e-9) << k;  // rests, no bounce
   for (size_t k = 0; k < hit; ++k) ASSERT_NEAR(y[k], free[k], 1e-9) << k;     // untouched before
   // Pushed down onto the lower stop it rests there; pulled off, it leaves for its free balance.
@@ -185,7 +185,8 @@ TEST(OracleBalance, FrictionLoopWidensWithThePressure) {
   double width[2], expected[2];
   for (int j = 0; j < 2; ++j) {
     const double lo = j == 0 ? -1.5 : 2.5, mid = lo + 1.0, s = 6.5 * mid + 20.0;
-    const auto u = makeSignal("triangle:f=0.02,lo=" + std::to_string(lo) + ",hi=" + std::to_string(lo + 2.0), 100.0, Ts, 1);
+    const auto u =
+        makeSignal("triangle:f=0.02,lo=" + std::to_string(lo) + ",hi=" + std::to_string(lo + 2.0), 100.0, Ts, 1);
     const auto y = yClean(linearCore(), {balance(",f0=0.2,fp=0.01,k_slip=2,spread=8")}, u);
     // the first fall and the second rise: the first rise started from unloaded elements
     expected[j] = law.rest(s, -law.level(s)) - law.rest(s, law.level(s));
@@ -199,7 +200,8 @@ TEST(OracleBalance, FrictionLoopWidensWithThePressure) {
 
 TEST(OracleBalance, IntegrationConverges) {
   // Over a wide range, with friction and both stops met: 1e-11 against 1e-13, and steps of at most 10 us.
-  const auto u = makeSignal("steps:lo=-3.5,hi=4,min=0.3,max=1.5,dur=5+multisine:fmin=0.1,fmax=4,n=15,lo=-3.5,hi=4", 10.0, Ts, 3);
+  const auto u =
+      makeSignal("steps:lo=-3.5,hi=4,min=0.3,max=1.5,dur=5+multisine:fmin=0.1,fmax=4,n=15,lo=-3.5,hi=4", 10.0, Ts, 3);
   const std::vector<EffectSpec> e = {
       parseEffect("muscle_balance:fn=6,zeta=0.3,w=15,L=100,f0=0.15,fp=0.008,k_slip=3,spread=10,lo=2,hi=28")};
   const double noise = std::sqrt(0.005 * 0.005 + 0.001 * 0.001 / 12.0);
@@ -283,8 +285,10 @@ TEST(OracleStepper, ACommandActsAfterTheDelayAndNotBefore) {
   const int j = 100;
   for (int k = 0; k < j + 5; ++k) {
     const double ya = a.step(0.5), yb = b.step(k >= j ? 1.5 : 0.5);
-    if (k <= j + 1) EXPECT_EQ(ya, yb) << k;
-    else EXPECT_GT(yb - ya, 1.0) << k;
+    if (k <= j + 1)
+      EXPECT_EQ(ya, yb) << k;
+    else
+      EXPECT_GT(yb - ya, 1.0) << k;
   }
   EXPECT_THROW(a.step(NAN), std::invalid_argument);
 }
@@ -466,8 +470,8 @@ TEST(OracleEffects, ForceLoopWithoutFrictionIsMassSpringAndWithItHoldsShort) {
   const auto fl = yClean(linearCore(), {parseEffect("force_loop:fn=6,zeta=0.1,zmax=0.4,delta=0.05")}, u);
   const double yf = 6.5 * 0.5 + 20.0;
   const double offset = yf - fl.back();
-  EXPECT_GT(std::fabs(offset), 1e-3);      // stuck short of the static position
-  EXPECT_LE(std::fabs(offset), 0.4 + 1e-6);  // by at most the Coulomb level
+  EXPECT_GT(std::fabs(offset), 1e-3);                           // stuck short of the static position
+  EXPECT_LE(std::fabs(offset), 0.4 + 1e-6);                     // by at most the Coulomb level
   EXPECT_LT(std::fabs(fl.back() - fl[fl.size() - 500]), 1e-4);  // and at rest
   // Friction takes energy out: the first overshoot is smaller than without it.
   EXPECT_LT(*std::max_element(fl.begin(), fl.end()) - yf, *std::max_element(ms.begin(), ms.end()) - yf - 0.1);
@@ -593,8 +597,8 @@ TEST(OracleCases, ThePreDecidedSetIsWellFormed) {
   }
   EXPECT_TRUE(plain);
   EXPECT_GE(pairs, 2);
-  for (const char* e : {"pressure_lag", "creep", "mass_spring", "delay", "dead_band", "saturation", "asymmetry",
-                        "friction_hysteresis"})
+  for (const char* e :
+       {"pressure_lag", "creep", "mass_spring", "delay", "dead_band", "saturation", "asymmetry", "friction_hysteresis"})
     EXPECT_TRUE(single.count(e)) << e;
 }
 

@@ -42,10 +42,14 @@ Record testRecord(double amplitude = 1.0) {
   for (int i = 0; i < n; ++i) {
     const double t = i * 1e-3;
     double u;
-    if (t < 0.3) u = 0.0;
-    else if (t < 0.8) u = 2.0;
-    else if (t < 1.3) u = -2.0;
-    else if (t < 1.5) u = 0.5;
+    if (t < 0.3)
+      u = 0.0;
+    else if (t < 0.8)
+      u = 2.0;
+    else if (t < 1.3)
+      u = -2.0;
+    else if (t < 1.5)
+      u = 0.5;
     else if (t < 3.5) {
       // Linear chirp 0.5 -> 6 Hz over 2 s.
       const double tc = t - 1.5;
@@ -86,8 +90,10 @@ void expectStepConverged(PhysicsConfig c, const std::string& what) {
   const double tol = 0.1 * PhysicsConfig::defaults().noise_std_mm;
   const Record r = testRecord();
   const auto y1 = simulate(c, r);
-  if (c.mode == Mode::Rig) c.substeps *= 2;
-  else c.reference_substeps *= 2;
+  if (c.mode == Mode::Rig)
+    c.substeps *= 2;
+  else
+    c.reference_substeps *= 2;
   const auto y2 = simulate(c, r);
   EXPECT_LT(maxAbsDiff(y1, y2), tol) << what;
   // The record moves the output (a frozen plant would pass the comparison).
@@ -98,7 +104,7 @@ void expectStepConverged(PhysicsConfig c, const std::string& what) {
 PhysicsConfig withEffect(Mode mode, const std::string& name) {
   nlohmann::json j = {{"mode", mode == Mode::Rig ? "rig" : "reference"}};
   nlohmann::json e = {{"enabled", true}};
-  if (name == "delay") e["d"] = 0.0123;           // a fractional number of samples: the split substep
+  if (name == "delay") e["d"] = 0.0123;  // a fractional number of samples: the split substep
   if (name == "dead_band") e["threshold"] = -1.0;
   if (name == "pressure_lag") e["slew"] = 20.0;  // the slew limit is active in the steps
   if (name == "warm_up") {
@@ -114,9 +120,9 @@ PhysicsConfig withEffect(Mode mode, const std::string& name) {
   return c;
 }
 
-const std::vector<std::string> kAllEffects = {"pressure_lag", "asymmetry", "creep", "mass_spring",
-                                              "force_loop", "friction_hysteresis", "delay", "dead_band",
-                                              "load", "saturation", "warm_up"};
+const std::vector<std::string> kAllEffects = {"pressure_lag", "asymmetry",           "creep",  "mass_spring",
+                                              "force_loop",   "friction_hysteresis", "delay",  "dead_band",
+                                              "load",         "saturation",          "warm_up"};
 
 }  // namespace
 
@@ -126,9 +132,7 @@ TEST(PhysicsStep, HalvingTheOdeStepChangesLittleRigWithEffects) {
   for (const char* n : {"creep", "delay", "dead_band", "warm_up"}) expectStepConverged(withEffect(Mode::Rig, n), n);
 }
 
-TEST(PhysicsStep, HalvingTheOdeStepChangesLittleReference) {
-  expectStepConverged(quiet(Mode::Reference), "reference");
-}
+TEST(PhysicsStep, HalvingTheOdeStepChangesLittleReference) { expectStepConverged(quiet(Mode::Reference), "reference"); }
 
 TEST(PhysicsStep, HalvingTheOdeStepChangesLittleReferenceEachEffect) {
   for (const auto& n : kAllEffects) expectStepConverged(withEffect(Mode::Reference, n), n);
@@ -431,12 +435,12 @@ TEST(PhysicsConfigJson, BadValuesAreNamed) {
   // Rig mode has its own pressure dynamics: pressure_lag is refused there, accepted in reference.
   EXPECT_THROW(PhysicsConfig::fromJson({{"effects", {{"pressure_lag", {{"enabled", true}}}}}}, "f"),
                std::invalid_argument);
-  EXPECT_NO_THROW(PhysicsConfig::fromJson(
-      {{"mode", "reference"}, {"effects", {{"pressure_lag", {{"enabled", true}}}}}}, "f"));
-  EXPECT_THROW(PhysicsConfig::fromJson({{"mode", "reference"},
-                                        {"effects", {{"mass_spring", {{"enabled", true}}},
-                                                     {"force_loop", {{"enabled", true}}}}}},
-                                       "f"),
+  EXPECT_NO_THROW(
+      PhysicsConfig::fromJson({{"mode", "reference"}, {"effects", {{"pressure_lag", {{"enabled", true}}}}}}, "f"));
+  EXPECT_THROW(PhysicsConfig::fromJson(
+                   {{"mode", "reference"},
+                    {"effects", {{"mass_spring", {{"enabled", true}}}, {"force_loop", {{"enabled", true}}}}}},
+                   "f"),
                std::invalid_argument);
   EXPECT_THROW(PhysicsConfig::fromJson({{"effects", {{"delay", {{"d", 5.0}}}}}}, "f"), std::invalid_argument);
 }

@@ -16,7 +16,8 @@ namespace pamc::testdata {
 // The emulator with its default effects off and no end stops; `core_json` overrides the core's
 // parameters, `effects_json` (JSON members, may be empty) switches effects on.
 inline plant::PlantConfig plainPlantWith(const std::string& core_json, const std::string& effects_json) {
-  std::string j = R"({"kind":"model","effects":{"pressure_lag":{"enabled":false},"load":{"enabled":false},"saturation":{"enabled":false},
+  std::string j =
+      R"({"kind":"model","effects":{"pressure_lag":{"enabled":false},"load":{"enabled":false},"saturation":{"enabled":false},
     "friction_hysteresis":{"enabled":false},"mass_spring":{"enabled":false})";
   if (!effects_json.empty()) j += "," + effects_json;
   j += R"(},"stroke":{"enabled":false},"core":)" + core_json + "}";

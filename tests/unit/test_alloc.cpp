@@ -77,7 +77,9 @@ long amcCycleAllocations(control::ControllerConfig cfg, const plant::PlantConfig
 TEST(Allocation, ForceLoopCyclesAllocateNothing) {
   if (!PAMC_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   const auto pc = plant::PlantConfig::fromJson(
-      nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},"force_loop":{"enabled":true,"zmax":0.6}}})"), "test");
+      nlohmann::json::parse(
+          R"({"kind":"model","effects":{"mass_spring":{"enabled":false},"force_loop":{"enabled":true,"zmax":0.6}}})"),
+      "test");
   EXPECT_EQ(amcCycleAllocations({}, pc, true), 0);
 }
 

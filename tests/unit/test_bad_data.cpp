@@ -220,14 +220,18 @@ Trace simulate(const Spec& s, Checks* checks = nullptr, long run = 0) {
     const bool nonfinite = !std::isfinite(y);
     if (nonfinite) {
       ++c.nonfinite_in;
-      if (o.measurement_rejected) ++c.nonfinite_flagged;
-      else c.fail("non-finite position used without saying so", run, k);
+      if (o.measurement_rejected)
+        ++c.nonfinite_flagged;
+      else
+        c.fail("non-finite position used without saying so", run, k);
     }
     const double integ = ctrl->integral();
     c.max_abs_integral = std::max(c.max_abs_integral, std::fabs(integ));
-    if (!std::isfinite(integ) || integ < cfg.u_min || integ > cfg.u_max) c.fail("integral outside the valve's range", run, k);
+    if (!std::isfinite(integ) || integ < cfg.u_min || integ > cfg.u_max)
+      c.fail("integral outside the valve's range", run, k);
     if (o.measurement_rejected && integ != integ_prev) c.fail("integral moved on an unusable position", run, k);
-    if ((integ > integ_prev && o.saturated && o.u >= cfg.u_max) || (integ < integ_prev && o.saturated && o.u <= cfg.u_min))
+    if ((integ > integ_prev && o.saturated && o.u >= cfg.u_max) ||
+        (integ < integ_prev && o.saturated && o.u <= cfg.u_min))
       c.fail("integral pushed further into a saturated limit (windup)", run, k);
     integ_prev = integ;
     if (s.kind == control::Kind::PidEso) {
@@ -248,8 +252,10 @@ Trace simulate(const Spec& s, Checks* checks = nullptr, long run = 0) {
     const unsigned r = am->resets();
     if (r != resets_seen) {
       c.resets += r - resets_seen;
-      if (o.estimator_reset) ++c.resets_reported;
-      else c.fail("UKF reset without saying so", run, k);
+      if (o.estimator_reset)
+        ++c.resets_reported;
+      else
+        c.fail("UKF reset without saying so", run, k);
     } else if (o.estimator_reset) {
       c.fail("estimator_reset reported without a reset", run, k);
     }
@@ -336,7 +342,8 @@ Spec randomSpec(std::uint64_t seed, control::Kind kind, Bad bad, int n_faults, b
   return s;
 }
 
-const control::Kind kAllKinds[] = {control::Kind::OpenLoop, control::Kind::PI, control::Kind::PidEso, control::Kind::PiAmc};
+const control::Kind kAllKinds[] = {control::Kind::OpenLoop, control::Kind::PI, control::Kind::PidEso,
+                                   control::Kind::PiAmc};
 
 // Worst recovery of a set of runs (by controller).
 struct Worst {
@@ -378,7 +385,8 @@ TEST(BadDataProperty, EveryFaultKindOnEveryControllerInEveryCycle) {
     Worst w[4], w_full;
     for (const auto kind : kAllKinds) {
       for (int i = 0; i < kRunsPerPair; ++i, ++run_id) {
-        const Spec s = randomSpec(0xBAD0000 + static_cast<std::uint64_t>(run_id), kind, bad, 1 + i % 2, false, i % 4 == 3);
+        const Spec s =
+            randomSpec(0xBAD0000 + static_cast<std::uint64_t>(run_id), kind, bad, 1 + i % 2, false, i % 4 == 3);
         Spec ref = s;
         ref.faults.clear();
         const Trace f = simulate(s, &kc, run_id);
@@ -400,14 +408,14 @@ TEST(BadDataProperty, EveryFaultKindOnEveryControllerInEveryCycle) {
     if (bad == Bad::Spike) {
       EXPECT_GT(kc.outliers, 0) << "the AMC's gate never rejected a 40 mm spike";
     }
-    auto three = [&](double Worst::*m, const char* f) {
-      return fmt(f, w[1].*m, w[2].*m, w[3].*m);
-    };
-    table += std::string("| ") + badName(bad) + " | " + std::to_string(kc.runs) + " | " + std::to_string(kc.cycles) + " | " +
-             std::to_string(kc.nonfinite_flagged) + " of " + std::to_string(kc.nonfinite_in) + " | " +
-             std::to_string(kc.outliers) + " / " + std::to_string(kc.resets) + " (" + std::to_string(kc.resets_reported) +
-             ") | " + three(&Worst::back_s, "%.2f / %.2f / %.2f") + " | " + three(&Worst::peak, "%.1f / %.1f / %.1f") +
-             " | " + (w_full.runs ? fmt("%.0f runs: %.2f / %.1f", static_cast<double>(w_full.runs), w_full.back_s, w_full.peak) : "-") +
+    auto three = [&](double Worst::*m, const char* f) { return fmt(f, w[1].*m, w[2].*m, w[3].*m); };
+    table += std::string("| ") + badName(bad) + " | " + std::to_string(kc.runs) + " | " + std::to_string(kc.cycles) +
+             " | " + std::to_string(kc.nonfinite_flagged) + " of " + std::to_string(kc.nonfinite_in) + " | " +
+             std::to_string(kc.outliers) + " / " + std::to_string(kc.resets) + " (" +
+             std::to_string(kc.resets_reported) + ") | " + three(&Worst::back_s, "%.2f / %.2f / %.2f") + " | " +
+             three(&Worst::peak, "%.1f / %.1f / %.1f") + " | " +
+             (w_full.runs ? fmt("%.0f runs: %.2f / %.1f", static_cast<double>(w_full.runs), w_full.back_s, w_full.peak)
+                          : "-") +
              " |\n";
     total.runs += kc.runs;
     total.cycles += kc.cycles;
@@ -423,11 +431,12 @@ TEST(BadDataProperty, EveryFaultKindOnEveryControllerInEveryCycle) {
   EXPECT_EQ(clean.outliers, 0);
   EXPECT_EQ(clean.resets, 0);
   std::printf("%s", table.c_str());
-  std::printf("faulted runs %ld, cycles checked %ld (fault-free twins: %ld runs, %ld cycles, %ld gate rejections, %ld resets); "
-              "command in [%.3f, %.3f] V; |integral| <= %.3f V; |ESO x3| <= %.2f; UKF P: smallest eigenvalue %.3g; "
-              "longest run of rejected positions %d\n",
-              total.runs, total.cycles, clean.runs, clean.cycles, clean.outliers, clean.resets, total.u_lo, total.u_hi,
-              total.max_abs_integral, total.max_abs_x3, total.min_eig, total.longest_outlier_run);
+  std::printf(
+      "faulted runs %ld, cycles checked %ld (fault-free twins: %ld runs, %ld cycles, %ld gate rejections, %ld resets); "
+      "command in [%.3f, %.3f] V; |integral| <= %.3f V; |ESO x3| <= %.2f; UKF P: smallest eigenvalue %.3g; "
+      "longest run of rejected positions %d\n",
+      total.runs, total.cycles, clean.runs, clean.cycles, clean.outliers, clean.resets, total.u_lo, total.u_hi,
+      total.max_abs_integral, total.max_abs_x3, total.min_eig, total.longest_outlier_run);
   RecordProperty("runs", static_cast<int>(total.runs));
   RecordProperty("cycles", std::to_string(total.cycles));
 }
@@ -448,8 +457,8 @@ TEST(BadDataProperty, MixedFaultsInOneRun) {
       const auto rec = recovery(f, r, lastEnd(s));
       double bound = 0;
       for (const auto& x : s.faults) bound = std::max(bound, backBound(x.kind));
-      SCOPED_TRACE(std::string(control::toString(kind)) + ", run " + std::to_string(run_id) + ", ki " + fmt("%g", s.ki) +
-                   (s.full_model ? ", whole model" : "") + ", " + s.traj.describe());
+      SCOPED_TRACE(std::string(control::toString(kind)) + ", run " + std::to_string(run_id) + ", ki " +
+                   fmt("%g", s.ki) + (s.full_model ? ", whole model" : "") + ", " + s.traj.describe());
       EXPECT_TRUE(rec.back);
       if (!s.full_model) {
         EXPECT_LE(rec.back_after_s, bound);
@@ -462,17 +471,19 @@ TEST(BadDataProperty, MixedFaultsInOneRun) {
   EXPECT_EQ(clean.outliers, 0);
   EXPECT_EQ(c.nonfinite_flagged, c.nonfinite_in);
   EXPECT_EQ(c.resets_reported, c.resets);
-  std::printf("mixed: %ld runs, %ld cycles checked, %ld unusable positions reported of %ld, %ld outliers, %ld resets "
-              "(%ld reported); worst back %.2f s, deviation %.1f mm\n",
-              c.runs, c.cycles, c.nonfinite_flagged, c.nonfinite_in, c.outliers, c.resets, c.resets_reported, w.back_s, w.peak);
+  std::printf(
+      "mixed: %ld runs, %ld cycles checked, %ld unusable positions reported of %ld, %ld outliers, %ld resets "
+      "(%ld reported); worst back %.2f s, deviation %.1f mm\n",
+      c.runs, c.cycles, c.nonfinite_flagged, c.nonfinite_in, c.outliers, c.resets, c.resets_reported, w.back_s, w.peak);
 }
 
 // The gate changes nothing on clean data: the same commands bit for bit with and without it, on the
 // trajectories of Table 2 and on setpoint steps (where the model moves at once and the muscle lags).
 TEST(BadDataProperty, CleanDataNeverReachesTheGate) {
-  const control::Trajectory trajs[] = {control::Trajectory::sine(0.05, 14.9, 15.0), control::Trajectory::sine(0.1, 14.9, 15.0),
-                                   control::Trajectory::triangle(0.05, 0.2, 30.0), control::Trajectory::square(0.1, 10.0, 25.0),
-                                   control::Trajectory::sawtooth(0.1, 10.0, 25.0), control::Trajectory::square(0.1, 5.0, 35.0)};
+  const control::Trajectory trajs[] = {
+      control::Trajectory::sine(0.05, 14.9, 15.0),    control::Trajectory::sine(0.1, 14.9, 15.0),
+      control::Trajectory::triangle(0.05, 0.2, 30.0), control::Trajectory::square(0.1, 10.0, 25.0),
+      control::Trajectory::sawtooth(0.1, 10.0, 25.0), control::Trajectory::square(0.1, 5.0, 35.0)};
   double max_nis = 0.0;
   for (const auto& traj : trajs) {
     for (double ki : {0.15, 1.5}) {
@@ -505,7 +516,8 @@ TEST(BadDataProperty, CleanDataNeverReachesTheGate) {
     }
   }
   EXPECT_LT(max_nis, 0.1 * estimation::ActiveModelSettings{}.gate_nis);
-  std::printf("clean data: largest gate statistic %.3g (gate %.0f)\n", max_nis, estimation::ActiveModelSettings{}.gate_nis);
+  std::printf("clean data: largest gate statistic %.3g (gate %.0f)\n", max_nis,
+              estimation::ActiveModelSettings{}.gate_nis);
 }
 
 // ------------------------------------------------------------------------------- the filter alone
@@ -525,7 +537,8 @@ struct FilterBench {
   long k = 0;
   double y_true = 0.0;
   FilterBench() {
-    am.configure(model::Model(plant::PlantConfig::modelDefaults().truth.core()), estimation::ActiveModelSettings{}, kTs);
+    am.configure(model::Model(plant::PlantConfig::modelDefaults().truth.core()), estimation::ActiveModelSettings{},
+                 kTs);
     plant.reset(0.0);
     am.reset(0.0);
   }
@@ -652,7 +665,7 @@ struct WindupCase {
 // saturate the output, not at the clamp. Then the valve returns: the muscle overshoots while the
 // integral unwinds, and the loop is back at the fault-free run within a bounded time.
 TEST(BadDataWindup, ValveVentedForThreeSecondsIntegralStopsAtTheSaturation) {
-  const WindupCase cases[] = {{control::Kind::PI, 0.15, 8.0},    {control::Kind::PI, 1.5, 3.0},
+  const WindupCase cases[] = {{control::Kind::PI, 0.15, 8.0},     {control::Kind::PI, 1.5, 3.0},
                               {control::Kind::PidEso, 0.15, 9.0}, {control::Kind::PidEso, 1.5, 3.0},
                               {control::Kind::PiAmc, 0.15, 8.0},  {control::Kind::PiAmc, 1.5, 3.0}};
   for (const auto& wc : cases) {
@@ -683,9 +696,10 @@ TEST(BadDataWindup, ValveVentedForThreeSecondsIntegralStopsAtTheSaturation) {
     const auto rec = recovery(f, r, static_cast<long>(end));
     EXPECT_TRUE(rec.back);
     EXPECT_LE(rec.back_after_s, wc.back_bound_s);
-    std::printf("windup %-4s ki %.2f: integral during the fault up to %.2f V (fault-free %.2f V); after: overshoot %.1f mm, "
-                "back within %.1f mm after %.2f s\n",
-                control::toString(wc.kind), wc.ki, i_max, r.integral[end - 1], rec.overshoot, kBandMm, rec.back_after_s);
+    std::printf(
+        "windup %-4s ki %.2f: integral during the fault up to %.2f V (fault-free %.2f V); after: overshoot %.1f mm, "
+        "back within %.1f mm after %.2f s\n",
+        control::toString(wc.kind), wc.ki, i_max, r.integral[end - 1], rec.overshoot, kBandMm, rec.back_after_s);
   }
 }
 
@@ -777,11 +791,12 @@ TEST(BadDataNode, A40mmSpikeInThePositionPdo) {
   EXPECT_EQ(pi.faults, 0u);
   EXPECT_GT(pi.maxStep(2.9, 3.5), 3.0);
   const NodeRun whole = runNode(control::Kind::PiAmc, true, spike);
-  std::printf("node, one PDO +40 mm: largest command step around it: PI + AMC (Bouc-Wen core) %.4f V (no spike %.4f V), "
-              "PI %.3f V, PI + AMC on the whole emulator model %.3f V; faults %llu / %llu / %llu\n",
-              amc.maxStep(2.9, 3.5), base.maxStep(2.9, 3.5), pi.maxStep(2.9, 3.5), whole.maxStep(2.9, 3.5),
-              static_cast<unsigned long long>(amc.faults), static_cast<unsigned long long>(pi.faults),
-              static_cast<unsigned long long>(whole.faults));
+  std::printf(
+      "node, one PDO +40 mm: largest command step around it: PI + AMC (Bouc-Wen core) %.4f V (no spike %.4f V), "
+      "PI %.3f V, PI + AMC on the whole emulator model %.3f V; faults %llu / %llu / %llu\n",
+      amc.maxStep(2.9, 3.5), base.maxStep(2.9, 3.5), pi.maxStep(2.9, 3.5), whole.maxStep(2.9, 3.5),
+      static_cast<unsigned long long>(amc.faults), static_cast<unsigned long long>(pi.faults),
+      static_cast<unsigned long long>(whole.faults));
 }
 
 // The position jumps by 40 mm for 200 ms (a sensor that re-zeroed, a loose magnet). The UKF rejects
@@ -807,7 +822,8 @@ TEST(BadDataNode, AJumpThatStaysResetsTheUkfAndRaisesTheEstimatorFault) {
   const int limit = estimation::ActiveModelSettings{}.gate_max_rejects;
   EXPECT_GE(t_fault, 3.0);
   EXPECT_LE(t_fault, 3.0 + (limit + 3) * kTs);
-  std::printf("node, position +40 mm for 200 ms: estimator fault %.0f cycles after the jump, EMCY:", (t_fault - 3.0) / kTs);
+  std::printf("node, position +40 mm for 200 ms: estimator fault %.0f cycles after the jump, EMCY:",
+              (t_fault - 3.0) / kTs);
   for (auto e : r.emcy) std::printf(" 0x%04x", e);
   std::printf("; recoveries %llu\n", static_cast<unsigned long long>(r.recoveries));
 }
@@ -843,10 +859,11 @@ TEST(BadDataNode, APositionOutsideTheMeasuringRange) {
       }
     EXPECT_GE(t_fault, 3.0);
     EXPECT_LE(t_fault, 3.0 + 6 * kTs);  // the fourth out-of-range position (plus the PDO's cycle)
-    std::printf("node (%s), positions at INT32_MAX: 3 in a row ridden through (largest step %.4f V); 5 in a row: "
-                "fault %.0f cycles after the first, EMCY 0x7310, recovered %llu\n",
-                control::toString(kind), three.maxStep(2.9, 3.5), (t_fault - 3.0) / kTs,
-                static_cast<unsigned long long>(five.recoveries));
+    std::printf(
+        "node (%s), positions at INT32_MAX: 3 in a row ridden through (largest step %.4f V); 5 in a row: "
+        "fault %.0f cycles after the first, EMCY 0x7310, recovered %llu\n",
+        control::toString(kind), three.maxStep(2.9, 3.5), (t_fault - 3.0) / kTs,
+        static_cast<unsigned long long>(five.recoveries));
   }
 }
 
@@ -860,10 +877,13 @@ TEST(BadDataNode, AStuckSensorIsDetectedWhenTheCommandMovesAndThePositionDoesNot
   for (auto kind : {control::Kind::PI, control::Kind::PiAmc}) {
     SCOPED_TRACE(control::toString(kind));
     std::int32_t frozen = 0;
-    const NodeRun r = runNode(kind, false, [at, &frozen](long n, std::int32_t& v) {
-      if (n == at) frozen = v;
-      if (n >= at && n < at + 2000) v = frozen;
-    }, 8.0);
+    const NodeRun r = runNode(
+        kind, false,
+        [at, &frozen](long n, std::int32_t& v) {
+          if (n == at) frozen = v;
+          if (n >= at && n < at + 2000) v = frozen;
+        },
+        8.0);
     EXPECT_TRUE(r.sent(canopen::kEmcySensor)) << "no EMCY 0x7300";
     EXPECT_TRUE(r.sent(0x0000)) << "no EMCY reset after recovery";
     EXPECT_GE(r.recoveries, 1u);
@@ -878,9 +898,10 @@ TEST(BadDataNode, AStuckSensorIsDetectedWhenTheCommandMovesAndThePositionDoesNot
     }
     EXPECT_GE(t_fault, 3.25);
     EXPECT_LE(t_fault, 5.0);
-    std::printf("node (%s), sensor stuck for 2 s: fault %.3f s after it stuck (command moved %.2f V before), "
-                "EMCY 0x7300, recovered %llu\n",
-                control::toString(kind), t_fault - 3.0, u_span, static_cast<unsigned long long>(r.recoveries));
+    std::printf(
+        "node (%s), sensor stuck for 2 s: fault %.3f s after it stuck (command moved %.2f V before), "
+        "EMCY 0x7300, recovered %llu\n",
+        control::toString(kind), t_fault - 3.0, u_span, static_cast<unsigned long long>(r.recoveries));
     const NodeRun twin = runNode(kind, false, nullptr, 8.0);
     EXPECT_EQ(twin.faults, 0u);
   }

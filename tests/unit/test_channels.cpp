@@ -109,8 +109,7 @@ struct SilentSensorRun {
     e.sensor_silent_for_s = 2.0;
     rig = std::make_unique<rig::VirtualRig>(controllerOf(rf), e);
     rig->addTap([this](const canopen::Frame& f, canopen::TimeUs) {
-      if (f.id == 0x81 && f.len == 8)
-        emcy.push_back(Emcy{canopen::getU16(f.data), f.data[3], f.data[4], f.data[5]});
+      if (f.id == 0x81 && f.len == 8) emcy.push_back(Emcy{canopen::getU16(f.data), f.data[3], f.data[4], f.data[5]});
     });
     rig->start();
     rig->runFor(9.0);  // 8.0 + 1 s: the fault is on
@@ -195,9 +194,11 @@ TEST(Channels, ARigFileOfSeveralChannelsThatCannotWorkIsRefusedWithItsLine) {
       {{{"feedback = 0x6401:03", "feedback = 0x6401:03\ntrajectory = zigzag:1"}}, "trajectory: "},
       {{{"[channel.1]", "[sensor]\n[channel.1]"}}, "write one form"},
       {{{"command = 0x6411:02", "command = 0x6411:05"}}, "has no object 0x6411:05"},
-      {{{"position = 0x6004:00\nvalve = io\ncommand = 0x6411:02", "position = 0x6004:00\nvalve = io\ncommand = 0x6411:02\nbogus = 1"}},
+      {{{"position = 0x6004:00\nvalve = io\ncommand = 0x6411:02",
+         "position = 0x6004:00\nvalve = io\ncommand = 0x6411:02\nbogus = 1"}},
        "unknown key 'bogus' in [channel.2]"},
-      {{{"feedback = 0x6401:04", "feedback = 0x6401:04\n[channel.9]\nsensor = enc1"}}, ""},  // beyond the numbered run: unused
+      {{{"feedback = 0x6401:04", "feedback = 0x6401:04\n[channel.9]\nsensor = enc1"}},
+       ""},  // beyond the numbered run: unused
   };
   for (const auto& c : cases) {
     const std::string path = writeTemp("rig.ini", fourMuscles(c.edits));

@@ -186,10 +186,11 @@ TEST(Config, RejectsBadSettings) {
 // identified on the same open-loop record; same gains, automatic horizon).
 namespace {
 plant::PlantConfig laggingPlant() {
-  return plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"pressure_lag":{"enabled":true,"tau":0.12,"slew":1000},
+  return plant::PlantConfig::fromJson(
+      nlohmann::json::parse(R"({"kind":"model","effects":{"pressure_lag":{"enabled":true,"tau":0.12,"slew":1000},
       "load":{"enabled":false},"saturation":{"enabled":false},"friction_hysteresis":{"enabled":false},
       "mass_spring":{"enabled":false}},"stroke":{"enabled":false}})"),
-                                      "test plant");
+      "test plant");
 }
 
 model::Model fitOnLaggingPlant(const std::vector<std::string>& effects) {

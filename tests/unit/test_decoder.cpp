@@ -24,7 +24,9 @@ std::vector<std::uint8_t> i32(std::int32_t v) {
   return {static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v >> 16),
           static_cast<std::uint8_t>(v >> 24)};
 }
-std::vector<std::uint8_t> i16(std::int16_t v) { return {static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8)}; }
+std::vector<std::uint8_t> i16(std::int16_t v) {
+  return {static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8)};
+}
 }  // namespace
 
 TEST(Decoder, MappingsComeFromTheEdsFiles) {
@@ -50,13 +52,13 @@ TEST(Decoder, RowsCarryTheCommandInEffectWhenThePositionWasTaken) {
     const double t = 1.0 + k * 1e-3;
     log.push_back(rec(t, 0x80, {}));
     log.push_back(rec(t + 1e-4, 0x182, i32(1000 * (k + 1))));  // y = k+1 mm
-    log.push_back(rec(t + 2e-4, 0x183, i16(3277)));             // 1 bar
+    log.push_back(rec(t + 2e-4, 0x183, i16(3277)));            // 1 bar
     log.push_back(rec(t + 3e-4, 0x203, i16(cmd[k])));
   }
   log.push_back(rec(1.006, 0x80, {}));
   log.push_back(rec(1.0061, 0x701, {0x05}));  // heartbeat: expected traffic, not unknown
-  log.push_back(rec(1.0062, 0x123, {1, 2})); // unknown COB-ID
-  log.push_back(rec(1.0063, 0x182, {1, 2})); // wrong length
+  log.push_back(rec(1.0062, 0x123, {1, 2}));  // unknown COB-ID
+  log.push_back(rec(1.0063, 0x182, {1, 2}));  // wrong length
   const auto run = nodes::decodeCandump(log, d);
   ASSERT_EQ(run.columns[0], "t");
   ASSERT_EQ(run.columns[1], "u");

@@ -16,7 +16,9 @@ using namespace pamc;
 namespace {
 
 // Plant with the plain Bouc-Wen core (k = 6) plus the listed effects (JSON fragments).
-plant::PlantConfig hidden(const std::string& effects_json) { return testdata::plainPlantWith(R"({"k":6.0})", effects_json); }
+plant::PlantConfig hidden(const std::string& effects_json) {
+  return testdata::plainPlantWith(R"({"k":6.0})", effects_json);
+}
 
 io::Measurement record(const plant::PlantConfig& pc, std::uint64_t seed, double seconds, bool with_load) {
   return testdata::emulatorRecord(pc, seed, seconds, with_load);
@@ -104,7 +106,8 @@ TEST(Diagnose, AnOffsetBetweenTheRecordsIsNamed) {
 }
 
 TEST(Diagnose, TwoHiddenEffectsAreBothAdded) {
-  const auto r = run(hidden(R"("pressure_lag":{"enabled":true,"tau":0.06,"slew":1000},"creep":{"enabled":true,"fraction":0.08,"tau":4})"));
+  const auto r = run(hidden(
+      R"("pressure_lag":{"enabled":true,"tau":0.06,"slew":1000},"creep":{"enabled":true,"fraction":0.08,"tau":4})"));
   const auto& fin = r.ladder.back().effects;
   EXPECT_NE(std::find(fin.begin(), fin.end(), "pressure_lag"), fin.end()) << r.verdict;
   EXPECT_NE(std::find(fin.begin(), fin.end(), "creep"), fin.end()) << r.verdict;
@@ -140,9 +143,13 @@ TEST_P(TwoHidden, EndAtTheNoiseWithNothingSpurious) {
 INSTANTIATE_TEST_SUITE_P(
     Pairs, TwoHidden,
     ::testing::Values(
-        Pair{"pressure_lag", "creep", R"("pressure_lag":{"enabled":true,"tau":0.1,"slew":1000},"creep":{"enabled":true,"fraction":0.06,"tau":2})"},
-        Pair{"dead_band", "mass_spring", R"("dead_band":{"enabled":true,"threshold":-0.8},"mass_spring":{"enabled":true,"fn":4,"zeta":0.4})"},
-        Pair{"delay", "saturation", R"("delay":{"enabled":true,"d":0.02},"saturation":{"enabled":true,"knee":24,"width":5})"}),
+        Pair{
+            "pressure_lag", "creep",
+            R"("pressure_lag":{"enabled":true,"tau":0.1,"slew":1000},"creep":{"enabled":true,"fraction":0.06,"tau":2})"},
+        Pair{"dead_band", "mass_spring",
+             R"("dead_band":{"enabled":true,"threshold":-0.8},"mass_spring":{"enabled":true,"fn":4,"zeta":0.4})"},
+        Pair{"delay", "saturation",
+             R"("delay":{"enabled":true,"d":0.02},"saturation":{"enabled":true,"knee":24,"width":5})"}),
     [](const auto& info) { return std::string(info.param.a) + "_" + info.param.b; });
 
 TEST(Diagnose, ReferenceModelDataAddsNothing) {

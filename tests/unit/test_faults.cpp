@@ -18,8 +18,8 @@
 #include <cstring>
 
 using namespace pamc;
-using rig::BusFault;
 using nodes::Fault;
+using rig::BusFault;
 
 namespace {
 
@@ -334,7 +334,7 @@ TEST(BusModel, SynchronousRpdosOutsideTheWindowDuplicatesAndConflicts) {
   EXPECT_EQ(rp.conflicts(), 1u);
   EXPECT_TRUE(rp.conflictInLastCycle());
   EXPECT_EQ(rp.syncsSinceReception(), 1u);
-  bus.advanceTo(3900);            // 900 us after the SYNC: after the 800 us window
+  bus.advanceTo(3900);  // 900 us after the SYNC: after the 800 us window
   tool.send(frame(0x182, 4, 5));
   bus.advanceTo(4000);
   EXPECT_EQ(rp.late(), 1u);

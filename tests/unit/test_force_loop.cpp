@@ -96,7 +96,8 @@ TEST(ForceLoop, TheEmulatorTakesItFromJson) {
   EXPECT_EQ(back.truth.params(), pc.truth.params());
   try {
     // The default emulator has mass_spring on.
-    plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"force_loop":{"enabled":true}}})"), "cfg.json");
+    plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"force_loop":{"enabled":true}}})"),
+                                 "cfg.json");
     ADD_FAILURE() << "force_loop next to mass_spring was taken";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("cfg.json: effects"), std::string::npos) << e.what();

@@ -33,27 +33,32 @@ std::string modelFileError(const std::string& path) {
 std::string eds(const std::string& objects, const std::string& listed) {
   std::string list;
   int n = 0;
-  for (std::size_t i = 0; i + 6 <= listed.size(); i += 7) list += std::to_string(++n) + "=0x" + listed.substr(i + 2, 4) + "\n";
+  for (std::size_t i = 0; i + 6 <= listed.size(); i += 7)
+    list += std::to_string(++n) + "=0x" + listed.substr(i + 2, 4) + "\n";
   return "[FileInfo]\nFileName=n.eds\nEDSVersion=4.0\n[DeviceInfo]\nVendorName=t\nProductName=t\n"
          "[DeviceComissioning]\nNodeID=4\n[MandatoryObjects]\nSupportedObjects=3\n1=0x1000\n2=0x1001\n3=0x1018\n"
-         "[OptionalObjects]\nSupportedObjects=" + std::to_string(n) + "\n" + list +
+         "[OptionalObjects]\nSupportedObjects=" +
+         std::to_string(n) + "\n" + list +
          "[1000]\nParameterName=Device type\nDataType=0x0007\nAccessType=ro\nDefaultValue=0\n"
          "[1001]\nParameterName=Error register\nDataType=0x0005\nAccessType=ro\nDefaultValue=0\n"
          "[1018]\nParameterName=Identity\nObjectType=0x9\nSubNumber=1\n"
-         "[1018sub0]\nParameterName=Highest sub-index\nDataType=0x0005\nAccessType=ro\nDefaultValue=0\n" + objects;
+         "[1018sub0]\nParameterName=Highest sub-index\nDataType=0x0005\nAccessType=ro\nDefaultValue=0\n" +
+         objects;
 }
 
 std::string var(const std::string& section, const std::string& type, const std::string& value) {
-  return "[" + section + "]\nParameterName=" + section + "\nDataType=" + type + "\nAccessType=rw\nDefaultValue=" +
-         value + "\n";
+  return "[" + section + "]\nParameterName=" + section + "\nDataType=" + type +
+         "\nAccessType=rw\nDefaultValue=" + value + "\n";
 }
 
 // TPDO1 on 0x184 mapping the given entries (sub-index 0 = count) of a RECORD 0x2000 with an
 // INTEGER32 in sub 1 and an INTEGER16 in sub 2.
 std::string tpdoEds(int count, const std::vector<std::string>& mapped) {
-  std::string o = "[1800]\nParameterName=TPDO1\nObjectType=0x9\nSubNumber=2\n" + var("1800sub0", "0x0005", "1") +
-                  var("1800sub1", "0x0007", "0x184") + "[1A00]\nParameterName=TPDO1 mapping\nObjectType=0x9\nSubNumber=" +
-                  std::to_string(mapped.size() + 1) + "\n" + var("1A00sub0", "0x0005", std::to_string(count));
+  std::string o =
+      "[1800]\nParameterName=TPDO1\nObjectType=0x9\nSubNumber=2\n" + var("1800sub0", "0x0005", "1") +
+      var("1800sub1", "0x0007", "0x184") +
+      "[1A00]\nParameterName=TPDO1 mapping\nObjectType=0x9\nSubNumber=" + std::to_string(mapped.size() + 1) + "\n" +
+      var("1A00sub0", "0x0005", std::to_string(count));
   for (std::size_t i = 0; i < mapped.size(); ++i) o += var("1A00sub" + std::to_string(i + 1), "0x0007", mapped[i]);
   o += "[2000]\nParameterName=Data\nObjectType=0x9\nSubNumber=3\n" + var("2000sub0", "0x0005", "2") +
        var("2000sub1", "0x0004", "0") + var("2000sub2", "0x0003", "0");
@@ -79,8 +84,9 @@ std::string decoderError(const std::string& text) {
 // unusable mapping with an error naming the file and the entry.
 TEST(FuzzRegression, DecoderReadsCommunicationParametersOfAnyTypeAndNamesBadMappings) {
   {
-    const std::string path = writeTemp(
-        "pamc_fuzz_sync.eds", eds(var("1005", "0x0008", "0x00000080") + var("1006", "0x0011", "1000"), "0x1005 0x1006"));
+    const std::string path =
+        writeTemp("pamc_fuzz_sync.eds",
+                  eds(var("1005", "0x0008", "0x00000080") + var("1006", "0x0011", "1000"), "0x1005 0x1006"));
     const auto d = nodes::loadBusDictionary({path});
     EXPECT_EQ(d.sync_cob, 0x80u);  // a REAL32 is no COB-ID: no SYNC producer, the default stays
   }
@@ -126,7 +132,9 @@ TEST(FuzzRegression, ModelFileWithANumberOutOfRangeIsAnInputError) {
 // now. (GCC's -fsanitize=undefined does not check float-to-int overflow; the fuzz run under clang
 // replays these files from tests/fuzz/corpus/fuzz_model_json/regress_*.json.)
 TEST(FuzzRegression, ModelWithHugeParametersSimulatesWithoutOverflow) {
-  const std::string huge_beta = writeTemp("pamc_fuzz_beta.json", R"({"format":"pamc-model/1","core":{"k":0e300,"rho":-0.0,"b":-5e-30,"alpha":7777777777770,"beta":-3777777777777779999999999999999999999999999999999999999999979999999999999999999999999999999999999,"gamma":4},
+  const std::string huge_beta = writeTemp(
+      "pamc_fuzz_beta.json",
+      R"({"format":"pamc-model/1","core":{"k":0e300,"rho":-0.0,"b":-5e-30,"alpha":7777777777770,"beta":-3777777777777779999999999999999999999999999999999999999999979999999999999999999999999999999999999,"gamma":4},
  "afvects":[{"narams":{"fn":1}}]})");
   const std::string huge_fn = writeTemp("pamc_fuzz_fn.json", R"({"format":"pamc-model/1",
       "core":{"k":5,"rho":0.8,"b":20,"alpha":1,"beta":0.3,"gamma":0.3},

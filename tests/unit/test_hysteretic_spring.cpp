@@ -152,7 +152,8 @@ double rmsDiff(const std::vector<double>& a, const std::vector<double>& b) {
   return rms(e);
 }
 
-io::Measurement recordOf(const std::vector<double>& u, const std::vector<double>& y, double Ts, const std::string& name) {
+io::Measurement recordOf(const std::vector<double>& u, const std::vector<double>& y, double Ts,
+                         const std::string& name) {
   io::Measurement m;
   m.source = name;
   m.Ts = Ts;
@@ -177,8 +178,8 @@ TEST(HystereticSpring, FollowsTheBoucWenBenchmarksEquation) {
       b.delta = delta_bw;
       const auto ref = integrate(b, u, Ts, order, 400);
       const auto y = modelOf(b, order).simulate(u, Ts);
-      std::printf("delta %.1f, hold order %d: y rms %.4f mm, model - reference rms %.2e mm\n", delta_bw, order, rms(ref),
-                  rmsDiff(y, ref));
+      std::printf("delta %.1f, hold order %d: y rms %.4f mm, model - reference rms %.2e mm\n", delta_bw, order,
+                  rms(ref), rmsDiff(y, ref));
       EXPECT_LT(rmsDiff(y, ref), 1e-3 * rms(ref)) << delta_bw << " " << order;
     }
   System b;
@@ -202,8 +203,10 @@ TEST(HystereticSpring, TheForceWithinASampleMatters) {
   double last = 1e9;
   for (int order : {0, 1, 2}) {
     const double e = rmsDiff(modelOf(b, order).simulate(u, Ts), ref);
-    std::printf("the benchmark's system, true parameters, hold_order %d: misses the continuous-force record by %.4f mm "
-                "(y rms %.3f mm)\n", order, e, rms(ref));
+    std::printf(
+        "the benchmark's system, true parameters, hold_order %d: misses the continuous-force record by %.4f mm "
+        "(y rms %.3f mm)\n",
+        order, e, rms(ref));
     EXPECT_LT(e, last) << order;
     last = e;
   }
@@ -287,8 +290,8 @@ TEST(HystereticSpringDiagnose, IsFoundInMassSpringsPlaceOnAnIndependentRecord) {
   for (const auto& round : r.rounds)
     for (const auto& c : round) EXPECT_NE(c.effect, "hysteretic_spring") << "tried as a candidate of a round";
   const auto& fin = r.ladder.back();
-  std::printf("ladder ends with %zu effects, validated %.5f mm (noise %.3f); %.1f s\n", fin.effects.size(), fin.rmse_val,
-              noise, r.seconds);
+  std::printf("ladder ends with %zu effects, validated %.5f mm (noise %.3f); %.1f s\n", fin.effects.size(),
+              fin.rmse_val, noise, r.seconds);
   ASSERT_EQ(fin.effects, std::vector<std::string>{"hysteretic_spring"});
   EXPECT_TRUE(fin.refined);
   EXPECT_EQ(fin.removed, "mass_spring");

@@ -79,7 +79,8 @@ TEST(Identification, MultiStartRecoversKnownParameters) {
     const auto d = synthetic(model::Model(c.truth), 20.0, c.freq, c.amp);
     const auto r = ident::fit(model::Model{}, d, ident::FitSettings::forMethod(ident::FitMethod::MultiStart));
     EXPECT_LT(r.rmse, 1e-3) << "k " << c.truth.k << " beta " << c.truth.beta;
-    EXPECT_NEAR(r.model.core().k * r.model.core().rho, c.truth.k * c.truth.rho, 0.01 * std::fabs(c.truth.k * c.truth.rho));
+    EXPECT_NEAR(r.model.core().k * r.model.core().rho, c.truth.k * c.truth.rho,
+                0.01 * std::fabs(c.truth.k * c.truth.rho));
     EXPECT_NEAR(r.model.core().b, c.truth.b, 0.02 * std::fabs(c.truth.b) + 0.01);
   }
 }

@@ -37,7 +37,8 @@ TEST(Csv, ErrorsNameFileLineAndColumn) {
   EXPECT_EQ(errorOf("t,u\n0,1\n"), "data.csv:1: missing column 'y' (the header needs t,u,y)");
   EXPECT_EQ(errorOf("t,u,y\n0,1,2\n0.1,abc,2\n0.2,1,2\n"), "data.csv:3: column 'u': not a number: 'abc'");
   EXPECT_EQ(errorOf("t,u,y\n0,1,2\n0.1,1,nan\n0.2,1,2\n"), "data.csv:3: column 'y': value is not finite: 'nan'");
-  EXPECT_EQ(errorOf("t,u,y\n0,1,2\n0.1,1,2\n0.1,1,2\n"), "data.csv:4: column 't': time does not increase (0.1 then 0.1)");
+  EXPECT_EQ(errorOf("t,u,y\n0,1,2\n0.1,1,2\n0.1,1,2\n"),
+            "data.csv:4: column 't': time does not increase (0.1 then 0.1)");
   EXPECT_EQ(errorOf("t,u,y\n0,1,2\n0.1,1,2\n0.2,1,2\n0.35,1,2\n"),
             "data.csv:5: column 't': uneven sampling step: 0.15 s after 0.1 s");
   EXPECT_EQ(errorOf("t,u,y\n0,1,2\n0.1,1\n0.2,1,2\n"), "data.csv:3: expected 3 fields, found 2");
@@ -53,9 +54,10 @@ TEST(Csv, RefusesValuesTooLargeToIdentifyFrom) {
             "data.csv:2: column 'u': value 1e308 is too large to identify a model from (|u| must be at most 1e+09)");
   EXPECT_EQ(errorOf("t,u,y\n0,1,2\n0.1,1,-2.5e10\n0.2,1,2\n"),
             "data.csv:3: column 'y': value -2.5e10 is too large to identify a model from (|y| must be at most 1e+09)");
-  EXPECT_EQ(errorOf("t,u,y,load\n0,1,2,0\n0.1,1,2,0\n0.2,1,2,1.7976931348623157e308\n"),
-            "data.csv:4: column 'load': value 1.7976931348623157e308 is too large to identify a model from (|load| must "
-            "be at most 1e+09)");
+  EXPECT_EQ(
+      errorOf("t,u,y,load\n0,1,2,0\n0.1,1,2,0\n0.2,1,2,1.7976931348623157e308\n"),
+      "data.csv:4: column 'load': value 1.7976931348623157e308 is too large to identify a model from (|load| must "
+      "be at most 1e+09)");
   // Time: a finite span and step.
   EXPECT_EQ(errorOf("t,u,y\n-1e308,1,2\n0,1,2\n1e308,1,2\n"),
             "data.csv:2: column 't': time -1e308 s is out of range (|t| must be at most 1e+12 s)");
@@ -125,13 +127,17 @@ TEST(ModelFile, BadFilesGiveOneLineErrors) {
 }
 
 TEST(PlantConfig, OverridesAndErrors) {
-  const auto c = plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},
-      "pressure_lag":{"tau":0.1}}, "sensor":{"noise":false}})"), "p.json");
+  const auto c =
+      plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},
+      "pressure_lag":{"tau":0.1}}, "sensor":{"noise":false}})"),
+                                   "p.json");
   EXPECT_FALSE(c.truth.hasEffect("mass_spring"));
   EXPECT_TRUE(c.truth.hasEffect("pressure_lag"));
   EXPECT_FALSE(c.sensor_noise);
-  EXPECT_THROW(plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","sensr":{}})"), "p.json"), std::invalid_argument);
-  EXPECT_THROW(plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"pressure_lag":{"tou":1}}})"), "p.json"),
+  EXPECT_THROW(plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","sensr":{}})"), "p.json"),
+               std::invalid_argument);
+  EXPECT_THROW(plant::PlantConfig::fromJson(
+                   nlohmann::json::parse(R"({"kind":"model","effects":{"pressure_lag":{"tou":1}}})"), "p.json"),
                std::invalid_argument);
   // Round trip through JSON.
   const auto d = plant::PlantConfig::fromJson(plant::PlantConfig::modelDefaults().toJson(), "dump");

@@ -118,7 +118,8 @@ TEST(Mbc, OutsideTheModelsRangeThePiRunsAloneAndTheSwitchIsBumpless) {
       EXPECT_FALSE(is_on) << "t " << k * 1e-3 << " yd ahead " << yd_ahead;
     }
     (is_on ? on : off)++;
-    if (k > 0 && is_on != was_on) ++switches, worst_jump_at_switch = std::max(worst_jump_at_switch, std::fabs(o.u - u_prev));
+    if (k > 0 && is_on != was_on)
+      ++switches, worst_jump_at_switch = std::max(worst_jump_at_switch, std::fabs(o.u - u_prev));
     was_on = is_on;
     u_prev = o.u;
     p.step(o.u, 0.0);

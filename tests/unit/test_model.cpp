@@ -188,10 +188,10 @@ Err compare(const std::vector<double>& a, const std::vector<double>& b) {
 
 const BoucWenParams kConvergenceSets[] = {
     {-0.4684, -16.53, 16.1, 1.0, 1.7241, 0.3711},  // identified on the paper's rig (counter-clockwise)
-    {5.0, 0.6, 20.0, 1.0, 0.8, 0.2},              // clockwise: k (1 - rho) > 0
-    {9.0, 1.25, 18.0, 1.0, 0.35, 0.25},           // the emulator's truth
-    {3.0, 0.5, 10.0, 2.0, 2.5, 1.5},              // alpha != 1, stiff: c |du| up to 24 per sample
-    {6.0, 1.4, 15.0, 1.0, -0.3, 0.9},             // beta < 0 (softening branch), beta + gamma > 0
+    {5.0, 0.6, 20.0, 1.0, 0.8, 0.2},               // clockwise: k (1 - rho) > 0
+    {9.0, 1.25, 18.0, 1.0, 0.35, 0.25},            // the emulator's truth
+    {3.0, 0.5, 10.0, 2.0, 2.5, 1.5},               // alpha != 1, stiff: c |du| up to 24 per sample
+    {6.0, 1.4, 15.0, 1.0, -0.3, 0.9},              // beta < 0 (softening branch), beta + gamma > 0
 };
 }  // namespace
 
@@ -486,8 +486,10 @@ TEST(StagedSimulation, EqualsSimulateToTheBitAndRerunsOnlyLaterStages) {
       sim.run(m, u.data(), lp, n, 1e-3, y.data());
       m.simulate(u.data(), lp, n, 1e-3, ref.data());
       for (size_t i = 0; i < n; ++i) {
-        if (std::isnan(ref[i])) ASSERT_TRUE(std::isnan(y[i])) << m.describe() << " " << what << " sample " << i;
-        else ASSERT_EQ(y[i], ref[i]) << m.describe() << " " << what << " sample " << i;
+        if (std::isnan(ref[i]))
+          ASSERT_TRUE(std::isnan(y[i])) << m.describe() << " " << what << " sample " << i;
+        else
+          ASSERT_EQ(y[i], ref[i]) << m.describe() << " " << what << " sample " << i;
       }
     };
     check("first run");
@@ -500,7 +502,9 @@ TEST(StagedSimulation, EqualsSimulateToTheBitAndRerunsOnlyLaterStages) {
         q[k] += 1e-4;
         m.setParams(q);
         check("column");
-        const int want = k < static_cast<size_t>(kBoucWenParams) ? 1 : k < static_cast<size_t>(m.inputParamsEnd()) ? 0 : 2;
+        const int want = k < static_cast<size_t>(kBoucWenParams)       ? 1
+                         : k < static_cast<size_t>(m.inputParamsEnd()) ? 0
+                                                                       : 2;
         EXPECT_EQ(sim.lastStart(), want) << m.describe() << " parameter " << k;
         (want == 1 ? columns_core : want == 2 ? columns_output : columns_input)++;
       }

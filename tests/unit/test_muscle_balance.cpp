@@ -94,7 +94,7 @@ TEST(MuscleBalance, APayloadPushedIntoAStopRestsOnIt) {
   const std::map<std::string, double> p = {{"fn", 8.0}, {"zeta", 0.2}, {"zmax", 0.2}, {"lo", 0.0}, {"hi", 25.0}};
   std::vector<double> u(3000, 10.0);
   std::fill(u.begin() + 500, u.begin() + 1500, 40.0);  // into the upper stop
-  std::fill(u.begin() + 1500, u.end(), -20.0);           // into the lower stop
+  std::fill(u.begin() + 1500, u.end(), -20.0);         // into the lower stop
   const auto y = alone("muscle_balance", p).simulate(u, kTs);
   EXPECT_NEAR(y[490], 10.0, 1e-3);
   EXPECT_DOUBLE_EQ(y[1400], 25.0);  // resting: no bounce off the stop
@@ -129,7 +129,8 @@ TEST(MuscleBalance, TheFrictionGrowsWithThePressure) {
 // stays 2 zmax.
 TEST(MuscleBalance, SpreadTravelsRoundTheReversal) {
   auto afterReversal = [](double spread) {
-    const std::map<std::string, double> p = {{"fn", 10.0}, {"zeta", 0.7}, {"zmax", 0.5}, {"delta", 0.1}, {"spread", spread}};
+    const std::map<std::string, double> p = {
+        {"fn", 10.0}, {"zeta", 0.7}, {"zmax", 0.5}, {"delta", 0.1}, {"spread", spread}};
     std::vector<double> u;
     for (int i = 0; i < 8000; ++i) u.push_back(10.0 * i / 8000.0);
     for (int i = 0; i < 8000; ++i) u.push_back(10.0 - 10.0 * i / 8000.0);

@@ -49,11 +49,13 @@ void collect(std::vector<Emcy>& out, const Frame& f) {
   if (f.id == 0x81 && f.len == 8) out.push_back({canopen::getU16(f.data), f.data[3]});
 }
 bool has(const std::vector<Emcy>& v, std::uint16_t code, nodes::Fault f) {
-  return std::any_of(v.begin(), v.end(), [&](const Emcy& e) { return e.code == code && e.fault == static_cast<std::uint8_t>(f); });
+  return std::any_of(v.begin(), v.end(),
+                     [&](const Emcy& e) { return e.code == code && e.fault == static_cast<std::uint8_t>(f); });
 }
 
 void expectTheLine(const std::vector<std::string>& log) {
-  const auto it = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("no position") != std::string::npos; });
+  const auto it = std::find_if(log.begin(), log.end(),
+                               [](const std::string& l) { return l.find("no position") != std::string::npos; });
   ASSERT_NE(it, log.end()) << "no line about the missing position";
   for (const char* what : {"COB-ID 0x182", "node 2", "Operational", "another COB-ID", "mapping", "asynchronous"})
     EXPECT_NE(it->find(what), std::string::npos) << "'" << what << "' missing in: " << *it;

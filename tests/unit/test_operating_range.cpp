@@ -55,7 +55,7 @@ TEST(OperatingRange, IsTheRecordsRangeOfInputOutputAndInputRate) {
   EXPECT_NEAR(r.input.hi, 2.0, 1e-12);
   EXPECT_DOUBLE_EQ(r.output.lo, 5.0);
   EXPECT_NEAR(r.output.hi, 20.0, 1e-12);
-  EXPECT_NEAR(r.rate.hi, 1.0, 1e-9);   // the ramp: 0.01 V per 10 ms
+  EXPECT_NEAR(r.rate.hi, 1.0, 1e-9);     // the ramp: 0.01 V per 10 ms
   EXPECT_NEAR(r.rate.lo, -200.0, 1e-9);  // the jump from 2 V to 0 in one sample
   EXPECT_EQ(r.check(0.5, 12.0, 0.0), model::RangeExcess::None);
   EXPECT_EQ(r.check(2.5, 12.0, 0.0), model::RangeExcess::InputHigh);
@@ -101,16 +101,17 @@ TEST(OperatingRange, CompareCountsTheSamplesOutside) {
   const auto d = rampRecord();
   model::OperatingRange r;
   r.known = true;
-  r.input = {-1.0, 1.0};    // u > 1 V: samples 201..300 (100 of 302)
-  r.output = {-100, 100};   // all inside
-  r.rate = {-1.5, 1.5};     // the jump only
+  r.input = {-1.0, 1.0};   // u > 1 V: samples 201..300 (100 of 302)
+  r.output = {-100, 100};  // all inside
+  r.rate = {-1.5, 1.5};    // the jump only
   const auto s = diagnose::rangeShare(r, d);
   ASSERT_TRUE(s.known);
   EXPECT_NEAR(s.input, 100.0 / 302, 1e-12);
   EXPECT_EQ(s.output, 0.0);
   EXPECT_NEAR(s.rate, 1.0 / 302, 1e-12);
   EXPECT_NEAR(s.any, 101.0 / 302, 1e-12);
-  EXPECT_NE(diagnose::describeRangeShare(s, r).find("33.4 % of the samples (input 33.1 % outside [-1, 1]"), std::string::npos)
+  EXPECT_NE(diagnose::describeRangeShare(s, r).find("33.4 % of the samples (input 33.1 % outside [-1, 1]"),
+            std::string::npos)
       << diagnose::describeRangeShare(s, r);
   EXPECT_FALSE(diagnose::rangeShare(model::OperatingRange{}, d).known);
 }
@@ -128,7 +129,7 @@ TEST(OperatingRange, TheLoopSaysOnceWithTheFirstSampleOutside) {
   EXPECT_FALSE(w.outside());
   w.step(0.002, 0.02, 29.5);  // above the output's range
   ASSERT_TRUE(w.outside());
-  w.step(0.003, 2.0, 40.0);   // later samples do not replace the first
+  w.step(0.003, 2.0, 40.0);  // later samples do not replace the first
   const auto line = w.describe();
   EXPECT_NE(line.find("from t = 0.002 s: output 29.5 mm, identified on [4.6, 28.75] mm"), std::string::npos) << line;
   EXPECT_NE(line.find("input rate [-50, 50] V/s"), std::string::npos) << line;

@@ -121,9 +121,10 @@ TEST(OutputDynamics, TheFilterStaysBoundedAndFollowsTheWholeEmulatorModel) {
 // friction_hysteresis still in series): the filter carries force_loop's y and v, its friction
 // follows the filter's mean; 100 s, bounded, following, no reset.
 TEST(OutputDynamics, TheFilterFollowsAModelWithFrictionInsideTheForceBalance) {
-  const auto pc = plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},
+  const auto pc =
+      plant::PlantConfig::fromJson(nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},
       "force_loop":{"enabled":true,"fn":6.0,"zeta":0.4,"zmax":0.6,"delta":0.3}}})"),
-                                               "test");
+                                   "test");
   ASSERT_TRUE(pc.truth.hasEffect("force_loop"));
   ASSERT_EQ(pc.truth.numFilterStates(), 2);
   const auto r = followThePlant(pc, 100'000);
@@ -158,7 +159,8 @@ TEST(OutputDynamics, ThePapersProcessNoiseIsNoisierButStaysBounded) {
     max_err = std::max(max_err, std::fabs(st.y_post - y_true));
     max_ph = std::max(max_ph, am.covariance()(0, 0));
   }
-  std::printf("whole emulator model with eq. (26)'s Q: largest estimate error %.3f mm, largest P_h %.3g\n", max_err, max_ph);
+  std::printf("whole emulator model with eq. (26)'s Q: largest estimate error %.3f mm, largest P_h %.3g\n", max_err,
+              max_ph);
   EXPECT_LT(max_err, s.diverge);
   EXPECT_LT(max_ph, 1e4);
   EXPECT_TRUE(spd(am.covariance()));

@@ -216,7 +216,6 @@ TEST(StepResponse, RingingMeasure) {
   EXPECT_GT(ringing.max_u_reversals, 3);
 }
 
-
 // A run computes its verdicts: the payload claims on the calibrated plant and on one with a valve four
 // times narrower (the same controller) come out with other values, each judged.
 TEST(PaperClaims, AChangedPlantChangesTheJudgedValues) {

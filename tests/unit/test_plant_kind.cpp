@@ -103,8 +103,8 @@ TEST(PlantKind, AnExternalPlantIsSteppedThroughItsDynamicsWithAValidCommand) {
   EXPECT_DOUBLE_EQ(p.measure(), 13.5);  // its own sensor, not the model plant's noise
   for (int i = 0; i < 1000; ++i) p.step(2.0);
   EXPECT_NEAR(p.position(), 16.0, 1e-6);
-  p.step(NAN);    // a valve holds mid-range on a nonsense command
-  p.step(40.0);   // and stays within its range
+  p.step(NAN);   // a valve holds mid-range on a nonsense command
+  p.step(40.0);  // and stays within its range
   ASSERT_GE(handed.size(), 2u);
   EXPECT_EQ(handed[handed.size() - 2], 0.0);
   EXPECT_EQ(handed.back(), c.u_max);

@@ -89,7 +89,8 @@ double param(const model::Model& m, const std::string& effect, const std::string
 
 std::string table(const diagnose::DiagnoseResult& r) {
   std::string s = r.verdict + "\nprobes:";
-  for (const auto& p : r.probes) s += "\n  " + p.label() + " " + std::to_string(p.rmse_val) + " " + std::to_string(p.explains);
+  for (const auto& p : r.probes)
+    s += "\n  " + p.label() + " " + std::to_string(p.rmse_val) + " " + std::to_string(p.explains);
   return s;
 }
 
@@ -124,11 +125,12 @@ TEST_P(OrificeFlow, TheProbeNamesItAndItsRisingFallingVersionReachesTheNoise) {
   for (const auto& e : r.ladder.back().effects) fin += " + " + e;
   ASSERT_FALSE(r.probes.empty()) << r.verdict;
   const auto& top = r.probes.front();
-  std::printf("seeds %llu/%llu: catalogue ends at reference model%s, validated %.4g; top probe %s: symmetric %.4g, "
-              "train %.4g, validated %.4g (noise %.3g); rate %.3g rising, %.3g falling\n",
-              static_cast<unsigned long long>(pair.train), static_cast<unsigned long long>(pair.val), fin.c_str(),
-              r.ladder.back().rmse_val, top.label().c_str(), top.symmetric_rmse_val, top.rmse_train, top.rmse_val, kNoise,
-              param(top.model, "valve_flow_updown", "rate_up"), param(top.model, "valve_flow_updown", "rate_down"));
+  std::printf(
+      "seeds %llu/%llu: catalogue ends at reference model%s, validated %.4g; top probe %s: symmetric %.4g, "
+      "train %.4g, validated %.4g (noise %.3g); rate %.3g rising, %.3g falling\n",
+      static_cast<unsigned long long>(pair.train), static_cast<unsigned long long>(pair.val), fin.c_str(),
+      r.ladder.back().rmse_val, top.label().c_str(), top.symmetric_rmse_val, top.rmse_train, top.rmse_val, kNoise,
+      param(top.model, "valve_flow_updown", "rate_up"), param(top.model, "valve_flow_updown", "rate_down"));
   if (!pair.named) {
     EXPECT_FALSE(top.probe == "valve_flow" && top.rmse_val < 1.5 * kNoise) << table(r);
     return;
@@ -149,13 +151,15 @@ TEST_P(OrificeFlow, TheProbeNamesItAndItsRisingFallingVersionReachesTheNoise) {
   }
   EXPECT_NEAR(param(top.model, "valve_flow_updown", "rate_up"), kFill, 0.1 * kFill) << table(r);
   EXPECT_NEAR(param(top.model, "valve_flow_updown", "rate_down"), kVent, 0.1 * kVent) << table(r);
-  EXPECT_NE(r.verdict.find("separate parameters rising and falling, valve_flow with rate"), std::string::npos) << r.verdict;
+  EXPECT_NE(r.verdict.find("separate parameters rising and falling, valve_flow with rate"), std::string::npos)
+      << r.verdict;
 }
 
 INSTANTIATE_TEST_SUITE_P(ProbeDirections, OrificeFlow,
                          ::testing::Values(ValvePair{11, 12, "pressure_lag_updown", true}, ValvePair{21, 22, "", false},
                                            ValvePair{31, 32, "pressure_lag_updown", true}, ValvePair{41, 42, "", false},
-                                           ValvePair{51, 52, "pressure_lag_updown", true}, ValvePair{61, 62, "pressure_lag_updown", true},
+                                           ValvePair{51, 52, "pressure_lag_updown", true},
+                                           ValvePair{61, 62, "pressure_lag_updown", true},
                                            ValvePair{71, 72, "", false}),
                          [](const ::testing::TestParamInfo<ValvePair>& i) {
                            return "seeds" + std::to_string(i.param.train) + "and" + std::to_string(i.param.val);
@@ -190,8 +194,10 @@ TEST(ProbeDirections, TheProbeSwitchesOnTheFlowLikeTheValve) {
     const double seconds = seed % 2 == 1 ? 24.0 : 16.0;
     const double flow = rmse(fillsFasterThanItVents(seed, seconds, Switch::Flow));
     const double command = rmse(fillsFasterThanItVents(seed, seconds, Switch::Command));
-    std::printf("seed %llu: the probe at 18 / 6 misses the valve switching by flow by %.4f, by the command's direction by %.4f\n",
-                static_cast<unsigned long long>(seed), flow, command);
+    std::printf(
+        "seed %llu: the probe at 18 / 6 misses the valve switching by flow by %.4f, by the command's direction by "
+        "%.4f\n",
+        static_cast<unsigned long long>(seed), flow, command);
     EXPECT_LT(flow, 3 * kNoise) << seed;
     if (seed == 32) command32 = command;
   }

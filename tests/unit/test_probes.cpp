@@ -48,12 +48,14 @@ double same(double u) { return u; }
 
 std::string table(const diagnose::DiagnoseResult& r) {
   std::string s = r.verdict + "\nprobes:";
-  for (const auto& p : r.probes) s += "\n  " + p.label() + " " + std::to_string(p.rmse_val) + " " + std::to_string(p.explains);
+  for (const auto& p : r.probes)
+    s += "\n  " + p.label() + " " + std::to_string(p.rmse_val) + " " + std::to_string(p.explains);
   return s;
 }
 double sameOut(double, double y) { return y; }
 
-diagnose::DiagnoseResult run(double (*pre)(double), double (*post)(double, double), std::vector<std::string> cands = {}) {
+diagnose::DiagnoseResult run(double (*pre)(double), double (*post)(double, double),
+                             std::vector<std::string> cands = {}) {
   const auto train = make(11, 24.0, pre, post), val = make(12, 16.0, pre, post);
   diagnose::DiagnoseSettings s;
   s.method = ident::FitMethod::MultiStart;
@@ -62,9 +64,10 @@ diagnose::DiagnoseResult run(double (*pre)(double), double (*post)(double, doubl
   // The numbers of docs/MODELING.md's probe table: where the catalogue ends, the best probe.
   std::string fin;
   for (const auto& e : r.ladder.back().effects) fin += " + " + e;
-  std::printf("catalogue ends at reference model%s, validated %.3g; best probe %s explains %.0f %% -> %.3g\n", fin.c_str(),
-              r.ladder.back().rmse_val, r.probes.empty() ? "(none run)" : r.probes.front().probe.c_str(),
-              r.probes.empty() ? 0.0 : 100 * r.probes.front().explains, r.probes.empty() ? 0.0 : r.probes.front().rmse_val);
+  std::printf("catalogue ends at reference model%s, validated %.3g; best probe %s explains %.0f %% -> %.3g\n",
+              fin.c_str(), r.ladder.back().rmse_val, r.probes.empty() ? "(none run)" : r.probes.front().probe.c_str(),
+              r.probes.empty() ? 0.0 : 100 * r.probes.front().explains,
+              r.probes.empty() ? 0.0 : r.probes.front().rmse_val);
   return r;
 }
 
@@ -74,9 +77,12 @@ diagnose::DiagnoseResult run(double (*pre)(double), double (*post)(double, doubl
 // time. With the catalogue as it was before warm_up (docs/MODELING.md) no effect is a function of time;
 // the drift probe is.
 TEST(Probes, AGainThatGrowsWithTimePointsAtDrift) {
-  const auto r = run(
-      same, [](double t, double y) { return 16.0 + (y - 16.0) * (1.0 + 0.12 * (1.0 - std::exp(-t / 6.0))) + 0.3 * (1.0 - std::exp(-t / 6.0)); },
-      {"-warm_up"});
+  const auto r =
+      run(same,
+          [](double t, double y) {
+            return 16.0 + (y - 16.0) * (1.0 + 0.12 * (1.0 - std::exp(-t / 6.0))) + 0.3 * (1.0 - std::exp(-t / 6.0));
+          },
+          {"-warm_up"});
   ASSERT_FALSE(r.probes.empty()) << table(r);
   EXPECT_EQ(r.probes.front().probe, "drift") << table(r);
   EXPECT_GT(r.probes.front().explains, 0.5) << table(r);
@@ -134,8 +140,8 @@ TEST(Probes, JsonContractAndNames) {
     EXPECT_TRUE(p["regime"].is_string());
     EXPECT_FALSE(p["meaning"].get<std::string>().empty());
     // Twice as many when fitted with separate parameters rising and falling.
-    EXPECT_EQ(p["params"].size(), (p.contains("direction") ? 2 : 1) *
-                                      model::makeEffect(p["probe"].get<std::string>())->params().size());
+    EXPECT_EQ(p["params"].size(),
+              (p.contains("direction") ? 2 : 1) * model::makeEffect(p["probe"].get<std::string>())->params().size());
     if (p.contains("replaces")) {
       const auto& fin = r.ladder.back().effects;
       EXPECT_NE(std::find(fin.begin(), fin.end(), p["replaces"].get<std::string>()), fin.end());
@@ -202,7 +208,8 @@ TEST(Probes, DirectionDependentVersionsAreTheProbeWithEqualSets) {
     for (size_t k = 0; k < u.size(); ++k) ASSERT_NEAR(a[k], b[k], 1e-12) << e.name << " at " << k;
   }
   EXPECT_GE(versions, 10);
-  for (const char* none : {"drift", "periodic", "direction_lag"}) EXPECT_FALSE(model::findProbe(none)->make()->directional()) << none;
+  for (const char* none : {"drift", "periodic", "direction_lag"})
+    EXPECT_FALSE(model::findProbe(none)->make()->directional()) << none;
 }
 
 TEST(Probes, AreNotCandidatesAndCanBeLeftOut) {
@@ -285,13 +292,15 @@ TEST(Probes, AtTheNoiseAProbeInTheEffectsPlaceIsStillTried) {
   std::string effects;
   for (const auto& e : fin.effects) effects += " + " + e;
   std::printf("catalogue ends at reference model%s, validated %.4g; %s\n", effects.c_str(), fin.rmse_val,
-              r.probes.empty() ? "no probe" : (r.probes.front().label() + " " + std::to_string(r.probes.front().rmse_val)).c_str());
+              r.probes.empty() ? "no probe"
+                               : (r.probes.front().label() + " " + std::to_string(r.probes.front().rmse_val)).c_str());
   ASSERT_LT(fin.rmse_val, 1.5 * 0.005) << r.verdict;  // the catalogue ends at the noise
   ASSERT_FALSE(r.probes.empty()) << r.verdict;
   EXPECT_EQ(r.probes.front().label(), "backlash for friction_hysteresis") << table(r);
   EXPECT_TRUE(r.probe_rung) << table(r);
   for (const auto& p : r.probes) EXPECT_FALSE(p.replaces.empty()) << p.label();  // none on top at the noise
-  EXPECT_NE(r.verdict.find("Though at the noise, the probe backlash fits better still in the place of friction_hysteresis"),
-            std::string::npos)
+  EXPECT_NE(
+      r.verdict.find("Though at the noise, the probe backlash fits better still in the place of friction_hysteresis"),
+      std::string::npos)
       << r.verdict;
 }

@@ -100,8 +100,9 @@ TEST(RigTiming, CommandShowsInThePositionThreeCyclesLater) {
   auto ec = emulatorConfig();
   // No inertia or friction and a fast pressure, so the first sample after the command moves visibly.
   ec.plant = plant::PlantConfig::fromJson(
-      nlohmann::json::parse(R"({"kind":"model","effects":{"mass_spring":{"enabled":false},"friction_hysteresis":{"enabled":false},)"
-                            R"("pressure_lag":{"tau":0.04}}})"),
+      nlohmann::json::parse(
+          R"({"kind":"model","effects":{"mass_spring":{"enabled":false},"friction_hysteresis":{"enabled":false},)"
+          R"("pressure_lag":{"tau":0.04}}})"),
       "test");
   ec.plant.sensor_noise = false;
   cc.ctrl.model = ec.plant.truth;
@@ -129,7 +130,7 @@ INSTANTIATE_TEST_SUITE_P(Controllers, RigMatchesLockstep,
 TEST(Rig, CandumpLogOfTheRunDecodesBack) {
   const std::string log = ::testing::TempDir() + "/pamc_rig.log";
   const auto rig = rig::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)),
-                                        emulatorConfig(), 1.0, log);
+                                      emulatorConfig(), 1.0, log);
   const auto frames = canopen::readCandumpLog(log);
   ASSERT_GT(frames.size(), 3 * 6000u);  // SYNC + position + setpoint + pressure per cycle, 6 s
   // Boot-ups, NMT start, SYNCs at 1 ms.
@@ -148,7 +149,8 @@ TEST(Rig, SensorSilenceDrivesTheValveSafeAndSendsEmcy) {
   auto e = emulatorConfig();
   e.sensor_silent_at_s = 7.0;  // 2 s into the run after the 5 s pre-roll
   const std::string log = ::testing::TempDir() + "/pamc_silent.log";
-  const auto rig = rig::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)), e, 4.0, log);
+  const auto rig =
+      rig::runVirtualRig(controllerConfig(control::Kind::PI, control::Trajectory::constant(15.0)), e, 4.0, log);
   EXPECT_GE(rig.faults, 1u);
   // After the fault, every record has the safe command (0 V = -5 V relative) and a fault code.
   size_t first = 0;
@@ -181,7 +183,8 @@ TEST(RigTiming, OneMegabitBusKeepsTheCycle) {
   EXPECT_EQ(timed.counters.tx_dropped, 0u);
   ASSERT_EQ(timed.records.size(), ideal.records.size());
   double worst = 0;
-  for (size_t i = 0; i < ideal.records.size(); ++i) worst = std::max(worst, std::fabs(timed.records[i].y - ideal.records[i].y));
+  for (size_t i = 0; i < ideal.records.size(); ++i)
+    worst = std::max(worst, std::fabs(timed.records[i].y - ideal.records[i].y));
   EXPECT_LT(worst, 1e-9);
   const double load = static_cast<double>(timed.bus_busy_us) / (timed.stats.cycles * 1000.0);
   EXPECT_GT(load, 0.2);

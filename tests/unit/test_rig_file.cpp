@@ -49,22 +49,30 @@ struct Tool {
     });
   }
   std::uint32_t write32(std::uint8_t node, std::uint16_t idx, std::uint8_t sub, std::uint32_t v) {
-    const std::uint8_t b[8] = {0x23, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub,
-                               static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8),
-                               static_cast<std::uint8_t>(v >> 16), static_cast<std::uint8_t>(v >> 24)};
+    const std::uint8_t b[8] = {0x23,
+                               static_cast<std::uint8_t>(idx),
+                               static_cast<std::uint8_t>(idx >> 8),
+                               sub,
+                               static_cast<std::uint8_t>(v),
+                               static_cast<std::uint8_t>(v >> 8),
+                               static_cast<std::uint8_t>(v >> 16),
+                               static_cast<std::uint8_t>(v >> 24)};
     port.send(canopen::makeFrame(0x600 + node, 8, b));
     rig.bus().flush();
     return last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
   }
   std::uint32_t write8(std::uint8_t node, std::uint16_t idx, std::uint8_t sub, std::uint8_t v) {
-    const std::uint8_t b[8] = {0x2F, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, v, 0, 0, 0};
+    const std::uint8_t b[8] = {0x2F, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, v, 0, 0,
+                               0};
     port.send(canopen::makeFrame(0x600 + node, 8, b));
     rig.bus().flush();
     return last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
   }
   // An SDO upload as the frames on the wire have it: expedited, or segmented with the toggle bit.
-  std::vector<std::uint8_t> upload(std::uint8_t node, std::uint16_t idx, std::uint8_t sub, std::uint32_t* abort = nullptr) {
-    const std::uint8_t init[8] = {0x40, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, 0, 0, 0, 0};
+  std::vector<std::uint8_t> upload(std::uint8_t node, std::uint16_t idx, std::uint8_t sub,
+                                   std::uint32_t* abort = nullptr) {
+    const std::uint8_t init[8] = {
+        0x40, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, 0, 0, 0, 0};
     port.send(canopen::makeFrame(0x600 + node, 8, init));
     rig.bus().flush();
     std::vector<std::uint8_t> out;
@@ -149,8 +157,9 @@ TEST(RigFile, TheShippedRigIsTheBuiltInLayout) {
   EXPECT_EQ(ch.layout.error_value_index, 0x6444);
   // 0x1F81: slave, boot, mandatory, not kept alive, 3 retries.
   EXPECT_EQ(sensor_boot.assignment, 0x0000030Du);
-  const auto kept = nodes::readRigFile(writeTemp("kept.ini", test::shippedRig("default.ini", {{"mandatory = yes          ; 0x1F81",
-                                                                        "keep_alive = yes\nretries = 5\nmandatory = yes ; 0x1F81"}})));
+  const auto kept = nodes::readRigFile(writeTemp(
+      "kept.ini", test::shippedRig("default.ini", {{"mandatory = yes          ; 0x1F81",
+                                                    "keep_alive = yes\nretries = 5\nmandatory = yes ; 0x1F81"}})));
   EXPECT_EQ(kept.slave(2).boot.assignment, 0x0000051Du) << "bit 4 keep alive, bits 8-15 the retry factor";
   // The sensor's TPDO1: disabled, synchronous, mapped to 0x6004:00 (32 bits), enabled on 0x182.
   const auto& w = sensor_boot.writes;
@@ -192,7 +201,8 @@ TEST(RigFile, ABadFileGetsOneLineNamingTheLine) {
       {{{"node_id = 3", "node_id = 2"}}, "node-IDs of controller, sensor and valve must differ"},
       {{{"startup = 0x00000001", "startup = 0x00000010"}}, "only bits 0-3 of 0x1F80"},
       {{{"tpdo = 1 ", "tpdo = 7 "}}, "has no predefined COB-ID"},
-      {{{"mandatory = yes          ; 0x1F81", "mandatory = yes\nmandatory = no ; 0x1F81"}}, "duplicate key 'mandatory' in [sensor]"},
+      {{{"mandatory = yes          ; 0x1F81", "mandatory = yes\nmandatory = no ; 0x1F81"}},
+       "duplicate key 'mandatory' in [sensor]"},
       {{{"mandatory = yes          ; 0x1F81", "reset = yes ; 0x1F81"}}, "reset: 0x1F81 bit 4 is keep alive"},
       {{{"mandatory = yes          ; 0x1F81", "retries = 256 ; 0x1F81"}}, "retries 256 is outside 0..255"},
   };
@@ -281,10 +291,13 @@ TEST(RigBoot, AWrongIdentityIsReportedAndTheSlaveLeftStopped) {
   EXPECT_EQ(fc.slave_boot_failures, 1u);
   EXPECT_NE(std::find(tool.emcy.begin(), tool.emcy.end(), 0x6300), tool.emcy.end()) << "EMCY 0x6300";
   ASSERT_FALSE(log.empty());
-  EXPECT_NE(log.front().find("sensor (node 2) not started, identity check: 0x1000:00 device type is 0x00080196, expected 0x00020196"),
-            std::string::npos)
+  EXPECT_NE(
+      log.front().find(
+          "sensor (node 2) not started, identity check: 0x1000:00 device type is 0x00080196, expected 0x00020196"),
+      std::string::npos)
       << log.back();
-  EXPECT_EQ(std::count_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; }), 1)
+  EXPECT_EQ(std::count_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; }),
+            1)
       << "one line for the failure";
   EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(2), canopen::NmtState::Stopped);
   EXPECT_FALSE(rig.controller().running()) << "no position: the loop does not start";
@@ -302,8 +315,9 @@ TEST(RigBoot, NothingIsWrittenToTheValveBeforeItsIdentityIsChecked) {
   for (bool wrong : {false, true}) {
     SCOPED_TRACE(wrong ? "wrong vendor-ID" : "right vendor-ID");
     const std::string vendor = wrong ? "vendor_id = 0x00001234" : "vendor_id = 0x0000ABCD";
-    const auto path = writeTemp("rig.ini", rigText({{"vendor_id = 0x00000000\nproduct_code = 0x00000003",
-                                                     vendor + "\nproduct_code = 0x00000003"}}));
+    const auto path = writeTemp(
+        "rig.ini",
+        rigText({{"vendor_id = 0x00000000\nproduct_code = 0x00000003", vendor + "\nproduct_code = 0x00000003"}}));
     nodes::EmulatorConfig e = emulator();
     e.valve_eds = edsWith("valve.eds", {{"1018sub1", "0x0000ABCD"}});
     rig::VirtualRig rig(controllerFromRig(path, nullptr), e);
@@ -311,7 +325,9 @@ TEST(RigBoot, NothingIsWrittenToTheValveBeforeItsIdentityIsChecked) {
     rig.addTap([&frames](const Frame& f, canopen::TimeUs) { frames.push_back(canopen::formatFrame(f)); });
     rig.start();
     rig.runFor(2.0);
-    auto first = [&frames](auto pred) { return static_cast<std::size_t>(std::find_if(frames.begin(), frames.end(), pred) - frames.begin()); };
+    auto first = [&frames](auto pred) {
+      return static_cast<std::size_t>(std::find_if(frames.begin(), frames.end(), pred) - frames.begin());
+    };
     auto errorValue = [](const std::string& f) { return f.rfind("603#2", 0) == 0 && f.compare(6, 6, "446401") == 0; };
     const std::size_t identity = first([](const std::string& f) { return f.rfind("583#43181001", 0) == 0; });
     const std::size_t write = first([](const std::string& f) { return f.rfind("603#2", 0) == 0; });
@@ -337,15 +353,16 @@ TEST(RigBoot, NothingIsWrittenToTheValveBeforeItsIdentityIsChecked) {
 
 TEST(RigBoot, ARefusedWriteIsReportedWithItsAbortCode) {
   std::vector<std::string> log;
-  const auto path = writeTemp("rig.ini", rigText() +
-                                             "\n[valve.sdo]\n6411sub1 = -5\n");
+  const auto path = writeTemp("rig.ini", rigText() + "\n[valve.sdo]\n6411sub1 = -5\n");
   rig::VirtualRig rig(controllerFromRig(path, &log), emulator());
   rig.start();
   rig.runFor(2.0);
   // The boot report; the loop's own line (no position: the sensor waits for the valve) follows it.
-  const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("valve (node 3)") == 0; });
+  const auto line =
+      std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("valve (node 3)") == 0; });
   ASSERT_NE(line, log.end());
-  EXPECT_NE(line->find("valve (node 3) not started, configuration: 0x6411:01 write refused"), std::string::npos) << *line;
+  EXPECT_NE(line->find("valve (node 3) not started, configuration: 0x6411:01 write refused"), std::string::npos)
+      << *line;
   EXPECT_NE(line->find("SDO abort 0x06090032"), std::string::npos) << *line;
   EXPECT_EQ(rig.controller().node().heartbeatConsumer().remoteState(3), canopen::NmtState::Stopped);
 }
@@ -368,7 +385,8 @@ TEST(RigBoot, ASlaveThatRebootsIsConfiguredAgain) {
 // waits in Pre-operational until an NMT start.
 TEST(RigBoot, AResetControllerBringsTheRigBackUnlessToldToWait) {
   for (bool wait : {false, true}) {
-    const auto path = writeTemp("rig.ini", wait ? rigText({{"startup = 0x00000001", "startup = 0x00000005"}}) : rigText());
+    const auto path =
+        writeTemp("rig.ini", wait ? rigText({{"startup = 0x00000001", "startup = 0x00000005"}}) : rigText());
     rig::VirtualRig rig(controllerFromRig(path, nullptr), emulator());
     Tool tool(rig);
     rig.start();
@@ -455,7 +473,8 @@ TEST(RigBoot, DevicesWithTheirMakersDefaultsWorkOnlyWithTheirRigFile) {
 // the EDS files alone (pamc's own COB-IDs) it has no position at all.
 TEST(RigDecode, ALogOfTheProfileRigDecodesToThePositionsTheControllerSaw) {
   const auto path = writeTemp("profile.ini", profileRig());
-  rig::VirtualRig rig(controllerFromRig(path, nullptr), nodes::EmulatorConfig::profileDevices(kOd.substr(0, kOd.size() - 1)));
+  rig::VirtualRig rig(controllerFromRig(path, nullptr),
+                      nodes::EmulatorConfig::profileDevices(kOd.substr(0, kOd.size() - 1)));
   std::vector<canopen::CandumpRecord> log;
   rig.addTap([&](const Frame& f, canopen::TimeUs t) {
     canopen::CandumpRecord r;
@@ -502,8 +521,8 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
   for (int retries : {3, 0}) {
     std::vector<std::string> log;
     const auto path = writeTemp("rig.ini", retries == 3 ? rigText()
-                                                         : rigText({{"boot = yes               ; configure at boot",
-                                                                     "retries = 0\nboot = yes ; configure at boot"}}));
+                                                        : rigText({{"boot = yes               ; configure at boot",
+                                                                    "retries = 0\nboot = yes ; configure at boot"}}));
     int lost = 0;  // the sensor's first answer to the read of its product code 0x1018:02
     rig::VirtualRig rig(controllerFromRig(path, &log), emulator(), 0, [&](Frame& f) {
       return !(f.id == 0x582 && f.data[1] == 0x18 && f.data[2] == 0x10 && f.data[3] == 2 && lost++ == 0);
@@ -519,9 +538,13 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
     } else {
       EXPECT_EQ(mc.boot_retries, 0u);
       EXPECT_EQ(mc.boot_failures, 1u);
-      const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; });
+      const auto line =
+          std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2)") == 0; });
       ASSERT_NE(line, log.end());
-      EXPECT_NE(line->find("sensor (node 2) not started, identity check: 0x1018:02 read failed: SDO protocol timed out (SDO abort 0x05040000)"), std::string::npos) << *line;
+      EXPECT_NE(line->find("sensor (node 2) not started, identity check: 0x1018:02 read failed: SDO protocol timed out "
+                           "(SDO abort 0x05040000)"),
+                std::string::npos)
+          << *line;
     }
   }
 }
@@ -531,13 +554,15 @@ TEST(RigBoot, AnUnansweredBootStepIsTriedAgain) {
 // back to the rig's entries; the expected identity is in 0x1F84-0x1F88, the assignment in 0x1F81, the
 // consumer heartbeat times in 0x1016 (twice the slave's period plus 50 ms).
 TEST(RigMaster, AnSdoUploadOfTheMastersObjectsShowsTheRigsBoot) {
-  const auto path = writeTemp("rig.ini", rigText({{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = 1000 ; 0x1017"}}));
+  const auto path =
+      writeTemp("rig.ini", rigText({{"heartbeat_ms = 100       ; 0x1017", "heartbeat_ms = 1000 ; 0x1017"}}));
   const auto rig = nodes::readRigFile(path);
   rig::VirtualRig vr(controllerFromRig(path, nullptr), emulator());
   Tool tool(vr);
   vr.start();
   vr.runFor(0.2);
-  for (const auto& [id, boot] : {std::pair<std::uint8_t, const canopen::SlaveBoot*>{2, &rig.slave(2).boot}, {3, &rig.slave(3).boot}}) {
+  for (const auto& [id, boot] :
+       {std::pair<std::uint8_t, const canopen::SlaveBoot*>{2, &rig.slave(2).boot}, {3, &rig.slave(3).boot}}) {
     const auto bytes = tool.upload(1, 0x1F22, id);
     ASSERT_GT(bytes.size(), 8u) << "node " << int(id) << ": a segmented upload";
     canopen::ConciseDcf back;
@@ -579,7 +604,8 @@ TEST(RigMaster, TheBootFollowsTheMastersDictionary) {
   tool.port.send(canopen::makeFrame(0x000, 2, start));
   vr.runFor(2.0);
   EXPECT_EQ(vr.controller().faultCounters().slave_boot_failures, 1u);
-  const auto line = std::find_if(log.begin(), log.end(), [](const std::string& l) { return l.find("sensor (node 2) not started") == 0; });
+  const auto line = std::find_if(log.begin(), log.end(),
+                                 [](const std::string& l) { return l.find("sensor (node 2) not started") == 0; });
   ASSERT_NE(line, log.end());
   EXPECT_NE(line->find("device type is 0x00080196, expected 0x00020196"), std::string::npos) << *line;
 }
@@ -599,9 +625,12 @@ TEST(MasterDcf, TheControllerBootsTheSlavesFromAHandWrittenDcf) {
   const auto eol = with_file.find('\n', at);
   std::string hex = with_file.substr(at + 15, eol - at - 15), bytes;
   hex.erase(std::remove(hex.begin(), hex.end(), ' '), hex.end());
-  for (std::size_t i = 0; i + 1 < hex.size(); i += 2) bytes.push_back(static_cast<char>(std::stoi(hex.substr(i, 2), nullptr, 16)));
+  for (std::size_t i = 0; i + 1 < hex.size(); i += 2)
+    bytes.push_back(static_cast<char>(std::stoi(hex.substr(i, 2), nullptr, 16)));
   std::ofstream(writeTemp("node2.bin", "")) << bytes;
-  with_file.replace(at, eol - at, "UploadFile=" + ::testing::TempDir() + "MasterDcf.TheControllerBootsTheSlavesFromAHandWrittenDcf.node2.bin");
+  with_file.replace(
+      at, eol - at,
+      "UploadFile=" + ::testing::TempDir() + "MasterDcf.TheControllerBootsTheSlavesFromAHandWrittenDcf.node2.bin");
   for (const std::string& dcf : {fixture, writeTemp("moved.dcf", with_file)}) {
     std::vector<std::string> log;
     auto c = controllerFromRig(writeTemp("default.ini", rigText()), &log);
@@ -640,14 +669,18 @@ TEST(MasterDcf, AMalformedDcfIsOneLineNamingFileAndLine) {
     std::string from, to, expect;
   };
   const std::vector<Case> cases = {
-      {"ParameterValue=0x00000190", "ParameterValue=0x190Z", "[1400sub1] ParameterValue: '0x190Z' is not a valid UNSIGNED32"},
+      {"ParameterValue=0x00000190", "ParameterValue=0x190Z",
+       "[1400sub1] ParameterValue: '0x190Z' is not a valid UNSIGNED32"},
       {"NrOfEntries=2\n2=0x00000002", "NrOfEntries=3\n2=0x00000002", "NrOfEntries is 3 but 2 entries follow"},
-      {"ParameterValue=07000000", "ParameterValue=08000000", "0x1F22:02 is not a concise DCF: entry 8 of 8: header beyond the end"},
+      {"ParameterValue=07000000", "ParameterValue=08000000",
+       "0x1F22:02 is not a concise DCF: entry 8 of 8: header beyond the end"},
       {"ParameterValue=07000000", "ParameterValue=0700000", "is not a sequence of hex bytes for DOMAIN"},
       {"2=0x0000021D", "2=0x10000021D", "'0x10000021D' is out of range for UNSIGNED32"},
-      {"[1F86Value]\nNrOfEntries=2\n2=0x00000002", "[1F86Value]\nNrOfEntries=2\n200=0x00000002", "not a sub-index of the object (1..127)"},
+      {"[1F86Value]\nNrOfEntries=2\n2=0x00000002", "[1F86Value]\nNrOfEntries=2\n200=0x00000002",
+       "not a sub-index of the object (1..127)"},
       {"7=0x1F86", "7=0x1F8A", "listed object has no section"},
-      {"ObjectType=0x7\nDataType=0x000F\nAccessType=rw\nParameterValue=07", "ObjectType=0x7\nDataType=0x000A\nAccessType=rw\nParameterValue=07",
+      {"ObjectType=0x7\nDataType=0x000F\nAccessType=rw\nParameterValue=07",
+       "ObjectType=0x7\nDataType=0x000A\nAccessType=rw\nParameterValue=07",
        "0x1F22:02 is OCTET_STRING here but DOMAIN in"},
       {"[1F22sub2]", "[1F22sub80]", "the device"},
       {"[1F22sub2]", "[1F22subZZ]", "neither an object"},
@@ -759,8 +792,9 @@ TEST(RigBoot, SlowHeartbeatsGiveALongerConsumerTimeAndStartGrace) {
 // reset nor configured at the controller's start (their identity is checked) - not one NMT reset on the
 // bus for them - and the loop runs on them; left in Pre-operational they are reset and booted as any other.
 TEST(RigBoot, KeptAliveSlavesThatRunAreNotResetAtTheControllersStart) {
-  const auto path = writeTemp("rig.ini", rigText({{"mandatory = yes          ; 0x1F81", "keep_alive = yes\nmandatory = yes ; 0x1F81"},
-                                                  {"boot = yes\nmandatory = yes\n", "boot = yes\nmandatory = yes\nkeep_alive = yes\n"}}));
+  const auto path = writeTemp(
+      "rig.ini", rigText({{"mandatory = yes          ; 0x1F81", "keep_alive = yes\nmandatory = yes ; 0x1F81"},
+                          {"boot = yes\nmandatory = yes\n", "boot = yes\nmandatory = yes\nkeep_alive = yes\n"}}));
   for (bool operational : {true, false}) {
     SCOPED_TRACE(operational ? "Operational" : "Pre-operational");
     std::vector<std::string> log;
@@ -781,7 +815,8 @@ TEST(RigBoot, KeptAliveSlavesThatRunAreNotResetAtTheControllersStart) {
     vr.runFor(4.0);
     const auto& mc = vr.controller().master().counters();
     auto resets = [&](const char* id) {
-      return std::count(nmt.begin(), nmt.end(), std::string("000#82") + id) + std::count(nmt.begin(), nmt.end(), std::string("000#81") + id);
+      return std::count(nmt.begin(), nmt.end(), std::string("000#82") + id) +
+             std::count(nmt.begin(), nmt.end(), std::string("000#81") + id);
     };
     EXPECT_TRUE(vr.controller().running());
     EXPECT_LT(trackingRmse(vr.records(), 1.0), 1.0);
@@ -790,7 +825,9 @@ TEST(RigBoot, KeptAliveSlavesThatRunAreNotResetAtTheControllersStart) {
       EXPECT_EQ(mc.kept_alive, 2u);
       EXPECT_EQ(mc.resets, 0u);
       EXPECT_EQ(mc.boots, 0u) << "not configured again";
-      EXPECT_EQ(std::count_if(log.begin(), log.end(), [](const std::string& l) { return l.find("kept alive") != std::string::npos; }), 2);
+      EXPECT_EQ(std::count_if(log.begin(), log.end(),
+                              [](const std::string& l) { return l.find("kept alive") != std::string::npos; }),
+                2);
     } else {
       EXPECT_EQ(resets("02"), 1);
       EXPECT_EQ(resets("03"), 1);

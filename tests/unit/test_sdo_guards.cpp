@@ -62,8 +62,12 @@ nodes::ControllerNodeConfig controllerConfig(control::Kind kind) {
 
 struct Rig {
   explicit Rig(control::Kind kind = control::Kind::PiAmc, bool off_cycle = false)
-      : rig(withOffCycle(controllerConfig(kind), off_cycle), emulatorConfig()), bus(rig.bus()), tool(rig.addPort()), ctrl(&rig.controller()),
-        emu(&rig.emulator()), recs(rig.records()) {
+      : rig(withOffCycle(controllerConfig(kind), off_cycle), emulatorConfig()),
+        bus(rig.bus()),
+        tool(rig.addPort()),
+        ctrl(&rig.controller()),
+        emu(&rig.emulator()),
+        recs(rig.records()) {
     rig.addTap([this](const Frame& f, canopen::TimeUs) {
       if (f.id == 0x581) last = f, answered = true;
       if (f.id == 0x81 && f.len == 8) emcy.push_back(canopen::getU16(f.data));
@@ -84,14 +88,16 @@ struct Rig {
     return last.data[0] == 0x80 ? canopen::getU32(last.data + 4) : 0;
   }
   std::uint32_t writeU8(std::uint16_t idx, std::uint8_t sub, std::uint8_t v) {
-    const std::uint8_t b[8] = {0x2F, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, v, 0, 0, 0};
+    const std::uint8_t b[8] = {0x2F, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, v, 0, 0,
+                               0};
     return request(b);
   }
   // Segmented download of a REAL64, with `cycles` SYNC cycles between the two segments.
   std::uint32_t writeDouble(std::uint16_t idx, std::uint8_t sub, double v, int cycles = 0) {
     std::uint8_t d[8];
     std::memcpy(d, &v, 8);
-    const std::uint8_t init[8] = {0x21, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, 8, 0, 0, 0};
+    const std::uint8_t init[8] = {
+        0x21, static_cast<std::uint8_t>(idx), static_cast<std::uint8_t>(idx >> 8), sub, 8, 0, 0, 0};
     if (auto c = request(init)) return c;
     const std::uint8_t s1[8] = {0x00, d[0], d[1], d[2], d[3], d[4], d[5], d[6]};
     if (auto c = request(s1)) return c;
@@ -137,11 +143,11 @@ TEST(SdoGuards, StagedValuesNeverReachTheLoopUntilTheCommit) {
   a.runTo(2.0);
   b.runTo(2.0);
   ASSERT_EQ(a.recs.size(), b.recs.size());
-  EXPECT_EQ(b.writeDouble(0x2000, 1, 0.12, 2), 0u);  // kp
+  EXPECT_EQ(b.writeDouble(0x2000, 1, 0.12, 2), 0u);                        // kp
   EXPECT_EQ(b.ctrl->node().od().entry(0x2003, 2).get<std::uint8_t>(), 1);  // staged
   for (int k = 0; k < 2; ++k) a.cycle();
   for (int k = 0; k < 5; ++k) a.cycle(), b.cycle();
-  EXPECT_EQ(b.writeDouble(0x2000, 2, 1.8, 3), 0u);   // ki
+  EXPECT_EQ(b.writeDouble(0x2000, 2, 1.8, 3), 0u);  // ki
   for (int k = 0; k < 3; ++k) a.cycle();
   EXPECT_EQ(b.writeDouble(0x2001, 6, -0.5, 1), 0u);  // gamma: with it the model is unstable
   a.cycle();
@@ -186,7 +192,8 @@ TEST(SdoGuards, ACommittedPiSetIsBumpless) {
   EXPECT_EQ(r.writeDouble(0x2000, 1, 0.15), 0u);
   EXPECT_EQ(r.writeDouble(0x2000, 2, 2.5), 0u);
   double before = 0;
-  for (std::size_t i = r.recs.size() - 1000; i < r.recs.size(); ++i) before = std::max(before, std::fabs(r.recs[i].u - r.recs[i - 1].u));
+  for (std::size_t i = r.recs.size() - 1000; i < r.recs.size(); ++i)
+    before = std::max(before, std::fabs(r.recs[i].u - r.recs[i - 1].u));
   EXPECT_EQ(r.writeU8(0x2003, 1, 1), 0u);
   const std::size_t n = r.recs.size();
   for (int k = 0; k < 3000; ++k) r.cycle();
@@ -204,7 +211,7 @@ TEST(SdoGuards, TheCycleThatTakesACommitAllocatesAndFreesNothing) {
   EXPECT_EQ(r.writeDouble(0x2000, 1, 0.2), 0u);
   EXPECT_EQ(r.writeU8(0x2003, 1, 1), 0u);  // checked and built here, in the SDO server
   const auto before = mallinfo2().uordblks;
-  r.bus.advanceBy(1000);                   // the SYNC that swaps the sets (records stay in the ring)
+  r.bus.advanceBy(1000);  // the SYNC that swaps the sets (records stay in the ring)
   const auto after = mallinfo2().uordblks;
   EXPECT_EQ(r.ctrl->activeParameters().kp, 0.2);
   EXPECT_EQ(after, before);

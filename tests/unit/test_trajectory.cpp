@@ -139,11 +139,16 @@ TEST(Trajectory, AprbsIsReproducibleAndSeedsDiffer) {
 
 TEST(Trajectory, EveryFormParsesAndDescribesItself) {
   // The forms of the table, one example each, with their describe() naming the shape.
-  const std::vector<std::pair<std::string, std::string>> cases = {
-      {"const:15", "constant"},       {"sine:0.1:15:5", "sin"},           {"triangle:0.05:0.2:30", "triangle"},
-      {"square:0.1:10:25", "square"}, {"sawtooth:0.1:10:25", "sawtooth"}, {"sinedesc:0.1:15:14:2:60", "amplitude"},
-      {"chirp:0.02:2:0.2:2.9:60", "chirp"}, {"random:1:-3:3", "random"}, {"multisine:1:0.05:5:-3:3", "multisine"},
-      {"aprbs:1:0.1:2:-3:3", "APRBS"}};
+  const std::vector<std::pair<std::string, std::string>> cases = {{"const:15", "constant"},
+                                                                  {"sine:0.1:15:5", "sin"},
+                                                                  {"triangle:0.05:0.2:30", "triangle"},
+                                                                  {"square:0.1:10:25", "square"},
+                                                                  {"sawtooth:0.1:10:25", "sawtooth"},
+                                                                  {"sinedesc:0.1:15:14:2:60", "amplitude"},
+                                                                  {"chirp:0.02:2:0.2:2.9:60", "chirp"},
+                                                                  {"random:1:-3:3", "random"},
+                                                                  {"multisine:1:0.05:5:-3:3", "multisine"},
+                                                                  {"aprbs:1:0.1:2:-3:3", "APRBS"}};
   std::string forms = Trajectory::forms();
   for (const auto& [spec, word] : cases) {
     const auto t = Trajectory::parse(spec);

@@ -113,8 +113,8 @@ TEST(Ukf, LinearUpdateEqualsTheSigmaPointUpdate) {
     const Eigen::Matrix<double, 1, 2> H(5.0 * U(rng), (k % 2) * U(rng));  // half with a zero: the paper's form
     const double z0 = U(rng), R = 1e-3 + std::fabs(U(rng)) * 0.1;
     const double z = z0 + H * x + 3.0 * U(rng), gate = k % 4 == 0 ? 4.0 : 0.0, widen = k % 5 == 0 ? 0.5 : 0.0;
-    const auto sa = a.update([&](const F::Vec& v) { return F::MVec(z0 + H * v); }, F::MVec(z), F::MMat(R), gate,
-                             F::MMat(widen));
+    const auto sa =
+        a.update([&](const F::Vec& v) { return F::MVec(z0 + H * v); }, F::MVec(z), F::MMat(R), gate, F::MMat(widen));
     const auto sb = b.updateLinear(H, z0, z, R, gate, widen);
     ASSERT_EQ(sa, sb) << k;
     EXPECT_NEAR(a.nis(), b.nis(), 1e-6 * (1.0 + a.nis())) << k;
@@ -139,7 +139,8 @@ TEST(Ukf, DrivenPredictEqualsPredict) {
   int clear = 0;  // steps whose points are all clear of the clamp (the closed form)
   for (int k = 0; k < 500; ++k) {
     F::Vec x(2.5 * U(rng), 20.0 * U(rng));
-    const double c = (k % 7 == 0 ? 1.5 : 0.99) * U(rng), s0 = 1e-3 + std::fabs(U(rng)), s1 = 0.1 + 10.0 * std::fabs(U(rng));
+    const double c = (k % 7 == 0 ? 1.5 : 0.99) * U(rng), s0 = 1e-3 + std::fabs(U(rng)),
+                 s1 = 0.1 + 10.0 * std::fabs(U(rng));
     F::Mat P;
     P << s0 * s0, c * s0 * s1, c * s0 * s1, s1 * s1;  // |c| > 1: indefinite, repaired
     if (k % 50 == 0) x(0) = NAN;
@@ -161,7 +162,7 @@ TEST(Ukf, DrivenPredictEqualsPredict) {
         }
         for (int j = 0; j < 2; ++j) EXPECT_NEAR(a.P()(i, j), b.P()(i, j), tol * scale) << k << " step " << step;
       }
-      EXPECT_EQ(b.P()(0, 1), b.P()(1, 0));  // symmetric as computed
+      EXPECT_EQ(b.P()(0, 1), b.P()(1, 0));                            // symmetric as computed
       if (sa == UkfStatus::Ok && std::fabs(a.x()(0)) < 1.5) ++clear;  // sigma points within 2e-3 of x_0
     }
   }

@@ -20,7 +20,7 @@ class Asymmetry final : public Effect {
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
         {"gain", -10.0, 10.0, 1.0, "y-unit/u-unit"},
-        {"w_up", 0.05, 10.0, 1.0, "u-unit"},  // command travel to turn round while contracting
+        {"w_up", 0.05, 10.0, 1.0, "u-unit"},    // command travel to turn round while contracting
         {"w_down", 0.05, 10.0, 0.3, "u-unit"},  // ... while relaxing
     };
     return p;
@@ -35,8 +35,10 @@ class Asymmetry final : public Effect {
     s[1] = c.u_eff;
     const double wu = std::max(p[1], 1e-6), wd = std::max(p[2], 1e-6);
     // Rising: z -> +w_up with dz/du = 1 - z / w_up; falling: z -> -w_down. Exact per step.
-    if (du > 0) s[0] = wu - (wu - s[0]) * std::exp(-du / wu);
-    else if (du < 0) s[0] = -wd + (s[0] + wd) * std::exp(du / wd);
+    if (du > 0)
+      s[0] = wu - (wu - s[0]) * std::exp(-du / wu);
+    else if (du < 0)
+      s[0] = -wd + (s[0] + wd) * std::exp(du / wd);
     return in + p[0] * s[0];
   }
 };

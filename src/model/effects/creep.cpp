@@ -11,9 +11,7 @@ namespace {
 class Creep final : public Effect {
  public:
   const char* name() const override { return "creep"; }
-  const char* explanation() const override {
-    return "slow viscoelastic drift of the rubber under a held pressure";
-  }
+  const char* explanation() const override { return "slow viscoelastic drift of the rubber under a held pressure"; }
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 25; }
   const std::vector<ParamSpec>& params() const override {

@@ -30,7 +30,8 @@ class ForceLoop final : public Effect {
  public:
   const char* name() const override { return "force_loop"; }
   const char* explanation() const override {
-    return "payload inertia with friction inside its force balance: the payload rings after fast changes and sticks at reversals";
+    return "payload inertia with friction inside its force balance: the payload rings after fast changes and sticks at "
+           "reversals";
   }
   Stage stage() const override { return Stage::Output; }
   // The payload's force balance takes everything upstream as its force: the last block of the
@@ -39,7 +40,7 @@ class ForceLoop final : public Effect {
   const char* alternativeTo() const override { return "mass_spring"; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
-        {"fn", 0.2, 100.0, 10.0, "Hz"},       // natural frequency of payload against stiffness
+        {"fn", 0.2, 100.0, 10.0, "Hz"},  // natural frequency of payload against stiffness
         // Viscous damping ratio, up to critical: an overdamped force balance is a lag of the
         // force, which pressure_lag and creep stand for.
         {"zeta", 0.01, 1.0, 0.5, "-"},

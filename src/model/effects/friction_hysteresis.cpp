@@ -40,13 +40,14 @@ class FrictionHysteresis final : public Effect {
  public:
   const char* name() const override { return "friction_hysteresis"; }
   const char* explanation() const override {
-    return "friction in the force balance: after every reversal of the motion the muscle sticks until friction turns round";
+    return "friction in the force balance: after every reversal of the motion the muscle sticks until friction turns "
+           "round";
   }
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 30; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
-        {"zmax", 0.0, 10.0, 0.5, "y-unit"},  // friction force over stiffness
+        {"zmax", 0.0, 10.0, 0.5, "y-unit"},    // friction force over stiffness
         {"delta", 0.01, 20.0, 0.5, "y-unit"},  // pre-sliding travel
     };
     return p;

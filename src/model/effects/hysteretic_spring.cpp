@@ -114,7 +114,8 @@ class HystereticSpring final : public Effect {
  public:
   const char* name() const override { return "hysteretic_spring"; }
   const char* explanation() const override {
-    return "payload on a spring whose hysteretic force stiffens as it loads (Bouc-Wen with its |z| term) inside the force balance";
+    return "payload on a spring whose hysteretic force stiffens as it loads (Bouc-Wen with its |z| term) inside the "
+           "force balance";
   }
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 40; }
@@ -122,12 +123,10 @@ class HystereticSpring final : public Effect {
   std::vector<std::string> refines() const override { return {"mass_spring", "force_loop"}; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
-        {"fn", 0.2, 100.0, 10.0, "Hz"},
-        {"zeta", 0.01, 1.0, 0.5, "-"},
-        {"zmax", 0.0, 10.0, 0.5, "y-unit"},  // the element's scale: its saturation level at hardening 0
+        {"fn", 0.2, 100.0, 10.0, "Hz"},       {"zeta", 0.01, 1.0, 0.5, "-"},
+        {"zmax", 0.0, 10.0, 0.5, "y-unit"},    // the element's scale: its saturation level at hardening 0
         {"delta", 0.01, 16.0, 0.5, "y-unit"},  // the travel 1 / g (force_loop's pre-sliding travel)
-        {"hardening", 0.0, 2.0, 0.0, "-"},
-        {"hold_order", 0.0, 2.0, 0.0, "-"},
+        {"hardening", 0.0, 2.0, 0.0, "-"},    {"hold_order", 0.0, 2.0, 0.0, "-"},
     };
     return p;
   }

@@ -64,16 +64,16 @@ class MuscleBalance final : public Effect {
   std::vector<std::string> absorbs() const override { return {"saturation"}; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
-        {"fn", 0.2, 100.0, 10.0, "Hz"},       // payload against the nominal stiffness
+        {"fn", 0.2, 100.0, 10.0, "Hz"},  // payload against the nominal stiffness
         {"zeta", 0.01, 1.0, 0.5, "-"},
-        {"zmax", 0.0, 10.0, 0.5, "y-unit"},   // friction's level at no pressure, over the stiffness
-        {"delta", 0.01, 2.0, 0.5, "y-unit"},  // shortest pre-sliding travel
-        {"w", -100.0, 100.0, 0.0, "y-unit"},  // weight and preload over the stiffness
-        {"a1", -0.1, 0.1, 0.0, "1/y-unit"},   // force-length map: slope ...
+        {"zmax", 0.0, 10.0, 0.5, "y-unit"},        // friction's level at no pressure, over the stiffness
+        {"delta", 0.01, 2.0, 0.5, "y-unit"},       // shortest pre-sliding travel
+        {"w", -100.0, 100.0, 0.0, "y-unit"},       // weight and preload over the stiffness
+        {"a1", -0.1, 0.1, 0.0, "1/y-unit"},        // force-length map: slope ...
         {"a2", -0.005, 0.005, 0.0, "1/y-unit^2"},  // ... and curvature
-        {"zp", 0.0, 0.2, 0.0, "-"},           // friction's growth with the pressure's force
-        {"spread", 1.0, 20.0, 1.0, "-"},      // longest over shortest pre-sliding travel
-        {"lo", -1e9, 1e9, -1e9, "y-level"},   // end stops (outside the data: none)
+        {"zp", 0.0, 0.2, 0.0, "-"},                // friction's growth with the pressure's force
+        {"spread", 1.0, 20.0, 1.0, "-"},           // longest over shortest pre-sliding travel
+        {"lo", -1e9, 1e9, -1e9, "y-level"},        // end stops (outside the data: none)
         {"hi", -1e9, 1e9, 1e9, "y-level"},
     };
     return p;

@@ -29,7 +29,7 @@ class PressureLag final : public Effect {
     s[0] = in0;
     retune(p, s, c);
   }
-  bool directional() const override { return true; }  // a muscle filling and venting through different paths
+  bool directional() const override { return true; }   // a muscle filling and venting through different paths
   bool followsInput() const override { return true; }  // the pressure: filling while the command is above it
   void retune(const double* p, double* s, const StepContext& c) const noexcept override {
     s[1] = 1.0 - std::exp(-c.Ts / std::max(p[0], 1e-6));

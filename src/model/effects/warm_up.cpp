@@ -14,14 +14,15 @@ class WarmUp final : public Effect {
  public:
   const char* name() const override { return "warm_up"; }
   const char* explanation() const override {
-    return "the rubber warms after the start and softens: travel grows and the length shifts with a thermal time constant";
+    return "the rubber warms after the start and softens: travel grows and the length shifts with a thermal time "
+           "constant";
   }
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 60; }
   const std::vector<ParamSpec>& params() const override {
     static const std::vector<ParamSpec> p = {
-        {"tau", 1.0, 3600.0, 60.0, "s"},       // thermal time constant of the tube
-        {"gain", -0.5, 0.5, 0.1, "-"},         // relative change of the travel when warm
+        {"tau", 1.0, 3600.0, 60.0, "s"},        // thermal time constant of the tube
+        {"gain", -0.5, 0.5, 0.1, "-"},          // relative change of the travel when warm
         {"shift", -10.0, 10.0, 0.0, "y-unit"},  // change of the length when warm
     };
     return p;

@@ -22,8 +22,10 @@ class MonotoneCurve final : public Effect {
   Stage stage() const override { return stage_; }
   int rank() const override { return stage_ == Stage::Input ? 1 : 99; }  // outermost on its side
   const std::vector<ParamSpec>& params() const override {
-    static const std::vector<ParamSpec> in = withSlopes({{"lo", -10.0, 10.0, -5.0, "u-level"}, {"hi", -10.0, 10.0, 5.0, "u-level"}});
-    static const std::vector<ParamSpec> out = withSlopes({{"lo", 0.0, 40.0, 5.0, "y-level"}, {"hi", 0.0, 40.0, 35.0, "y-level"}});
+    static const std::vector<ParamSpec> in =
+        withSlopes({{"lo", -10.0, 10.0, -5.0, "u-level"}, {"hi", -10.0, 10.0, 5.0, "u-level"}});
+    static const std::vector<ParamSpec> out =
+        withSlopes({{"lo", 0.0, 40.0, 5.0, "y-level"}, {"hi", 0.0, 40.0, 35.0, "y-level"}});
     return stage_ == Stage::Input ? in : out;
   }
   int numStates() const override { return 0; }

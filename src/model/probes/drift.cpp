@@ -12,7 +12,9 @@ namespace {
 class Drift final : public Effect {
  public:
   const char* name() const override { return "drift"; }
-  const char* explanation() const override { return "probe: an offset and a gain that change with time (settling and trend)"; }
+  const char* explanation() const override {
+    return "probe: an offset and a gain that change with time (settling and trend)";
+  }
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 98; }
   const std::vector<ParamSpec>& params() const override {

@@ -18,7 +18,8 @@ class DeadZone final : public Effect {
   Stage stage() const override { return Stage::Input; }
   int rank() const override { return 2; }
   const std::vector<ParamSpec>& params() const override {
-    static const std::vector<ParamSpec> p = {{"centre", -10.0, 10.0, 0.0, "u-level"}, {"width", 0.0, 3.0, 0.2, "u-unit"}};
+    static const std::vector<ParamSpec> p = {{"centre", -10.0, 10.0, 0.0, "u-level"},
+                                             {"width", 0.0, 3.0, 0.2, "u-unit"}};
     return p;
   }
   int numStates() const override { return 0; }

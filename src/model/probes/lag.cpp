@@ -18,7 +18,8 @@ class Lag1 final : public Effect {
   explicit Lag1(Stage stage) : stage_(stage) {}
   const char* name() const override { return stage_ == Stage::Input ? "input_lag1" : "output_lag1"; }
   const char* explanation() const override {
-    return stage_ == Stage::Input ? "probe: first-order lag before the hysteresis" : "probe: first-order lag after the hysteresis";
+    return stage_ == Stage::Input ? "probe: first-order lag before the hysteresis"
+                                  : "probe: first-order lag after the hysteresis";
   }
   Stage stage() const override { return stage_; }
   int rank() const override { return stage_ == Stage::Input ? 31 : 41; }
@@ -56,7 +57,9 @@ class Placed final : public Effect {
   int rank() const override { return rank_; }
   const std::vector<ParamSpec>& params() const override { return impl_->params(); }
   int numStates() const override { return impl_->numStates(); }
-  void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override { impl_->init(p, s, in0, c); }
+  void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
+    impl_->init(p, s, in0, c);
+  }
   bool directional() const override { return impl_->directional(); }
   bool followsInput() const override { return impl_->followsInput(); }
   void retune(const double* p, double* s, const StepContext& c) const noexcept override { impl_->retune(p, s, c); }
@@ -76,12 +79,12 @@ class Placed final : public Effect {
 std::unique_ptr<Effect> make_input_lag1() { return std::make_unique<Lag1>(Stage::Input); }
 std::unique_ptr<Effect> make_output_lag1() { return std::make_unique<Lag1>(Stage::Output); }
 std::unique_ptr<Effect> make_input_lag2() {
-  return std::make_unique<Placed>(make_mass_spring(), "input_lag2", "probe: second-order dynamics before the hysteresis",
-                                  Stage::Input, 32);
+  return std::make_unique<Placed>(make_mass_spring(), "input_lag2",
+                                  "probe: second-order dynamics before the hysteresis", Stage::Input, 32);
 }
 std::unique_ptr<Effect> make_output_lag2() {
-  return std::make_unique<Placed>(make_mass_spring(), "output_lag2", "probe: second-order dynamics after the hysteresis",
-                                  Stage::Output, 42);
+  return std::make_unique<Placed>(make_mass_spring(), "output_lag2",
+                                  "probe: second-order dynamics after the hysteresis", Stage::Output, 42);
 }
 std::unique_ptr<Effect> make_dead_time() {
   return std::make_unique<Placed>(make_delay(), "dead_time", "probe: the whole response comes a fixed time late",

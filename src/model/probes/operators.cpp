@@ -20,14 +20,16 @@ constexpr int kPlays = 6;
 class PlayHysteresis final : public Effect {
  public:
   const char* name() const override { return "play_hysteresis"; }
-  const char* explanation() const override { return "probe: a Prandtl-Ishlinskii sum of play operators of the command"; }
+  const char* explanation() const override {
+    return "probe: a Prandtl-Ishlinskii sum of play operators of the command";
+  }
   Stage stage() const override { return Stage::Output; }
   int rank() const override { return 50; }
   const std::vector<ParamSpec>& params() const override {
-    static const std::vector<ParamSpec> p = {
-        {"radius", 0.1, 5.0, 2.0, "u-unit"},  // the largest play's
-        {"w1", -5.0, 5.0, 0.0, "-"}, {"w2", -5.0, 5.0, 0.0, "-"}, {"w3", -5.0, 5.0, 0.0, "-"},
-        {"w4", -5.0, 5.0, 0.0, "-"}, {"w5", -5.0, 5.0, 0.0, "-"}, {"w6", -5.0, 5.0, 0.0, "-"}};
+    static const std::vector<ParamSpec> p = {{"radius", 0.1, 5.0, 2.0, "u-unit"},  // the largest play's
+                                             {"w1", -5.0, 5.0, 0.0, "-"},         {"w2", -5.0, 5.0, 0.0, "-"},
+                                             {"w3", -5.0, 5.0, 0.0, "-"},         {"w4", -5.0, 5.0, 0.0, "-"},
+                                             {"w5", -5.0, 5.0, 0.0, "-"},         {"w6", -5.0, 5.0, 0.0, "-"}};
     return p;
   }
   int numStates() const override { return kPlays; }
@@ -50,7 +52,9 @@ class PlayHysteresis final : public Effect {
 class DirectionLag final : public Effect {
  public:
   const char* name() const override { return "direction_lag"; }
-  const char* explanation() const override { return "probe: a first-order lag with separate rising and falling time constants"; }
+  const char* explanation() const override {
+    return "probe: a first-order lag with separate rising and falling time constants";
+  }
   Stage stage() const override { return Stage::Input; }
   int rank() const override { return 33; }
   const std::vector<ParamSpec>& params() const override {
@@ -69,7 +73,9 @@ class DirectionLag final : public Effect {
 class ValveFlow final : public Effect {
  public:
   const char* name() const override { return "valve_flow"; }
-  const char* explanation() const override { return "probe: the effective command moves at a rate growing with the square root of the difference"; }
+  const char* explanation() const override {
+    return "probe: the effective command moves at a rate growing with the square root of the difference";
+  }
   Stage stage() const override { return Stage::Input; }
   int rank() const override { return 34; }
   const std::vector<ParamSpec>& params() const override {

@@ -27,7 +27,9 @@ class RateLimit final : public Effect {
   }
   bool directional() const override { return true; }
   bool followsInput() const override { return true; }
-  void retune(const double* p, double* s, const StepContext& c) const noexcept override { s[1] = std::fabs(p[0]) * c.Ts; }
+  void retune(const double* p, double* s, const StepContext& c) const noexcept override {
+    s[1] = std::fabs(p[0]) * c.Ts;
+  }
   double step(const double*, double* s, double in, const StepContext&) const noexcept override {
     s[0] += std::clamp(in - s[0], -s[1], s[1]);
     return s[0];
