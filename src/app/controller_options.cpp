@@ -40,28 +40,28 @@ void ControllerOptions::addStructure(CLI::App* a) {
                 "beta1..3, delta, b0) or 'first-order' (pamc's own: a lag, x1' = (gain u - x1)/tau + x2)")
       ->capture_default_str()
       ->check(CLI::IsMember({"first-order", "printed"}));
-  a->add_option("--eso-gain", cc.eso_gain, "first-order ESO: static gain of its plant [mm/V]")
+  a->add_option("--eso-gain", cc.eso.gain, "first-order ESO: static gain of its plant [mm/V]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  a->add_option("--eso-tau", cc.eso_tau, "first-order ESO: time constant of its plant [s]")
+  a->add_option("--eso-tau", cc.eso.tau, "first-order ESO: time constant of its plant [s]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  a->add_option("--eso-wo", cc.eso_wo, "first-order ESO: observer bandwidth [rad/s]")
+  a->add_option("--eso-wo", cc.eso.wo, "first-order ESO: observer bandwidth [rad/s]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  a->add_option("--eso-b0", cc.b0, "printed ESO: input gain b0 [mm/(s^2 V)]")
+  a->add_option("--eso-b0", cc.eso.b0, "printed ESO: input gain b0 [mm/(s^2 V)]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  a->add_option("--eso-delta", cc.delta, "printed ESO: fal() linear zone delta [mm]")
+  a->add_option("--eso-delta", cc.eso.delta, "printed ESO: fal() linear zone delta [mm]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  a->add_option("--eso-beta1", cc.beta1, "printed ESO: observer gain beta1")
+  a->add_option("--eso-beta1", cc.eso.beta1, "printed ESO: observer gain beta1")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  a->add_option("--eso-beta2", cc.beta2, "printed ESO: observer gain beta2")
+  a->add_option("--eso-beta2", cc.eso.beta2, "printed ESO: observer gain beta2")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  a->add_option("--eso-beta3", cc.beta3, "printed ESO: observer gain beta3")
+  a->add_option("--eso-beta3", cc.eso.beta3, "printed ESO: observer gain beta3")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   a->add_option("--delay", cc.delay_cycles,
@@ -69,22 +69,22 @@ void ControllerOptions::addStructure(CLI::App* a) {
       ->capture_default_str()
       ->check(CLI::Range(0, 7));
   a->add_option(
-       "--mbc-horizon", cc.mbc_horizon,
+       "--mbc-horizon", cc.mbc.horizon,
        "MBC: samples ahead its inverse reaches the setpoint at; 0 = automatic (bus delay + the model's response "
        "time)")
       ->capture_default_str()
       ->check(CLI::Range(0, 2000));
   a->add_option(
-       "--mbc-error-tau", cc.mbc_error_tau_s,
+       "--mbc-error-tau", cc.mbc.error_tau_s,
        "MBC: time constant [s] of the filter on the UKF's modelling-error estimate the feedforward aims off by")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  a->add_option("--mbc-rate", cc.mbc_rate_mm_s,
+  a->add_option("--mbc-rate", cc.mbc.rate_mm_s,
                 "MBC: the setpoint governor's rate [mm/s]: a setpoint step reaches the inverse and the PI at most this "
                 "fast (0: no governor)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  a->add_option("--mbc-accel", cc.mbc_accel_mm_s2, "MBC: the setpoint governor's acceleration [mm/s^2]")
+  a->add_option("--mbc-accel", cc.mbc.accel_mm_s2, "MBC: the setpoint governor's acceleration [mm/s^2]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   a->add_option("--model", model_file, "identified model (JSON) for the AMC's and MBC's UKF and the open loop");
@@ -94,7 +94,7 @@ control::ControllerConfig ControllerOptions::config() const {
   control::ControllerConfig c = cc;
   c.amc_as_printed = amc_form == "printed";
   c.amc_bus_aware = amc_form == "bus";
-  c.eso_order = eso_form == "printed" ? 2 : 1;
+  c.eso.order = eso_form == "printed" ? 2 : 1;
   if (!model_file.empty()) c.model = io::readModelFile(model_file);
   return c;
 }

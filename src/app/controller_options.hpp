@@ -14,7 +14,7 @@ namespace pamc::app {
 struct ControllerOptions {
   control::ControllerConfig cc;
   std::string amc_form = "printed";
-  std::string eso_form = cc.eso_order == 2 ? "printed" : "first-order";
+  std::string eso_form = cc.eso.order == 2 ? "printed" : "first-order";
   std::string model_file;
   // with_model: --model (the experiments identify their own model unless given one).
   void add(CLI::App* a);

@@ -120,20 +120,20 @@ void validate(const ControllerConfig& c) {
   auto bad = [](const std::string& what) { throw std::invalid_argument("controller configuration: " + what); };
   if (!(c.Ts > 0 && std::isfinite(c.Ts))) bad("Ts must be positive");
   if (!(c.u_min < c.u_max)) bad("u_min must be below u_max");
-  for (double g : {c.kp, c.ki, c.kc, c.beta1, c.beta2, c.beta3})
+  for (double g : {c.kp, c.ki, c.kc, c.eso.beta1, c.eso.beta2, c.eso.beta3})
     if (!std::isfinite(g) || g < 0) bad("gains must be finite and non-negative");
-  if (!(c.delta > 0) || !(c.b0 > 0)) bad("ESO delta and b0 must be positive");
-  if (c.eso_order != 1 && c.eso_order != 2) bad("eso_order must be 1 (first-order plant) or 2 (eq. 22 as printed)");
-  if (!(c.eso_gain > 0 && c.eso_tau > 0 && c.eso_wo > 0) || !std::isfinite(c.eso_gain + c.eso_tau + c.eso_wo))
+  if (!(c.eso.delta > 0) || !(c.eso.b0 > 0)) bad("ESO delta and b0 must be positive");
+  if (c.eso.order != 1 && c.eso.order != 2) bad("eso_order must be 1 (first-order plant) or 2 (eq. 22 as printed)");
+  if (!(c.eso.gain > 0 && c.eso.tau > 0 && c.eso.wo > 0) || !std::isfinite(c.eso.gain + c.eso.tau + c.eso.wo))
     bad("ESO gain, time constant and bandwidth must be positive");
   if (c.delay_cycles < 0 || c.delay_cycles > 7) bad("delay_cycles must be 0..7");
   if (c.amc_horizon < 0 || c.amc_horizon > 2000) bad("amc_horizon must be 0 (automatic) .. 2000 samples");
   if (!(c.amc_inverse >= 0.0 && c.amc_inverse <= 1.0)) bad("amc_inverse must be in [0, 1]");
-  if (c.mbc_horizon < 0 || c.mbc_horizon > 2000) bad("mbc_horizon must be 0 (automatic) .. 2000 samples");
-  if (!(c.mbc_error_tau_s > 0.0) || !std::isfinite(c.mbc_error_tau_s)) bad("mbc_error_tau_s must be positive");
-  if (!(c.mbc_rate_mm_s >= 0.0) || !std::isfinite(c.mbc_rate_mm_s)) bad("mbc_rate_mm_s must be 0 (off) or positive");
-  if (!(c.mbc_accel_mm_s2 > 0.0) || !std::isfinite(c.mbc_accel_mm_s2)) bad("mbc_accel_mm_s2 must be positive");
-  if (c.mbc_horizon > 0 && c.mbc_horizon <= c.delay_cycles)
+  if (c.mbc.horizon < 0 || c.mbc.horizon > 2000) bad("mbc_horizon must be 0 (automatic) .. 2000 samples");
+  if (!(c.mbc.error_tau_s > 0.0) || !std::isfinite(c.mbc.error_tau_s)) bad("mbc_error_tau_s must be positive");
+  if (!(c.mbc.rate_mm_s >= 0.0) || !std::isfinite(c.mbc.rate_mm_s)) bad("mbc_rate_mm_s must be 0 (off) or positive");
+  if (!(c.mbc.accel_mm_s2 > 0.0) || !std::isfinite(c.mbc.accel_mm_s2)) bad("mbc_accel_mm_s2 must be positive");
+  if (c.mbc.horizon > 0 && c.mbc.horizon <= c.delay_cycles)
     bad("mbc_horizon must be above delay_cycles (the command must act within the horizon)");
   if (c.amc_bus_aware && (c.amc_inverse > 0.0 || c.amc_horizon > 1))
     bad("the bus-aware AMC is the paper's form (amc_inverse 0) at the horizon delay_cycles + 1 (amc_horizon 0 or 1)");
@@ -351,15 +351,15 @@ class PidEso final : public Controller {
     x2_ = 0.0;
     x3_ = 0.0;
     sat_dir_ = 0;
-    if (cfg_.eso_order == 1 && std::isfinite(u0)) {
+    if (cfg_.eso.order == 1 && std::isfinite(u0)) {
       // At rest: the disturbance that holds x1 under u0, and the PI carrying the rest (bumpless).
-      x2_ = (x1_ - cfg_.eso_gain * u0) / cfg_.eso_tau;
+      x2_ = (x1_ - cfg_.eso.gain * u0) / cfg_.eso.tau;
       pi_.reset(u0 - compensation());
     }
   }
   // u_c of eq. (25): the disturbance estimate in volts.
   double compensation() const noexcept {
-    return cfg_.eso_order == 1 ? -x2_ * cfg_.eso_tau / cfg_.eso_gain : -x3_ / cfg_.b0;
+    return cfg_.eso.order == 1 ? -x2_ * cfg_.eso.tau / cfg_.eso.gain : -x3_ / cfg_.eso.b0;
   }
   static double fal(double e, double a, double delta) noexcept {
     const double ae = std::fabs(e);
@@ -376,19 +376,19 @@ class PidEso final : public Controller {
     o.measurement_rejected = !ok;
     const double e = ok ? x1_ - y : 0.0;
     double x1, x2, x3 = 0.0;
-    if (cfg_.eso_order == 1) {
+    if (cfg_.eso.order == 1) {
       // (s + wo)^2 for the error: l1 + 1/T = 2 wo, l2 = wo^2.
-      const double T = cfg_.eso_tau, wo = cfg_.eso_wo;
-      x1 = x1_ + Ts * ((cfg_.eso_gain * u_applied - x1_) / T + x2_ - (2.0 * wo - 1.0 / T) * e);
+      const double T = cfg_.eso.tau, wo = cfg_.eso.wo;
+      x1 = x1_ + Ts * ((cfg_.eso.gain * u_applied - x1_) / T + x2_ - (2.0 * wo - 1.0 / T) * e);
       x2 = x2_ - Ts * wo * wo * e;
       // Conditional integration, as the PI's: while the command sits in a limit, the estimate does not
       // move the compensation further into it (a valve that does not follow would otherwise be taken
       // for a growing disturbance, to be given back at wo after it recovers).
       if (sat_dir_ != 0 && (x2_ - x2) * sat_dir_ > 0.0) x2 = x2_;
     } else {
-      x1 = x1_ + Ts * (x2_ - cfg_.beta1 * e);
-      x2 = x2_ + Ts * (cfg_.b0 * u_applied + x3_ - cfg_.beta2 * fal(e, 0.5, cfg_.delta));
-      x3 = x3_ + Ts * (-cfg_.beta3 * fal(e, 0.25, cfg_.delta));
+      x1 = x1_ + Ts * (x2_ - cfg_.eso.beta1 * e);
+      x2 = x2_ + Ts * (cfg_.eso.b0 * u_applied + x3_ - cfg_.eso.beta2 * fal(e, 0.5, cfg_.eso.delta));
+      x3 = x3_ + Ts * (-cfg_.eso.beta3 * fal(e, 0.25, cfg_.eso.delta));
     }
     if (std::isfinite(x1) && std::isfinite(x2) && std::isfinite(x3)) {
       x1_ = x1;
@@ -409,7 +409,7 @@ class PidEso final : public Controller {
     return o;
   }
   double integral() const noexcept override { return pi_.integral(); }
-  double disturbance() const noexcept override { return cfg_.eso_order == 1 ? x2_ : x3_; }
+  double disturbance() const noexcept override { return cfg_.eso.order == 1 ? x2_ : x3_; }
 
  private:
   ControllerConfig cfg_;

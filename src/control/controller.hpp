@@ -52,6 +52,39 @@ struct Gains {
 };
 inline constexpr Gains kDefaultGains{0.1, 3.0, 0.06};
 
+// The model-based controller's settings (Kind::Mbc, src/control/mbc.cpp).
+struct MbcSettings {
+  // The horizon in samples its inverse reaches the setpoint at (0: automatic - the bus delay plus the
+  // time the model takes to make 10 % of its response to a command step, at least one sample after the
+  // commands in flight).
+  int horizon = 0;
+  // Time constant [s] of the filter on the UKF's modelling-error estimate that the feedforward aims off
+  // by. Chosen from 0.5, 2, 10 and 1000 s on Table 2's triangle along a diagnose ladder (docs/CONTROL.md,
+  // "Model-based control"): faster filters track better with the final model but worse with a middle rung.
+  double error_tau_s = 10.0;
+  // The setpoint governor. The inverse and the PI follow the setpoint ahead through a follower limited to
+  // this rate [mm/s] and acceleration [mm/s^2], braking so as to arrive without overshoot; a setpoint
+  // slope below the rate passes (Table 2's fastest is 9.4 mm/s). 0: no governor, the setpoint as it is.
+  // Chosen on the square wave of two plants (docs/CONTROL.md): without it a step is taken by a short-
+  // horizon inverse that overshoots a payload still moving.
+  double rate_mm_s = 60.0;
+  double accel_mm_s2 = 600.0;
+};
+
+// The PID + ESO's observer: the plant it assumes (docs/CONTROL.md). order 2 (default): the paper's,
+// eqs. (22)-(24), a double integrator x1'' = b0 u + tau, with fal() of delta in mm and b0 [mm/(s^2 V)]
+// (the paper: beta1 = beta2 = beta3 = 100, delta = 500, b0 = 1). 1: pamc's own first-order observer, the
+// same extended-state idea on a first-order lag (what a valve filling a muscle is from command to
+// position): x1' = (gain u - x1) / tau + x2, the total disturbance x2 estimated with both eigenvalues of
+// the error dynamics at -wo, u = u_n - x2 tau / gain.
+struct EsoSettings {
+  int order = 2;
+  double beta1 = 100.0, beta2 = 100.0, beta3 = 100.0, delta = 500.0, b0 = 1.0;
+  double gain = 8.4;  // [mm/V]
+  double tau = 0.3;   // [s]
+  double wo = 0.5;    // [rad/s]
+};
+
 struct ControllerConfig {
   double Ts = 1e-3;
   double u_min = kCommandMin, u_max = kCommandMax;  // valve command range [V]
@@ -70,21 +103,7 @@ struct ControllerConfig {
   // error, g the model's response at the horizon to a change of the command. The compensation then
   // rests on how well the model knows the plant's dynamics.
   double amc_inverse = 0.0;
-  // MBC: the horizon in samples its inverse reaches the setpoint at (0: automatic - the bus delay plus
-  // the time the model takes to make 10 % of its response to a command step, at least one sample after
-  // the commands in flight).
-  int mbc_horizon = 0;
-  // MBC: time constant [s] of the filter on the UKF's modelling-error estimate that the feedforward aims
-  // off by. Chosen from 0.5, 2, 10 and 1000 s on Table 2's triangle along a diagnose ladder (docs/CONTROL.md,
-  // "Model-based control"): faster filters track better with the final model but worse with a middle rung.
-  double mbc_error_tau_s = 10.0;
-  // MBC: the setpoint governor. The inverse and the PI follow the setpoint ahead through a follower limited
-  // to this rate [mm/s] and acceleration [mm/s^2], braking so as to arrive without overshoot; a setpoint
-  // slope below the rate passes (Table 2's fastest is 9.4 mm/s). 0: no governor, the setpoint as it is.
-  // Chosen on the square wave of two plants (docs/CONTROL.md): without it a step is taken by a short-
-  // horizon inverse that overshoots a payload still moving.
-  double mbc_rate_mm_s = 60.0;
-  double mbc_accel_mm_s2 = 600.0;
+  MbcSettings mbc;
   // Eq. (17) read as printed (true: Y_{k+1} = H(h_{k+1}, u_n(k)), the compensation feeding back on
   // itself through the direct feedthrough with gain kc k rho) or as an increment on the posterior
   // output (false); see docs/CONTROL.md. Only for the paper's form (amc_inverse = 0, horizon 1).
@@ -95,17 +114,7 @@ struct ControllerConfig {
   // setpoint is read too. The compensation then no longer feeds back on itself through the delay
   // (docs/EXPERIMENTS.md, "The paper's AMC, bus-aware").
   bool amc_bus_aware = false;
-  // ESO, the plant its observer assumes (docs/CONTROL.md). 2 (default): the paper's, eqs. (22)-(24),
-  // a double integrator x1'' = b0 u + tau, with fal() of delta in mm and b0 [mm/(s^2 V)] (the paper:
-  // beta1 = beta2 = beta3 = 100, delta = 500, b0 = 1). 1: pamc's own first-order observer, the same
-  // extended-state idea on a first-order lag (what a valve filling a muscle is from command to position):
-  // x1' = (eso_gain u - x1) / eso_tau + x2, the total disturbance x2 estimated with both eigenvalues of
-  // the error dynamics at -eso_wo, u = u_n - x2 eso_tau / eso_gain.
-  int eso_order = 2;
-  double beta1 = 100.0, beta2 = 100.0, beta3 = 100.0, delta = 500.0, b0 = 1.0;
-  double eso_gain = 8.4;  // [mm/V]
-  double eso_tau = 0.3;   // [s]
-  double eso_wo = 0.5;    // [rad/s]
+  EsoSettings eso;
   // Cycles between issuing a command and the first measurement that reflects it, beyond the one
   // sample of any sampled loop (actuation.hpp).
   int delay_cycles = kBusDelayCycles;

@@ -41,7 +41,7 @@ class Mbc final : public Controller {
   explicit Mbc(const ControllerConfig& c) : cfg_(c), horizon_(mbcHorizon(c)) {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
-    governor_.configure(c.mbc_rate_mm_s, c.mbc_accel_mm_s2, c.Ts);
+    governor_.configure(c.mbc.rate_mm_s, c.mbc.accel_mm_s2, c.Ts);
   }
   Kind kind() const override { return Kind::Mbc; }
   int lookahead() const override { return horizon_; }
@@ -131,7 +131,7 @@ class Mbc final : public Controller {
   // setpoint, so that the plant lands on it. A restart of the estimator leaves it where it was.
   void followMiss(const estimation::ActiveModelStep& est) noexcept {
     if (est.status == estimation::UkfStatus::Reset || !std::isfinite(est.y_post) || !std::isfinite(y_ref_)) return;
-    miss_ += (est.y_post - y_ref_ - miss_) * std::min(1.0, cfg_.Ts / cfg_.mbc_error_tau_s);
+    miss_ += (est.y_post - y_ref_ - miss_) * std::min(1.0, cfg_.Ts / cfg_.mbc.error_tau_s);
   }
 
   // The reference model takes the feedforward that reaches its effect now (sent delay_cycles + 1 ago).
@@ -181,7 +181,7 @@ class Mbc final : public Controller {
 }  // namespace
 
 int mbcHorizon(const ControllerConfig& c) {
-  if (c.mbc_horizon > 0) return c.mbc_horizon;
+  if (c.mbc.horizon > 0) return c.mbc.horizon;
   return responseHorizon(c);
 }
 

@@ -7,47 +7,51 @@ namespace {
 
 using control::ControllerConfig;
 
+// Each setting by its name (the names of the Python module and the sweeps' settings records) and the
+// field that holds it.
 template <class T>
 struct Setting {
   const char* name;
-  T ControllerConfig::*field;
+  T& (*ref)(ControllerConfig&);
 };
-constexpr Setting<double> kDoubles[] = {{"Ts", &ControllerConfig::Ts},
-                                        {"u_min", &ControllerConfig::u_min},
-                                        {"u_max", &ControllerConfig::u_max},
-                                        {"kp", &ControllerConfig::kp},
-                                        {"ki", &ControllerConfig::ki},
-                                        {"kc", &ControllerConfig::kc},
-                                        {"amc_inverse", &ControllerConfig::amc_inverse},
-                                        {"mbc_error_tau_s", &ControllerConfig::mbc_error_tau_s},
-                                        {"mbc_rate_mm_s", &ControllerConfig::mbc_rate_mm_s},
-                                        {"mbc_accel_mm_s2", &ControllerConfig::mbc_accel_mm_s2},
-                                        {"beta1", &ControllerConfig::beta1},
-                                        {"beta2", &ControllerConfig::beta2},
-                                        {"beta3", &ControllerConfig::beta3},
-                                        {"delta", &ControllerConfig::delta},
-                                        {"b0", &ControllerConfig::b0},
-                                        {"eso_gain", &ControllerConfig::eso_gain},
-                                        {"eso_tau", &ControllerConfig::eso_tau},
-                                        {"eso_wo", &ControllerConfig::eso_wo}};
-constexpr Setting<int> kInts[] = {{"amc_horizon", &ControllerConfig::amc_horizon},
-                                  {"mbc_horizon", &ControllerConfig::mbc_horizon},
-                                  {"eso_order", &ControllerConfig::eso_order},
-                                  {"delay_cycles", &ControllerConfig::delay_cycles}};
-constexpr Setting<bool> kBools[] = {{"amc_as_printed", &ControllerConfig::amc_as_printed},
-                                    {"amc_bus_aware", &ControllerConfig::amc_bus_aware},
-                                    {"open_loop_linear", &ControllerConfig::open_loop_linear}};
+#define PAMC_SETTING(T, name, field) \
+  Setting<T> { name, [](ControllerConfig& c) -> T& { return c.field; } }
+constexpr Setting<double> kDoubles[] = {PAMC_SETTING(double, "Ts", Ts),
+                                        PAMC_SETTING(double, "u_min", u_min),
+                                        PAMC_SETTING(double, "u_max", u_max),
+                                        PAMC_SETTING(double, "kp", kp),
+                                        PAMC_SETTING(double, "ki", ki),
+                                        PAMC_SETTING(double, "kc", kc),
+                                        PAMC_SETTING(double, "amc_inverse", amc_inverse),
+                                        PAMC_SETTING(double, "mbc_error_tau_s", mbc.error_tau_s),
+                                        PAMC_SETTING(double, "mbc_rate_mm_s", mbc.rate_mm_s),
+                                        PAMC_SETTING(double, "mbc_accel_mm_s2", mbc.accel_mm_s2),
+                                        PAMC_SETTING(double, "beta1", eso.beta1),
+                                        PAMC_SETTING(double, "beta2", eso.beta2),
+                                        PAMC_SETTING(double, "beta3", eso.beta3),
+                                        PAMC_SETTING(double, "delta", eso.delta),
+                                        PAMC_SETTING(double, "b0", eso.b0),
+                                        PAMC_SETTING(double, "eso_gain", eso.gain),
+                                        PAMC_SETTING(double, "eso_tau", eso.tau),
+                                        PAMC_SETTING(double, "eso_wo", eso.wo)};
+constexpr Setting<int> kInts[] = {PAMC_SETTING(int, "amc_horizon", amc_horizon), PAMC_SETTING(int, "mbc_horizon", mbc.horizon),
+                                  PAMC_SETTING(int, "eso_order", eso.order),
+                                  PAMC_SETTING(int, "delay_cycles", delay_cycles)};
+constexpr Setting<bool> kBools[] = {PAMC_SETTING(bool, "amc_as_printed", amc_as_printed),
+                                    PAMC_SETTING(bool, "amc_bus_aware", amc_bus_aware),
+                                    PAMC_SETTING(bool, "open_loop_linear", open_loop_linear)};
+#undef PAMC_SETTING
 
 template <class T, size_t N>
 void addAll(nlohmann::json& j, const ControllerConfig& c, const Setting<T> (&table)[N]) {
-  for (const auto& s : table) j[s.name] = c.*s.field;
+  for (const auto& s : table) j[s.name] = s.ref(const_cast<ControllerConfig&>(c));  // read only
 }
 
 template <class T, size_t N>
 bool setField(ControllerConfig& c, const Setting<T> (&table)[N], const std::string& name, const nlohmann::json& v) {
   for (const auto& s : table)
     if (name == s.name) {
-      c.*s.field = v.get<T>();
+      s.ref(c) = v.get<T>();
       return true;
     }
   return false;

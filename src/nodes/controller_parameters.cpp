@@ -19,11 +19,27 @@ namespace {
 
 // The parameters in 0x2000 (gains), 0x2001 (model), 0x2002 (UKF) and 0x2022 (plausibility) by
 // sub-index 1..n, read, written and checked alike.
-constexpr double control::ControllerConfig::*kGains[] = {
-    &control::ControllerConfig::kp,      &control::ControllerConfig::ki,    &control::ControllerConfig::kc,
-    &control::ControllerConfig::beta1,   &control::ControllerConfig::beta2, &control::ControllerConfig::beta3,
-    &control::ControllerConfig::delta,   &control::ControllerConfig::b0,    &control::ControllerConfig::eso_gain,
-    &control::ControllerConfig::eso_tau, &control::ControllerConfig::eso_wo};
+// The gains: each a field of the controller's settings (some in its ESO's), and whether the
+// application needs it above 0 (a divisor: ESO delta, b0, gain, tau and the bandwidth wo).
+struct Gain {
+  double& (*ref)(control::ControllerConfig&);
+  bool divisor;
+};
+constexpr Gain kGains[] = {
+    {[](control::ControllerConfig& c) -> double& { return c.kp; }, false},
+    {[](control::ControllerConfig& c) -> double& { return c.ki; }, false},
+    {[](control::ControllerConfig& c) -> double& { return c.kc; }, false},
+    {[](control::ControllerConfig& c) -> double& { return c.eso.beta1; }, false},
+    {[](control::ControllerConfig& c) -> double& { return c.eso.beta2; }, false},
+    {[](control::ControllerConfig& c) -> double& { return c.eso.beta3; }, false},
+    {[](control::ControllerConfig& c) -> double& { return c.eso.delta; }, true},
+    {[](control::ControllerConfig& c) -> double& { return c.eso.b0; }, true},
+    {[](control::ControllerConfig& c) -> double& { return c.eso.gain; }, true},
+    {[](control::ControllerConfig& c) -> double& { return c.eso.tau; }, true},
+    {[](control::ControllerConfig& c) -> double& { return c.eso.wo; }, true}};
+double gainOf(const control::ControllerConfig& c, std::size_t i) {
+  return kGains[i].ref(const_cast<control::ControllerConfig&>(c));  // read only
+}
 // 0x2000 sub 12, after the gains: the ESO's form (1 first-order, 2 as printed).
 constexpr std::uint8_t kEsoFormSub = std::size(kGains) + 1;
 constexpr double model::BoucWenParams::*kModel[] = {&model::BoucWenParams::k,    &model::BoucWenParams::rho,
@@ -40,17 +56,8 @@ constexpr double ParameterSet::*kPlausibility[] = {&ParameterSet::range_steps, &
 
 constexpr std::uint8_t sub(std::size_t i) { return static_cast<std::uint8_t>(i + 1); }
 
-// Ranges the application adds to the EDS limits: the divisors ESO delta, b0, gain, tau and the
-// bandwidth wo, and UKF R above 0.
-constexpr double control::ControllerConfig::*kGainDivisors[] = {
-    &control::ControllerConfig::delta, &control::ControllerConfig::b0, &control::ControllerConfig::eso_gain,
-    &control::ControllerConfig::eso_tau, &control::ControllerConfig::eso_wo};
-constexpr bool isGainDivisor(std::uint8_t s) {
-  if (s < 1 || s > std::size(kGains)) return false;
-  for (auto m : kGainDivisors)
-    if (kGains[s - 1] == m) return true;
-  return false;
-}
+// Ranges the application adds to the EDS limits: the gains that divide (kGains), and UKF R above 0.
+constexpr bool isGainDivisor(std::uint8_t s) { return s >= 1 && s <= std::size(kGains) && kGains[s - 1].divisor; }
 std::uint32_t applicationRange(std::uint16_t idx, std::uint8_t s, double v) {
   if (((idx == 0x2000 && isGainDivisor(s)) || (idx == 0x2002 && s == 5)) && !(v > 0.0))
     return canopen::kAbortValueTooLow;
@@ -109,8 +116,8 @@ ParameterSet ControllerParameters::read() const {
   auto& od = node_.od();
   ParameterSet p;
   p.ctrl = running_.ctrl;
-  for (std::size_t i = 0; i < std::size(kGains); ++i) p.ctrl.*kGains[i] = od.ref<double>(0x2000, sub(i)).get();
-  p.ctrl.eso_order = od.ref<std::uint8_t>(0x2000, kEsoFormSub).get();
+  for (std::size_t i = 0; i < std::size(kGains); ++i) kGains[i].ref(p.ctrl) = od.ref<double>(0x2000, sub(i)).get();
+  p.ctrl.eso.order = od.ref<std::uint8_t>(0x2000, kEsoFormSub).get();
   for (std::size_t i = 0; i < std::size(kModel); ++i)
     p.ctrl.model.core().*kModel[i] = od.ref<double>(0x2001, sub(i)).get();
   for (std::size_t i = 0; i < std::size(kUkf); ++i) p.ctrl.ukf.*kUkf[i] = od.ref<double>(0x2002, sub(i)).get();
@@ -121,8 +128,8 @@ ParameterSet ControllerParameters::read() const {
 }
 
 void ControllerParameters::writeGains(const control::ControllerConfig& c) {
-  for (std::size_t i = 0; i < std::size(kGains); ++i) node_.od().ref<double>(0x2000, sub(i)).set(c.*kGains[i]);
-  node_.od().ref<std::uint8_t>(0x2000, kEsoFormSub).set(static_cast<std::uint8_t>(c.eso_order));
+  for (std::size_t i = 0; i < std::size(kGains); ++i) node_.od().ref<double>(0x2000, sub(i)).set(gainOf(c, i));
+  node_.od().ref<std::uint8_t>(0x2000, kEsoFormSub).set(static_cast<std::uint8_t>(c.eso.order));
 }
 
 void ControllerParameters::writeModel(const model::BoucWenParams& m) {
@@ -157,7 +164,7 @@ std::uint32_t ControllerParameters::check(const ParameterSet& p, std::string* wh
     return code;
   };
   for (std::size_t i = 0; i < std::size(kGains); ++i)
-    if (auto c = value(0x2000, sub(i), p.ctrl.*kGains[i])) return c;
+    if (auto c = value(0x2000, sub(i), gainOf(p.ctrl, i))) return c;
   for (std::size_t i = 0; i < std::size(kModel); ++i)
     if (auto c = value(0x2001, sub(i), p.ctrl.model.core().*kModel[i])) return c;
   for (std::size_t i = 0; i < std::size(kUkf); ++i)

@@ -368,7 +368,7 @@ const canopen::Entry& channelObject(const Reader& r, const SlaveBuild& s, const 
 }
 
 // The one-muscle form: [sensor] with the position, [valve] with the command and the feedback.
-void readOneMuscle(const Reader& r, const canopen::IniFile& ini, RigFile& rig, FileBuild& fb) {
+void readOneMuscle(const Reader& r, RigFile& rig, FileBuild& fb) {
   const IniSection& ss = r.need("sensor");
   r.knownKeys(ss, kSlaveCommon, kSensorKeys);
   fb.slaves.push_back(slaveCommon(r, ss, rig.controller_id));
@@ -385,7 +385,6 @@ void readOneMuscle(const Reader& r, const canopen::IniFile& ini, RigFile& rig, F
   c.command = &channelObject(r, fb.slaves[1], r.needKey(vs, "command"), "command");
   if (const IniKey* k = vs.find("feedback")) c.feedback = &channelObject(r, fb.slaves[1], *k, "feedback");
   fb.channels.push_back(std::move(c));
-  (void)ini;
 }
 
 std::size_t slaveNamed(const Reader& r, const FileBuild& fb, const IniKey& k) {
@@ -594,6 +593,32 @@ void sensorSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*
 }
 
 // A valve slave: its channels' commands in one RPDO, their error values, their feedback in one TPDO.
+// A valve slave's feedback: its channels' pressures in one TPDO, or none (then its TPDOs are off).
+void valveFeedback(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*>& chans,
+                   const std::vector<const canopen::Entry*>& fbs) {
+  const IniSection& vs = *s.sec;
+  if (fbs.empty()) {
+    for (ChannelBuild* c : chans) c->out.cfg.layout.feedback = false;
+    otherTpdosOff(s, 0);
+    return;
+  }
+  const unsigned tpdo = static_cast<unsigned>(r.unsignedKey(vs, "feedback_tpdo", 1, 1, 512));
+  const int line = vs.find("feedback_tpdo") ? vs.find("feedback_tpdo")->line : chans[0]->line;
+  const auto fcob = static_cast<std::uint32_t>(
+      r.unsignedKey(vs, "feedback_cob_id", defaultPdoCob(r, line, true, tpdo, s.id), 1, 0x7FF));
+  otherTpdosOff(s, tpdo);
+  pdoWrites(r, s, line, true, tpdo, fcob, fbs);
+  const double full = r.doubleKey(vs, "feedback_full_counts", pd::kAnalogFullScaleCounts, 1, 65535);
+  unsigned offset = 0;
+  for (ChannelBuild* c : chans) {
+    c->out.cfg.layout.feedback_cob = fcob;
+    c->out.cfg.layout.scaling.pressure_full_counts = full;
+    c->out.feedback = RigObject{c->feedback->index(), c->feedback->subIndex(), c->feedback->dataType()};
+    c->out.feedback_offset = offset;
+    offset += static_cast<unsigned>(c->feedback->size());
+  }
+}
+
 void valveSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*>& chans) {
   const IniSection& vs = *s.sec;
   const unsigned rpdo = static_cast<unsigned>(r.unsignedKey(vs, "rpdo", 1, 1, 512));
@@ -633,26 +658,7 @@ void valveSlave(const Reader& r, SlaveBuild& s, const std::vector<ChannelBuild*>
     c->out.command_offset = offset;
     offset += static_cast<unsigned>(c->command->size());
   }
-  if (fbs.empty()) {
-    for (ChannelBuild* c : chans) c->out.cfg.layout.feedback = false;
-    otherTpdosOff(s, 0);
-    return;
-  }
-  const unsigned tpdo = static_cast<unsigned>(r.unsignedKey(vs, "feedback_tpdo", 1, 1, 512));
-  const int line = vs.find("feedback_tpdo") ? vs.find("feedback_tpdo")->line : chans[0]->line;
-  const auto fcob = static_cast<std::uint32_t>(
-      r.unsignedKey(vs, "feedback_cob_id", defaultPdoCob(r, line, true, tpdo, s.id), 1, 0x7FF));
-  otherTpdosOff(s, tpdo);
-  pdoWrites(r, s, line, true, tpdo, fcob, fbs);
-  const double full = r.doubleKey(vs, "feedback_full_counts", pd::kAnalogFullScaleCounts, 1, 65535);
-  offset = 0;
-  for (ChannelBuild* c : chans) {
-    c->out.cfg.layout.feedback_cob = fcob;
-    c->out.cfg.layout.scaling.pressure_full_counts = full;
-    c->out.feedback = RigObject{c->feedback->index(), c->feedback->subIndex(), c->feedback->dataType()};
-    c->out.feedback_offset = offset;
-    offset += static_cast<unsigned>(c->feedback->size());
-  }
+  valveFeedback(r, s, chans, fbs);
 }
 
 // One node per ID, one producer per COB-ID.
@@ -663,11 +669,6 @@ void checkUnique(const Reader& r, const RigFile& rig, const FileBuild& fb) {
     if (rig.one_muscle_form)
       r.fail(fb.slaves[1].sec->find("node_id")->line, "node-IDs of controller, sensor and valve must differ");
     r.fail(s.sec->find("node_id")->line, "node-ID " + std::to_string(s.id) + " of [" + s.sec->name + "] is taken");
-  }
-  std::set<std::uint32_t> cobs;
-  for (const auto& c : fb.channels) {
-    const auto& l = c.out.cfg.layout;
-    cobs.insert(l.sensor_cob);
   }
   std::vector<std::uint32_t> all;
   std::set<std::size_t> seen_s, seen_v;
@@ -738,7 +739,7 @@ RigFile fromIni(const canopen::IniFile& ini) {
   rig.one_muscle_form = !several;
   FileBuild fb;
   if (rig.one_muscle_form)
-    readOneMuscle(r, ini, rig, fb);
+    readOneMuscle(r, rig, fb);
   else
     readSlavesAndChannels(r, ini, rig, fb);
   for (std::size_t i = 0; i < fb.slaves.size(); ++i) {

@@ -32,11 +32,11 @@ Record Context::run(control::Kind kind, const ClosedLoopRun& run, const std::str
 }
 
 std::string esoText(const control::ControllerConfig& c) {
-  if (c.eso_order == 1)
-    return "ESO first-order (pamc's own) gain " + fmt("%g", c.eso_gain) + " mm/V tau " + fmt("%g", c.eso_tau) +
-           " s wo " + fmt("%g", c.eso_wo) + " rad/s";
-  return "ESO eqs. 22-24 beta " + fmt("%g", c.beta1) + "/" + fmt("%g", c.beta2) + "/" + fmt("%g", c.beta3) + " delta " +
-         fmt("%g", c.delta) + " b0 " + fmt("%g", c.b0);
+  if (c.eso.order == 1)
+    return "ESO first-order (pamc's own) gain " + fmt("%g", c.eso.gain) + " mm/V tau " + fmt("%g", c.eso.tau) +
+           " s wo " + fmt("%g", c.eso.wo) + " rad/s";
+  return "ESO eqs. 22-24 beta " + fmt("%g", c.eso.beta1) + "/" + fmt("%g", c.eso.beta2) + "/" + fmt("%g", c.eso.beta3) + " delta " +
+         fmt("%g", c.eso.delta) + " b0 " + fmt("%g", c.eso.b0);
 }
 
 std::string gainsText(const control::ControllerConfig& c) {
@@ -167,7 +167,7 @@ void buildController(Context& x) {
   x.json["readings"] = {{"ki", x.cc.ki},
                         {"kp", x.cc.kp},
                         {"kc", x.cc.kc},
-                        {"eso_form", x.cc.eso_order == 2 ? "paper (eqs. 22-24)" : "first-order (pamc's own)"},
+                        {"eso_form", x.cc.eso.order == 2 ? "paper (eqs. 22-24)" : "first-order (pamc's own)"},
                         {"sine_start", start},
                         {"plant", plantText(x.s.plant)},
                         {"calibrated_on", x.s.calibrated_on}};

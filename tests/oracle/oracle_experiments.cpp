@@ -31,7 +31,7 @@ struct Options {
   std::vector<std::string> only;
   bool no_figures = false;
   int mbc_horizon = 0;
-  double mbc_rate = control::ControllerConfig{}.mbc_rate_mm_s;
+  double mbc_rate = control::ControllerConfig{}.mbc.rate_mm_s;
 };
 
 int run(const Options& o) {
@@ -42,8 +42,8 @@ int run(const Options& o) {
   s.out_dir = o.out_dir;
   s.model_file = o.model;
   s.figures = !o.no_figures;
-  s.ctrl.mbc_horizon = o.mbc_horizon;
-  s.ctrl.mbc_rate_mm_s = o.mbc_rate;
+  s.ctrl.mbc.horizon = o.mbc_horizon;
+  s.ctrl.mbc.rate_mm_s = o.mbc_rate;
   s.only = o.only;
   s.log = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
   const auto rep = sim::runExperiments(s);

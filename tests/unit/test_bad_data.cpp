@@ -134,7 +134,7 @@ control::ControllerConfig controllerConfig(const Spec& s) {
   // ki 0.15 is the paper's gain set as printed; its ESO is the printed one too. (The first-order ESO,
   // fitted with ki 1.3, comes back from a valve or a stuck-sensor fault with ki 0.15 more slowly than
   // backBound() allows: docs/RELIABILITY.md.)
-  if (s.ki < 1.0) c.eso_order = 2;
+  if (s.ki < 1.0) c.eso.order = 2;
   const auto truth = plant::PlantConfig::modelDefaults().truth;
   c.model = s.full_model ? truth : model::Model(truth.core());
   if (s.gate_nis >= 0.0) c.ukf.gate_nis = s.gate_nis;
@@ -690,7 +690,7 @@ TEST(BadDataWindup, ValveVentedForThreeSecondsIntegralStopsAtTheSaturation) {
     // The first-order ESO splits the holding command: the PI part holds y / eso_gain, the compensation
     // the rest, so its integral may meet its own clamp while the sum is not saturated; for it the
     // recovery below is the check.
-    if (controllerConfig(s).eso_order != 1 || wc.kind != control::Kind::PidEso) {
+    if (controllerConfig(s).eso.order != 1 || wc.kind != control::Kind::PidEso) {
       EXPECT_LT(i_max, 4.5);
     }
     const auto rec = recovery(f, r, static_cast<long>(end));

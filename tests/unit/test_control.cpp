@@ -85,7 +85,7 @@ std::pair<double, double> settledErrors(control::Kind kind, const control::Contr
 // that the next test measures.)
 TEST_P(ClosesTheLoop, SettlesAfterAStep) {
   control::ControllerConfig cfg;
-  cfg.eso_order = 1;
+  cfg.eso.order = 1;
   const auto [e1, e2] = settledErrors(GetParam(), cfg);
   EXPECT_LT(e1, 0.05) << control::toString(GetParam());
   EXPECT_LT(e2, 0.05) << control::toString(GetParam());
@@ -97,7 +97,7 @@ TEST_P(ClosesTheLoop, SettlesAfterAStep) {
 // pamc's own first-order form does.
 TEST(EsoForms, PrintedFormSettlesSlowlyTheFirstOrderFormLikePi) {
   control::ControllerConfig printed;
-  printed.eso_order = 2;
+  printed.eso.order = 2;
   printed.ki = 1.3;  // the PI integral docs/CONTROL.md describes the mode with (ki 3, the default since, damps it)
   const auto [p1, p2] = settledErrors(control::Kind::PidEso, printed);
   EXPECT_LT(p1, 1.5);
@@ -110,12 +110,12 @@ TEST(EsoForms, PrintedFormSettlesSlowlyTheFirstOrderFormLikePi) {
 // activation it takes over the holding command without a bump.
 TEST(EsoForms, FirstOrderObserverEstimatesAConstantDisturbance) {
   control::ControllerConfig c;
-  c.eso_order = 1;
+  c.eso.order = 1;
   c.ki = 0.0;
   c.kp = 0.0;  // the compensation alone
   c.delay_cycles = 0;
   auto eso = control::makeController(control::Kind::PidEso, c);
-  const double K = c.eso_gain, T = c.eso_tau, d = 3.0, u0 = 1.0;
+  const double K = c.eso.gain, T = c.eso.tau, d = 3.0, u0 = 1.0;
   double x = K * u0;  // the plant at rest under u0, before the disturbance
   eso->activate(u0, x);
   auto o = eso->update(x, x, x);

@@ -176,7 +176,7 @@ TEST(Mbc, AModelUsedWhereItDoesNotHoldDoesNotCostTheRun) {
 TEST(Mbc, HorizonIsAboveTheCommandsInFlight) {
   control::ControllerConfig cfg;
   EXPECT_GT(control::mbcHorizon(cfg), cfg.delay_cycles);
-  cfg.mbc_horizon = 2;
+  cfg.mbc.horizon = 2;
   EXPECT_THROW(control::makeController(control::Kind::Mbc, cfg), std::invalid_argument);
   EXPECT_EQ(control::kindFromString("mbc"), control::Kind::Mbc);
 }
@@ -237,7 +237,7 @@ TEST(Mbc, TheGovernorTakesTheOvershootOutOfASquareWave) {
   auto overshoot = [&](double rate) {
     control::ControllerConfig cfg;
     cfg.model = m;
-    cfg.mbc_rate_mm_s = rate;
+    cfg.mbc.rate_mm_s = rate;
     plant::PlantConfig pc = sim::paperPlant();
     cfg.u_min = pc.u_min;
     cfg.u_max = pc.u_max;
@@ -249,7 +249,7 @@ TEST(Mbc, TheGovernorTakesTheOvershootOutOfASquareWave) {
     const auto up = sim::stepResponse(r, +1, 1.0, 0.02), down = sim::stepResponse(r, -1, 1.0, 0.02);
     return std::max(up.overshoot_pct, down.overshoot_pct);
   };
-  const double governed = overshoot(control::ControllerConfig{}.mbc_rate_mm_s), raw = overshoot(0.0);
+  const double governed = overshoot(control::ControllerConfig{}.mbc.rate_mm_s), raw = overshoot(0.0);
   std::printf("square wave overshoot: governed %.2f %%, raw %.2f %%\n", governed, raw);
   EXPECT_LT(governed, 5.0);
   EXPECT_LT(governed, 0.5 * raw);

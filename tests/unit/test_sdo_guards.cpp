@@ -324,9 +324,9 @@ TEST(ControllerDictionary, GainDefaultsAreTheControllersDefaults) {
   auto& port = bus.addPort();
   auto node = canopen::Node::fromEds(kOd + "controller.eds", port);
   control::ControllerConfig other;  // a base unlike the defaults: what read() returns is the dictionary's
-  other.kp = other.ki = other.kc = other.beta1 = other.beta2 = other.beta3 = -1.0;
-  other.delta = other.b0 = other.eso_gain = other.eso_tau = other.eso_wo = -1.0;
-  other.eso_order = 0;
+  other.kp = other.ki = other.kc = other.eso.beta1 = other.eso.beta2 = other.eso.beta3 = -1.0;
+  other.eso.delta = other.eso.b0 = other.eso.gain = other.eso.tau = other.eso.wo = -1.0;
+  other.eso.order = 0;
   const auto eds = nodes::ControllerParameters(*node, other).read().ctrl;
   const control::ControllerConfig d;
   EXPECT_EQ(d.kp, control::kDefaultGains.kp);
@@ -335,13 +335,13 @@ TEST(ControllerDictionary, GainDefaultsAreTheControllersDefaults) {
   EXPECT_EQ(eds.kp, d.kp) << "0x2000:01";
   EXPECT_EQ(eds.ki, d.ki) << "0x2000:02";
   EXPECT_EQ(eds.kc, d.kc) << "0x2000:03";
-  EXPECT_EQ(eds.beta1, d.beta1) << "0x2000:04";
-  EXPECT_EQ(eds.beta2, d.beta2) << "0x2000:05";
-  EXPECT_EQ(eds.beta3, d.beta3) << "0x2000:06";
-  EXPECT_EQ(eds.delta, d.delta) << "0x2000:07";
-  EXPECT_EQ(eds.b0, d.b0) << "0x2000:08";
-  EXPECT_EQ(eds.eso_gain, d.eso_gain) << "0x2000:09";
-  EXPECT_EQ(eds.eso_tau, d.eso_tau) << "0x2000:0A";
-  EXPECT_EQ(eds.eso_wo, d.eso_wo) << "0x2000:0B";
-  EXPECT_EQ(eds.eso_order, d.eso_order) << "0x2000:0C";
+  EXPECT_EQ(eds.eso.beta1, d.eso.beta1) << "0x2000:04";
+  EXPECT_EQ(eds.eso.beta2, d.eso.beta2) << "0x2000:05";
+  EXPECT_EQ(eds.eso.beta3, d.eso.beta3) << "0x2000:06";
+  EXPECT_EQ(eds.eso.delta, d.eso.delta) << "0x2000:07";
+  EXPECT_EQ(eds.eso.b0, d.eso.b0) << "0x2000:08";
+  EXPECT_EQ(eds.eso.gain, d.eso.gain) << "0x2000:09";
+  EXPECT_EQ(eds.eso.tau, d.eso.tau) << "0x2000:0A";
+  EXPECT_EQ(eds.eso.wo, d.eso.wo) << "0x2000:0B";
+  EXPECT_EQ(eds.eso.order, d.eso.order) << "0x2000:0C";
 }
