@@ -75,6 +75,7 @@ void HeartbeatConsumer::configure() {
     if (s.status != Status::Unused) ctx_.dispatcher.unsubscribe(kHeartbeatCobIdBase + s.node_id, this);
     s = Slot{};
   }
+  slot_of_.fill(0);
   for (std::size_t i = 0; i < consumer_slots_; ++i) {
     const Entry* e = ctx_.od.find(kConsumerHeartbeat, static_cast<std::uint8_t>(i + 1));
     if (e == nullptr) continue;
@@ -85,15 +86,17 @@ void HeartbeatConsumer::configure() {
     if (slotFor(node) != nullptr) continue;  // duplicates are refused on SDO write; ignore one from the EDS
     Slot& s = slots_[i];
     s.node_id = node;
+    slot_of_[node] = static_cast<std::uint16_t>(i + 1);
     s.timeout_us = static_cast<TimeUs>(time_ms) * 1000;
     s.status = Status::Waiting;
     ctx_.dispatcher.subscribe<&HeartbeatConsumer::onFrame>(kHeartbeatCobIdBase + node, this);
   }
   for (std::size_t k = 0; k < watched_.size(); ++k) {
     const std::uint8_t node = watched_[k];
-    if (node == ctx_.node_id || slotFor(node) != nullptr) continue;
+    if (node == ctx_.node_id || node >= slot_of_.size() || slotFor(node) != nullptr) continue;
     Slot& s = slots_[consumer_slots_ + k];
     s.node_id = node;
+    slot_of_[node] = static_cast<std::uint16_t>(consumer_slots_ + k + 1);
     s.status = Status::Waiting;
     ctx_.dispatcher.subscribe<&HeartbeatConsumer::onFrame>(kHeartbeatCobIdBase + node, this);
   }
@@ -107,10 +110,8 @@ void HeartbeatConsumer::watch(std::uint8_t node_id) {
 }
 
 const HeartbeatConsumer::Slot* HeartbeatConsumer::slotFor(std::uint8_t node_id) const {
-  for (const Slot& s : slots_) {
-    if (s.status != Status::Unused && s.node_id == node_id) return &s;
-  }
-  return nullptr;
+  const std::uint16_t k = node_id < slot_of_.size() ? slot_of_[node_id] : 0;
+  return k == 0 ? nullptr : &slots_[k - 1u];
 }
 
 void HeartbeatConsumer::onFrame(const Frame& f, TimeUs now) {

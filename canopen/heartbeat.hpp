@@ -82,6 +82,7 @@ class HeartbeatConsumer {
   NodeContext& ctx_;
   EventHook hook_;
   std::vector<Slot> slots_;  // one per 0x1016 sub-index, then one per watched node; sized at configuration
+  std::array<std::uint16_t, 128> slot_of_{};  // node-ID -> its slot + 1 (0: not consumed), set by configure()
   // The earliest timeout, kept until a slot changes: advance() in every cycle looks at it, not at every
   // slot (a master's 0x1016 has room for many slaves).
   mutable TimeUs next_ = kNever;

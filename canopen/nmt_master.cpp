@@ -96,6 +96,7 @@ void NmtMaster::addSlave(std::uint8_t id) {
   if (find(id) != nullptr) return;
   slaves_.push_back(Slave{});
   slaves_.back().id = id;
+  slave_of_[id] = static_cast<std::uint8_t>(slaves_.size());
   node_.heartbeatConsumer().watch(id);  // its boot-up is heard also where 0x1016 does not supervise it
 }
 
@@ -171,8 +172,8 @@ void NmtMaster::configOps(Slave& s) {
 }
 
 NmtMaster::Slave* NmtMaster::find(std::uint8_t id) noexcept {
-  auto it = std::find_if(slaves_.begin(), slaves_.end(), [id](const Slave& s) { return s.id == id; });
-  return it == slaves_.end() ? nullptr : &*it;
+  const std::uint8_t k = id < slave_of_.size() ? slave_of_[id] : 0;
+  return k == 0 ? nullptr : &slaves_[k - 1u];
 }
 const NmtMaster::Slave* NmtMaster::find(std::uint8_t id) const noexcept {
   return const_cast<NmtMaster*>(this)->find(id);

@@ -37,6 +37,7 @@
 // but poll(), which only lets boot steps that waited for the node's SDO client go on. begin() builds
 // the boot plans from the dictionary; after it nothing is allocated except by the SDO transfers of a
 // boot and the text of a failure.
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -294,6 +295,7 @@ class NmtMaster {
 
   Node& node_;
   std::vector<Slave> slaves_;
+  std::array<std::uint8_t, 128> slave_of_{};  // node-ID -> its place in slaves_ + 1 (0: not a slave)
   EventHook hook_;
   Counters counters_;
   std::uint32_t startup_ = kStartupMaster;

@@ -68,7 +68,10 @@ void Node::onRpdoTimeout(Rpdo::TimeoutHook cb) {
   for (auto& p : rpdos_) p->setTimeoutHook(cb);
 }
 
+// PDOs are created in the order of their numbers, so the number's place is tried first (the cycle looks
+// its PDOs up by number); a dictionary with gaps in the numbering falls back to the search.
 Rpdo& Node::rpdo(unsigned number) {
+  if (number >= 1 && number <= rpdos_.size() && rpdos_[number - 1]->number() == number) return *rpdos_[number - 1];
   for (auto& p : rpdos_) {
     if (p->number() == number) return *p;
   }
@@ -76,6 +79,7 @@ Rpdo& Node::rpdo(unsigned number) {
 }
 
 Tpdo& Node::tpdo(unsigned number) {
+  if (number >= 1 && number <= tpdos_.size() && tpdos_[number - 1]->number() == number) return *tpdos_[number - 1];
   for (auto& p : tpdos_) {
     if (p->number() == number) return *p;
   }

@@ -265,6 +265,7 @@ void Rpdo::onFrame(const Frame& f, TimeUs now) {
   if (f.len != map_.size()) {
     ++stats_.wrong_length;
     ++ctx_.counters.wrong_length;
+    ++ctx_.counters.rpdo_wrong_length;
     return;
   }
   if (synchronous() && !acceptSynchronous(f, now)) return;

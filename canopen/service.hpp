@@ -22,6 +22,7 @@ struct Counters {
   std::uint64_t tx_dropped = 0;          // the transport refused the frame (queue full)
   std::uint64_t unknown_cob_id = 0;      // no service listens to the identifier
   std::uint64_t wrong_length = 0;        // a service's frame with a DLC the protocol does not allow
+  std::uint64_t rpdo_wrong_length = 0;   // ... of them RPDOs (a length other than their mapping's)
   std::uint64_t unsupported_frames = 0;  // RTR or 29-bit frames (CANopen here uses 11-bit data frames)
   std::uint64_t error_frames = 0;        // SocketCAN error frames
   std::uint64_t ignored_in_state = 0;    // valid frames the current NMT state does not process

@@ -88,7 +88,7 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   for (std::size_t i = 0; i < channels_.size(); ++i) {
     Channel& c = channels_[i];
     if (c.valve->errorValuePending()) c.valve->pushErrorValue(params_->safeCommand());
-    recs_[i] = control(c, now);
+    control(c, now);
   }
   master_->poll(now);  // boot work left waiting for the SDO client
   for (auto& c : channels_) {
@@ -98,7 +98,7 @@ void ControllerNode::onSync(std::uint8_t, TimeUs now) noexcept {
   const double lat = clock_ ? static_cast<double>(clock_() - now) : 0.0;
   stats_.latency_us.add(lat);
   if (lat > channels_[0].loop->period() * 1e6) ++stats_.overruns;
-  for (std::size_t i = 0; i < channels_.size(); ++i) send(channels_[i], static_cast<std::uint8_t>(i), recs_[i], lat);
+  for (std::size_t i = 0; i < channels_.size(); ++i) send(channels_[i], static_cast<std::uint8_t>(i), lat);
 }
 
 // Period jitter and missed SYNCs.
@@ -121,7 +121,7 @@ void ControllerNode::input(Channel& c) noexcept {
 }
 
 // The command: the safe value in a fault, otherwise the controller's (slew-limited after a restart).
-CycleRecord ControllerNode::control(Channel& c, TimeUs now) noexcept {
+void ControllerNode::control(Channel& c, TimeUs now) noexcept {
   const double safe_u = params_->safeCommand();
   const SensorDriver::Sample& s = c.sample;
   const PositionSample p = s.forLoop();
@@ -129,22 +129,25 @@ CycleRecord ControllerNode::control(Channel& c, TimeUs now) noexcept {
   if (c.faults->fault() != Fault::None) {
     // Safe state: valve to its safe value every cycle until the causes have been gone long enough
     // (and SYNC, hence the valve, is back); then estimator and integrator restart (no jump).
-    const CycleRecord rec = c.loop->holdSafe(p, sp, safe_u);
+    c.rec = c.loop->holdSafe(p, sp, safe_u);
     if (c.faults->safeCycle() && s.usable() && (c.valve->holdReasons() & ValveDriver::kHoldSync) == 0)
       recover(c, s.y, now);
-    return rec;
+    return;
   }
-  if (!c.loop->active()) return c.loop->idle(p, sp, safe_u);
-  CycleRecord rec;
-  if (!c.loop->step(p, sp, safe_u, rec)) {
+  if (!c.loop->active()) {
+    c.rec = c.loop->idle(p, sp, safe_u);
+    return;
+  }
+  c.rec = CycleRecord{};
+  if (!c.loop->step(p, sp, safe_u, c.rec)) {
     c.faults->raise(Fault::Estimator);
     takeCauses(c, now);
   }
-  return rec;
 }
 
 // The setpoint went into this cycle's TPDO, sent right after this callback; the record to the ring.
-void ControllerNode::send(Channel& c, std::uint8_t number, CycleRecord rec, double latency_us) noexcept {
+void ControllerNode::send(Channel& c, std::uint8_t number, double latency_us) noexcept {
+  CycleRecord& rec = c.rec;
   c.faults->publish();
   c.loop->publishTime(rec.t);
   if (c.loop->active() && c.loop->running()) {

@@ -122,6 +122,7 @@ class ControllerNode {
     int partner = -1;
     double offset_v = 0.0;            // a joint's co-contraction on the loop's command
     SensorDriver::Sample sample;      // latched at this SYNC
+    CycleRecord rec;                  // this cycle's, to the ring after the TPDO
     double command() const noexcept;  // what the valve gets
   };
   const Channel& ch(std::size_t c) const noexcept { return channels_[c]; }
@@ -141,8 +142,8 @@ class ControllerNode {
   void input(Channel& c) noexcept;
   void poll(Channel& c, canopen::TimeUs now) noexcept;
   void spreadFaults() noexcept;
-  CycleRecord control(Channel& c, canopen::TimeUs now) noexcept;
-  void send(Channel& c, std::uint8_t number, CycleRecord rec, double latency_us) noexcept;
+  void control(Channel& c, canopen::TimeUs now) noexcept;
+  void send(Channel& c, std::uint8_t number, double latency_us) noexcept;
 
   // Faults: the supervisor's causes, and on entering the safe state the valve at its safe value.
   void raiseAll(Fault f, std::uint8_t detail = 0) noexcept;
@@ -166,7 +167,6 @@ class ControllerNode {
   std::atomic<std::uint32_t> collision_pub_{0};
   canopen::TimeUs last_sync_ = 0;
   CycleStats stats_;
-  CycleRecord recs_[kMaxChannels];  // this cycle's, one per channel
   SpscRing<CycleRecord, 1 << 15> records_;
 };
 

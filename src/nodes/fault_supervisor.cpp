@@ -93,10 +93,8 @@ void FaultSupervisor::pollBus() noexcept {
     raise(Fault::CanOverrun);
   }
   if (node_.txBacklog() > 4) raise(Fault::CanOverrun);
-  std::uint64_t len = 0;
-  for (const auto& p : node_.rpdos()) len += p->wrongLength();
-  if (len != bus_.pdo_length) {
-    bus_.pdo_length = len;
+  if (c.rpdo_wrong_length != bus_.pdo_length) {
+    bus_.pdo_length = c.rpdo_wrong_length;
     raise(Fault::PdoLength);
   }
   if (node_.sync().wrongLength() != bus_.sync_length) {

@@ -39,7 +39,7 @@ void SensorDriver::readStepAtBoot() {
 
 void SensorDriver::onOperational(TimeUs now) noexcept {
   operational_at_ = now;
-  cob_pub_.store(node_.rpdo(rpdo_).cobId() & 0x7FFu, std::memory_order_relaxed);
+  cob_pub_.store(pdo_->cobId() & 0x7FFu, std::memory_order_relaxed);
 }
 
 void SensorDriver::onEvent(canopen::SlaveEvent ev, TimeUs now, FaultSupervisor& f, bool active) noexcept {
@@ -62,7 +62,7 @@ void SensorDriver::onEvent(canopen::SlaveEvent ev, TimeUs now, FaultSupervisor& 
 // NaN for it (it holds the last usable one and reports it as not used).
 SensorDriver::Sample SensorDriver::latch(const ParameterSet& ps) const noexcept {
   Sample s;
-  s.fresh = node_.rpdo(rpdo_).syncsSinceReception() == 0;
+  s.fresh = pdo_->syncsSinceReception() == 0;
   s.raw = position_.get();
   s.y = scaling_.mm(s.raw);
   const double range = ps.range_steps, margin = 0.01 * range;
@@ -92,7 +92,7 @@ void SensorDriver::checkPlausibility(const Sample& s, double u) noexcept {
 }
 
 void SensorDriver::supervise(FaultSupervisor& f, const DriverCycle& c) noexcept {
-  const auto& rp = node_.rpdo(rpdo_);
+  const canopen::Rpdo& rp = *pdo_;
   const ParameterSet& ps = *c.ps;
   const TimeUs now = c.now;
   const bool active = c.active, usable = c.usable;

@@ -36,7 +36,11 @@ class SensorDriver final : public Driver {
   // A boot step of its own: the measuring step read from the device (CiA 406 0x6005:01), after the
   // identity check and before the configuration the master's dictionary holds.
   void readStepAtBoot();
-  void bind() { position_ = node_.od().ref<std::int32_t>(object_, 0); }
+  // Its position object and PDO in the node (throws where the dictionary has neither).
+  void bind() {
+    position_ = node_.od().ref<std::int32_t>(object_, 0);
+    pdo_ = &node_.rpdo(rpdo_);
+  }
   const char* role() const noexcept override { return "sensor"; }
   void onOperational(canopen::TimeUs now) noexcept override;
   void onEvent(canopen::SlaveEvent ev, canopen::TimeUs now, FaultSupervisor& f, bool active) noexcept override;
@@ -68,6 +72,7 @@ class SensorDriver final : public Driver {
   pd::Scaling scaling_;  // the step may be read at the sensor's boot, before it starts
   double no_position_s_;
   canopen::Ref<std::int32_t> position_{nullptr};
+  const canopen::Rpdo* pdo_ = nullptr;  // the position's RPDO (bind())
   canopen::TimeUs operational_at_ = canopen::kNever;  // the node entered Operational (kNever: it is not)
   int conflict_run_ = 0;
   // Plausibility: positions outside the range in a row; the run of identical positions and the

@@ -80,7 +80,7 @@ void ValveDriver::supervise(FaultSupervisor& f, const DriverCycle& c) noexcept {
   if (holdReasons() != 0 || !master_.configured(id_)) return;
   if (master_.down(id_, now)) f.raise(Fault::ValveState, id_);
   if (feedback_ && !master_.starting(id_, now) && cycle > missing_limit &&
-      node_.rpdo(feedback_rpdo_).syncsSinceReception() > missing_limit)
+      feedback_pdo_->syncsSinceReception() > missing_limit)
     f.raise(Fault::ValvePdoMissing);
 }
 

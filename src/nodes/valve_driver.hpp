@@ -31,6 +31,7 @@ class ValveDriver final : public Driver {
   void bind() {
     cmd_ = node_.od().ref<std::int16_t>(command_object_, 0);
     pressure_ = node_.od().ref<std::int16_t>(pressure_object_, 0);
+    if (feedback_) feedback_pdo_ = &node_.rpdo(feedback_rpdo_);
   }
   const char* role() const noexcept override { return "valve"; }
   void onOperational(canopen::TimeUs) noexcept override {}
@@ -71,6 +72,7 @@ class ValveDriver final : public Driver {
   std::function<double()> safe_u_;  // the safe value, for the error value written outside the boot
   canopen::Ref<std::int16_t> cmd_{nullptr};
   canopen::Ref<std::int16_t> pressure_{nullptr};
+  const canopen::Rpdo* feedback_pdo_ = nullptr;  // the pressure's RPDO where the valve sends one (bind())
   bool push_ = false;
   std::uint64_t sdo_errors_ = 0;  // writing the error value failed
 };
