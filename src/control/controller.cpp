@@ -236,6 +236,8 @@ class PiAmc final : public Controller {
   int lookahead() const override { return cfg_.amc_horizon; }
   void activate(double u0, double y0) noexcept override {
     un_prev_ = u0;
+    settled_ = 0;
+    rate_ = 0.0;
     pi_.reset(u0);
     y_.reset(y0);
     am_.reset(u0);
@@ -252,11 +254,15 @@ class PiAmc final : public Controller {
     o.y_hat = est.y_post;
     o.estimator_reset = est.status == estimation::UkfStatus::Reset;
     // A model used outside the range it was identified on (model.json's `range`) may lose its estimator
-    // there: a restart outside it is not a fault of this loop - the filter starts over on the position
-    // and the loop runs on. Inside the range, or with a model that records no range, a restart stays a
+    // there, or soon after: a restart is not a fault of this loop unless the filter has run inside the
+    // range for a settling time since it last started - the filter starts over on the position and the
+    // loop runs on. Settled inside the range, or with a model that records no range, a restart stays a
     // fault (the run goes to its safe state), as in the paper's form. (The lockstep experiments never
     // stop on a restart: for them nothing changes.)
-    if (o.estimator_reset && outsideRange(y, hist_.get(0))) o.estimator_reset = false;
+    rate_ += ((hist_.get(0) - hist_.get(1)) / cfg_.Ts - rate_) * std::min(1.0, cfg_.Ts / kRateTau_s);
+    settled_ = outsideRange(y) ? 0 : settled_ + 1;
+    if (o.estimator_reset && cfg_.model.range().known && settled_ < settleCycles()) o.estimator_reset = false;
+    if (est.status == estimation::UkfStatus::Reset) settled_ = 0;
     // A position the UKF did not use (not finite, or an outlier) is not used by the PI either: it
     // works with the last usable position and holds its integral. (Not with the UKF's prediction: with
     // a model whose output dynamics the filter cannot follow, that can be far off.)
@@ -311,12 +317,20 @@ class PiAmc final : public Controller {
   const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
 
  private:
-  // The position (or, not finite, the last command) outside the model's range; never for a model
-  // that records none.
-  bool outsideRange(double y, double u) const noexcept {
+  // How long a filter started from a state outside the model's range runs inside it before a restart
+  // counts as the model's failure where it holds (a chosen time, not a measured one: 1 s, a thousand
+  // samples at the paper's 1 kHz, fifty at 50 Hz).
+  static constexpr double kSettle_s = 1.0;
+  // The command's rate is the motion's, not its noise's: through a first-order filter of 0.1 s.
+  static constexpr double kRateTau_s = 0.1;
+  std::uint64_t settleCycles() const noexcept { return static_cast<std::uint64_t>(std::lround(kSettle_s / cfg_.Ts)); }
+
+  // The position (not finite, or outside), the last command or its rate outside the model's range;
+  // never for a model that records none.
+  bool outsideRange(double y) const noexcept {
     const auto& r = cfg_.model.range();
     if (!r.known) return false;
-    return !std::isfinite(y) || !r.output.contains(y) || !r.input.contains(u);
+    return !std::isfinite(y) || r.check(hist_.get(0), y, rate_) != model::RangeExcess::None;
   }
 
   // The commands still on their way (delay_cycles of them), the oldest first.
@@ -336,6 +350,8 @@ class PiAmc final : public Controller {
   double un_eff_prev_ = 0.0;
   double un_prev_ = 0.0;
   double inverse_gain_ = 1.0;  // model's response at the horizon to a unit command change [mm/V]
+  std::uint64_t settled_ = 0;  // cycles in a row inside the model's range since the filter last started
+  double rate_ = 0.0;          // the command's rate, filtered [V/s]
 };
 
 // PID + extended state observer, eqs. (22)-(25), on the plant model eso_order says.

@@ -189,3 +189,33 @@ TEST(OperatingRange, TheAmcSurvivesItsEstimatorRestartingOutsideTheModelsRange) 
   const AmcJump inside(wide);
   EXPECT_EQ(inside.resets, 1) << "inside the range the restart is a fault";
 }
+
+// A filter started outside the range carries that start for a while: a restart within a second of
+// entering the range is still the range's (no fault); after the filter has run a second inside it, a
+// restart is the fault it is in the paper's form.
+TEST(OperatingRange, AnAmcRestartCountsAsAFaultOnlyOnceTheFilterHasSettledInsideTheRange) {
+  control::ControllerConfig c;
+  c.model = plant::PlantConfig::modelDefaults().truth;
+  model::OperatingRange r;
+  r.known = true;
+  r.input = {-5.0, 5.0};
+  r.output = {5.0, 30.0};
+  r.rate = {-100.0, 100.0};
+  c.model.setRange(r);
+  auto amc = control::makeController(control::Kind::PiAmc, c);
+  amc->activate(0.0, 1.0);
+  const auto run = [&](double y, int cycles) {
+    int faults = 0;
+    const unsigned before = amc->activeModel()->resets();
+    for (int k = 0; k < cycles; ++k) faults += amc->update(y, y, y).estimator_reset ? 1 : 0;
+    return std::pair<int, int>{faults, static_cast<int>(amc->activeModel()->resets() - before)};
+  };
+  (void)run(1.0, 500);                   // outside: an empty muscle
+  const auto entering = run(25.0, 300);  // into the range, within its first 0.3 s
+  EXPECT_GE(entering.second, 1) << "the jump into the range restarts the filter (else this case tests nothing)";
+  EXPECT_EQ(entering.first, 0) << "a restart right after entering the range reported as a fault";
+  (void)run(25.0, 2000);                // settled inside
+  const auto settled = run(12.0, 300);  // a jump inside the range
+  EXPECT_GE(settled.second, 1) << "the jump restarts the filter (else this case tests nothing)";
+  EXPECT_EQ(settled.first, settled.second) << "a restart of a settled filter inside the range is a fault";
+}
