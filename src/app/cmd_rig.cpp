@@ -47,6 +47,7 @@ class RigCommand final : public Command {
     addRunOptions(run_cmd_);
     addFaultToolOptions(faults_cmd_, rig::FaultRigOptions{});
     faults_cmd_->add_option("--only", only, kOnlyHelp);
+    addChannelOptions(faults_cmd_);
     addFaultToolOptions(soak_cmd_, rig::SoakOptions{});
     addSoakOptions(soak_cmd_);
     soak_cmd_->get_option("--hours")->required();
@@ -113,6 +114,17 @@ class RigCommand final : public Command {
               " with kp " + io::fmt("%g", own.kp) + ", ki " + io::fmt("%g", own.ki) + ", kc " + io::fmt("%g", own.kc) +
               " (each option given replaces its own).");
   }
+  // rig faults on a rig file of several channels, the faults of the sensor on one channel's.
+  void addChannelOptions(CLI::App* a) {
+    a->add_option("--rig", fault_rig_,
+                  "rig file of one to eight channels (docs/RIG.md, e.g. od/rigs/four_muscles.ini) to run the table "
+                  "on, its devices played by the emulator; adds the channels the EMCYs named and what the other "
+                  "channels did (without it: the built-in one-muscle rig)");
+    a->add_option("--channel", channel_,
+                  "with --rig: the channel (1-based) whose sensor the faults of the sensor hit; the faults of the "
+                  "valve module, the SYNC and the bus hit what every channel shares")
+        ->capture_default_str();
+  }
   void addSoakOptions(CLI::App* a) {
     a->add_option("--hours", soak_hours, "hours of cycles in virtual time")->check(CLI::PositiveNumber);
     a->add_option("--only", only, kOnlyHelp);
@@ -171,10 +183,28 @@ class RigCommand final : public Command {
     return list;
   }
 
+  // --rig and --channel into o: the rig file read, the channel one of its own.
+  void applyChannel(rig::FaultRigOptions& o) const {
+    int channels = 1;
+    if (!fault_rig_.empty()) {
+      o.rig = readRig(fault_rig_);
+      channels = static_cast<int>(o.rig->channels.size());
+    }
+    if (channel_ >= 1 && channel_ <= channels) {
+      o.channel = static_cast<std::size_t>(channel_ - 1);
+      return;
+    }
+    const std::string what = fault_rig_.empty() ? "the built-in rig" : fault_rig_;
+    const std::string has =
+        channels == 1 ? "one channel (1)" : std::to_string(channels) + " channels (1-" + std::to_string(channels) + ")";
+    throw std::invalid_argument("--channel " + std::to_string(channel_) + ": " + what + " has " + has);
+  }
+
   int runRigChecks() {
     rig::FaultRigOptions o;
     o.od_dir = od_.dir;
     applyController(o);
+    if (from_ == faults_cmd_) applyChannel(o);
     if (from_ == guards_cmd_ || sdo_guards) {
       std::printf("%s", rig::guardTableMarkdown(rig::runParameterGuards(o)).c_str());
       if (from_ == guards_cmd_ || !faults) return 0;
@@ -184,6 +214,10 @@ class RigCommand final : public Command {
     std::fprintf(stderr,
                  "in-process bus, %s, fault injected after %g s of a 0.2 Hz sine, run on %g s after it cleared\n",
                  control::toString(o.kind), o.inject_at_s, o.after_s);
+    if (o.rig)
+      std::fprintf(stderr, "%s: %zu channel%s; the sensor is channel %zu's (node-ID %u)\n", fault_rig_.c_str(),
+                   o.rig->channels.size(), o.rig->channels.size() == 1 ? "" : "s", o.channel + 1,
+                   o.rig->channels[o.channel].cfg.sensor_id);
     std::printf("%s", rig::faultTableMarkdown(rig::runFaultTable(list, o)).c_str());
     return 0;
   }
@@ -359,6 +393,8 @@ class RigCommand final : public Command {
   unsigned bitrate_ = 1000000;  // the rig's
   std::vector<nodes::RigJoint> joints_;
   std::string figure_;
+  std::string fault_rig_;  // rig faults --rig
+  int channel_ = 1;        // rig faults --channel (1-based)
   CLI::App *run_cmd_ = nullptr, *faults_cmd_ = nullptr, *soak_cmd_ = nullptr, *guards_cmd_ = nullptr;
   const CLI::App* from_ = nullptr;  // the subcommand parsed (rig itself for the old forms)
   std::string candump, only, progress;

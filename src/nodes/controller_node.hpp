@@ -89,7 +89,10 @@ class ControllerNode {
   std::uint64_t faultsRaised() const noexcept;
   control::Kind kind() const noexcept { return ch(0).loop->kind(); }
   const RangeWatch& rangeWatch(std::size_t c = 0) const noexcept { return ch(c).loop->rangeWatch(); }  // any thread
-  FaultCounters faultCounters() const noexcept;
+  FaultCounters faultCounters() const noexcept;  // the channels' counters summed, and the node's own
+  // Channel c's share of faultCounters(): episodes, recoveries, safe cycles, warnings, samples missing,
+  // positions, valve SDO errors (the node's own counters 0).
+  FaultCounters channelCounters(std::size_t c) const noexcept;
   // Causes whose EMCY went out in the present episode (bit per Fault), of every channel.
   std::uint32_t episodeCauses() const noexcept;
   // The channels: how many, and each one's fault (any thread).
@@ -109,6 +112,7 @@ class ControllerNode {
   double noPositionSeconds() const noexcept { return ch(0).sensor->noPositionSeconds(); }
   // Node time of the first reaction (EMCY or safe state) of the present episode; kNever if none.
   canopen::TimeUs reactedAtUs() const noexcept;
+  canopen::TimeUs reactedAtUs(std::size_t c) const noexcept { return ch(c).faults->reactedAt(); }  // channel c's
   const canopen::NmtMaster& master() const noexcept { return *master_; }
   const pd::Scaling& scaling() const noexcept { return ch(0).sensor->scaling(); }
 

@@ -126,17 +126,31 @@ void ControllerNode::installStateHook() {
   });
 }
 
+FaultCounters ControllerNode::channelCounters(std::size_t i) const noexcept {
+  const Channel& c = ch(i);
+  const auto& f = c.faults->counters();
+  FaultCounters n;
+  n.episodes = f.episodes;
+  n.recoveries = f.recoveries;
+  n.safe_cycles = f.safe_cycles;
+  n.warnings = f.warnings;
+  n.samples_missing = c.sensor->samplesMissing();
+  n.positions = c.sensor->positions();
+  n.valve_sdo_errors = c.valve->sdoErrors();
+  return n;
+}
+
 FaultCounters ControllerNode::faultCounters() const noexcept {
   FaultCounters c;
-  for (const auto& ch : channels_) {
-    const auto& f = ch.faults->counters();
-    c.episodes += f.episodes;
-    c.recoveries += f.recoveries;
-    c.safe_cycles += f.safe_cycles;
-    c.warnings += f.warnings;
-    c.samples_missing += ch.sensor->samplesMissing();
-    c.positions += ch.sensor->positions();
-    c.valve_sdo_errors += ch.valve->sdoErrors();
+  for (std::size_t i = 0; i < channels_.size(); ++i) {
+    const FaultCounters n = channelCounters(i);
+    c.episodes += n.episodes;
+    c.recoveries += n.recoveries;
+    c.safe_cycles += n.safe_cycles;
+    c.warnings += n.warnings;
+    c.samples_missing += n.samples_missing;
+    c.positions += n.positions;
+    c.valve_sdo_errors += n.valve_sdo_errors;
   }
   c.collisions = collisions_;
   c.last_collision_cob = collision_pub_.load(std::memory_order_relaxed);

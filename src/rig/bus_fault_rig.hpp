@@ -15,6 +15,7 @@
 #include "nodes/emulator_node.hpp"
 #include "plant/plant.hpp"
 #include "rig/fault_rig.hpp"
+#include "rig/rig_emulator.hpp"
 
 namespace pamc::rig::detail {
 
@@ -149,34 +150,54 @@ inline bool timedBus(BusFault f) { return (spec(f).needs & kTimedBus) != 0; }
 inline double faultSeconds(BusFault f) { return spec(f).seconds; }
 inline bool atStart(BusFault f) { return (spec(f).needs & kAtStart) != 0; }
 
+// The controller of the fault tools: their controller and gains on a 0.2 Hz sine, in the built-in
+// one-muscle layout or with the rig file's channels; consume: the SYNC of a separate producer.
+inline nodes::ControllerNodeConfig faultRigController(const FaultRigOptions& o, bool consume) {
+  nodes::ControllerNodeConfig c;
+  c.eds_path = o.od_dir + "/controller.eds";
+  if (o.rig) nodes::applyRig(*o.rig, c);
+  c.kind = static_cast<int>(o.kind);
+  c.gains_from_config = true;
+  c.ctrl.kp = o.kp;
+  c.ctrl.ki = o.ki;
+  c.ctrl.kc = o.kc;
+  c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
+  c.has_trajectory = true;
+  c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
+  c.preroll_s = o.preroll_s;
+  c.produce_sync = !consume;
+  return c;
+}
+
+// The emulator: pamc's own sensor and valve, or the rig file's devices (emulatorOf) with the sensor faults on
+// the sensor of o.channel.
+inline nodes::EmulatorConfig faultRigEmulator(const FaultRigOptions& o) {
+  nodes::EmulatorConfig e;
+  e.sensor_eds = o.od_dir + "/sensor.eds";
+  e.valve_eds = o.od_dir + "/valve.eds";
+  e.seed = o.seed;
+  if (!o.rig) return e;
+  e = emulatorOf(*o.rig, e);
+  e.fault_channel = o.channel;
+  return e;
+}
+
 // The whole rig of one run.
 struct Rig {
   // f sets the rig up for that fault (SYNC source, timed bus, second node); nothing is injected yet.
   // soak: everything any fault needs at once - the controller consumes the SYNC of a separate producer,
-  // the bus has 1 Mbit/s timing, a flooder and a second node-ID 1 and 2 are on it (all idle).
+  // the bus has 1 Mbit/s timing, a flooder and a second node with the controller's and with the faulted
+  // sensor's node-ID are on it (all idle).
   Rig(BusFault f, const FaultRigOptions& o, bool soak = false)
       : bus(), cport(bus.addPort()), eport(bus.addPort()), aux(bus.addPort()) {
     const bool consume = soak || consumesSync(f);
     if (soak || timedBus(f)) bus.setBitrate(1'000'000, 32);
-    nodes::ControllerNodeConfig c;
-    c.eds_path = o.od_dir + "/controller.eds";
-    c.kind = static_cast<int>(o.kind);
-    c.gains_from_config = true;
-    c.ctrl.kp = o.kp;
-    c.ctrl.ki = o.ki;
-    c.ctrl.kc = o.kc;
-    c.ctrl.model = plant::PlantConfig::modelDefaults().truth;
-    c.has_trajectory = true;
-    c.trajectory = control::Trajectory::sine(0.2, 5.0, 15.0);
-    c.preroll_s = o.preroll_s;
-    c.produce_sync = !consume;
+    const nodes::ControllerNodeConfig c = faultRigController(o, consume);
     traj = c.trajectory;
-    nodes::EmulatorConfig e;
-    e.sensor_eds = o.od_dir + "/sensor.eds";
-    e.valve_eds = o.od_dir + "/valve.eds";
-    e.seed = o.seed;
+    channel = o.channel;
+    sensor_id = o.rig ? o.rig->channels.at(o.channel).cfg.sensor_id : nodes::ChannelConfig{}.sensor_id;
     ctrl = std::make_unique<nodes::ControllerNode>(c, cport, [this] { return bus.now(); });
-    emu = std::make_unique<nodes::EmulatorNodes>(e, eport);
+    emu = std::make_unique<nodes::EmulatorNodes>(faultRigEmulator(o), eport);
     cport.setClient(&ctrl->node());
     eport.setClient(emu.get());
     if (consume) {
@@ -191,18 +212,20 @@ struct Rig {
     }
     if (soak || (spec(f).needs & kDupController)) {
       auto& p = bus.addPort();
-      imp_ctrl = std::make_unique<Impostor>(p, 1, false);
+      imp_ctrl = std::make_unique<Impostor>(p, ctrl->node().nodeId(), false);
       p.setClient(imp_ctrl.get());
     }
     if (soak || (spec(f).needs & kDupSensor)) {
       auto& p = bus.addPort();
-      imp_sensor = std::make_unique<Impostor>(p, 2, true);
+      imp_sensor = std::make_unique<Impostor>(p, sensor_id, true);
       p.setClient(imp_sensor.get());
     }
     bus.addTap([this](const Frame& fr, TimeUs t) {
       if (fr.id != 0x81 || fr.len != 8 || fr.error()) return;
       ++emcy_frames;
-      if (t >= emcy_from) emcy.push_back(canopen::getU16(fr.data));
+      if (t < emcy_from) return;
+      emcy.push_back(canopen::getU16(fr.data));
+      emcy_channel.push_back(fr.data[5]);
     });
     emu->start(0);
     if (!atStart(f)) startController();
@@ -234,9 +257,12 @@ struct Rig {
   std::unique_ptr<Flooder> flood;
   std::unique_ptr<Impostor> imp_ctrl, imp_sensor;
   control::Trajectory traj;
+  std::size_t channel = 0;     // whose sensor the sensor faults hit (0-based)
+  std::uint8_t sensor_id = 2;  // ... its node-ID
   std::vector<nodes::CycleRecord> recs;
   std::vector<TimeUs> rec_us;
   std::vector<std::uint16_t> emcy;
+  std::vector<std::uint8_t> emcy_channel;  // the channel each names (1-based; byte 5)
   std::uint64_t emcy_frames = 0;
   TimeUs emcy_from = canopen::kNever;
 };

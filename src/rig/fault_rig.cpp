@@ -33,6 +33,13 @@ namespace detail {
 
 Injection& inj(Rig& r) { return r.emu->inject(); }
 void nothing(Rig&) {}
+// Another master moves the faulted sensor's position TPDO (CiA 301: disabled first, then the new COB-ID).
+void movePdo(Rig& r, std::uint32_t from, std::uint32_t to) {
+  r.sdoWrite32(r.sensor_id, 0x1800, 1, 0x80000000u | from);
+  r.sdoWrite32(r.sensor_id, 0x1800, 1, to);
+}
+void pdoAway(Rig& r) { movePdo(r, 0x180u + r.sensor_id, 0x190u); }
+void pdoBack(Rig& r) { movePdo(r, 0x190u, 0x180u + r.sensor_id); }
 
 const FaultSpec kFaultSpecs[] = {
     {BusFault::None, "none", "none", 0.0, kPlain, nothing, nothing},
@@ -85,9 +92,8 @@ const FaultSpec kFaultSpecs[] = {
      [](Rig& r) { r.aux.send(errorFrame(0x04, 0x01)); }, nothing},
     // Another master moved the TPDO (CiA 301: disabled first, then the new COB-ID); moved back after it.
     {BusFault::SensorPdoMovedAtStart, "pdo-moved-at-start",
-     "sensor's position TPDO on COB-ID 0x190 when the controller starts, moved back after 2 s", 2.0, kAtStart,
-     [](Rig& r) { r.sdoWrite32(2, 0x1800, 1, 0x80000182u), r.sdoWrite32(2, 0x1800, 1, 0x190u); },
-     [](Rig& r) { r.sdoWrite32(2, 0x1800, 1, 0x80000190u), r.sdoWrite32(2, 0x1800, 1, 0x182u); }},
+     "sensor's position TPDO on COB-ID 0x190 when the controller starts, moved back after 2 s", 2.0, kAtStart, pdoAway,
+     pdoBack},
 };
 
 const FaultSpec& spec(BusFault f) {
@@ -102,11 +108,12 @@ void end(Rig& r, BusFault f) { spec(f).end(r); }
 
 namespace {
 
-double rmse(const Rig& r, TimeUs from, TimeUs to) {
+// Channel c's tracking RMSE over [from, to) of bus time.
+double rmse(const Rig& r, std::size_t c, TimeUs from, TimeUs to) {
   double acc = 0;
   std::size_t n = 0;
   for (std::size_t i = 0; i < r.recs.size(); ++i) {
-    if (r.rec_us[i] < from || r.rec_us[i] >= to) continue;
+    if (r.recs[i].channel != c || r.rec_us[i] < from || r.rec_us[i] >= to) continue;
     const double e = r.traj.at(r.recs[i].t) - r.recs[i].y;
     acc += e * e;
     ++n;
@@ -114,23 +121,29 @@ double rmse(const Rig& r, TimeUs from, TimeUs to) {
   return n ? std::sqrt(acc / static_cast<double>(n)) : std::numeric_limits<double>::quiet_NaN();
 }
 
-double maxStep(const Rig& r, TimeUs from, TimeUs to) {
+// Channel c's largest command step from one of its cycles to the next, both in [from, to) and in control.
+double maxStep(const Rig& r, std::size_t c, TimeUs from, TimeUs to) {
   double m = 0;
-  for (std::size_t i = 1; i < r.recs.size(); ++i) {
-    if (r.rec_us[i] < from || r.rec_us[i] >= to || r.rec_us[i - 1] < from) continue;
-    if (r.recs[i].fault != 0 || r.recs[i - 1].fault != 0) continue;
-    m = std::max(m, std::fabs(r.recs[i].u - r.recs[i - 1].u));
+  const nodes::CycleRecord* prev = nullptr;
+  TimeUs prev_us = 0;
+  for (std::size_t i = 0; i < r.recs.size(); ++i) {
+    const nodes::CycleRecord& x = r.recs[i];
+    if (x.channel != c) continue;
+    const bool inside = r.rec_us[i] >= from && r.rec_us[i] < to && prev && prev_us >= from;
+    if (inside && x.fault == 0 && prev->fault == 0) m = std::max(m, std::fabs(x.u - prev->u));
+    prev = &x;
+    prev_us = r.rec_us[i];
   }
   return m;
 }
 
-// One run: the rig set up for `setup`, fault f injected (None: the reference run) for fault_s.
-FaultRun runOne(BusFault setup, BusFault f, double fault_s, const FaultRigOptions& o) {
-  Rig r(setup, o);
-  FaultRun out;
-  out.fault = f;
-  out.fault_s = fault_s;
-  // Settle, then inject right after a SYNC; or inject, then start the controller.
+// The times of one run (bus time): the injection, the end of the fault, the end of the run.
+struct Times {
+  TimeUs inj = 0, end = 0, stop = 0;
+};
+
+// Runs the rig up to the injection (f injected before the controller starts for an at-start setup).
+Times settle(Rig& r, BusFault setup, BusFault f, double fault_s, const FaultRigOptions& o) {
   const TimeUs limit = static_cast<TimeUs>((o.preroll_s + o.inject_at_s + 30.0) * 1e6);
   if (atStart(setup)) {
     r.emcy_from = 0;
@@ -140,59 +153,111 @@ FaultRun runOne(BusFault setup, BusFault f, double fault_s, const FaultRigOption
   }
   while (!atStart(setup) && r.ctrl->runTime() < o.inject_at_s && r.bus.now() < limit) r.step(kPeriod);
   if (r.bus.now() >= limit) throw std::runtime_error("fault rig: the controller did not start");
-  const TimeUs t_inj = r.bus.now();
-  const TimeUs t_end = t_inj + static_cast<TimeUs>(std::llround(out.fault_s * 1e6));
-  const TimeUs t_stop = t_end + static_cast<TimeUs>(std::llround(o.after_s * 1e6));
-  r.emcy_from = t_inj;
-  const FaultCounters fc0 = r.ctrl->faultCounters();
-  if (!atStart(setup)) begin(r, f);
+  Times t;
+  t.inj = r.bus.now();
+  t.end = t.inj + static_cast<TimeUs>(std::llround(fault_s * 1e6));
+  t.stop = t.end + static_cast<TimeUs>(std::llround(o.after_s * 1e6));
+  return t;
+}
+
+// What a run follows of the row's channel as it goes: its fault, its valve output, its return.
+struct Watch {
   bool injected = true, faulted = false, safe = false;
-  const double safe_volts = pd::valveVolts(r.ctrl->safeCommand());
-  while (r.bus.now() < t_stop) {
+  double safe_volts = 0;
+};
+
+void observe(Rig& r, const Times& t, Watch& w, FaultRun& out) {
+  const std::size_t c = r.channel;
+  const TimeUs now = r.bus.now();
+  const TimeUs reacted = r.ctrl->reactedAtUs(c);
+  if (reacted != canopen::kNever && out.detect_cycles < 0)
+    out.detect_cycles = static_cast<double>(std::max(reacted, t.inj) - t.inj) / kPeriod;
+  if (r.ctrl->channelFault(c) != Fault::None && !w.faulted) {
+    w.faulted = true;
+    out.first = r.ctrl->channelFault(c);
+  }
+  if (!w.safe && w.faulted && std::fabs(r.emu->valveVolts(c) - w.safe_volts) < 1e-9) {
+    w.safe = true;
+    out.safe_cycles = static_cast<double>(std::max(r.emu->valveChangedUs(c), t.inj) - t.inj) / kPeriod;
+  }
+  if (w.faulted && out.resume_s < 0 && r.ctrl->channelFault(c) == Fault::None && now >= t.end)
+    out.resume_s = static_cast<double>(now - t.end) * 1e-6;
+}
+
+// From the injection to the end of the run, the fault cleared after its time.
+void follow(Rig& r, BusFault f, const Times& t, FaultRun& out) {
+  Watch w;
+  w.safe_volts = pd::valveVolts(r.ctrl->safeCommand());
+  while (r.bus.now() < t.stop) {
     // Fine steps around the fault, for the reaction times.
-    const bool fine = r.bus.now() < t_end + 300'000;
+    const bool fine = r.bus.now() < t.end + 300'000;
     r.step(fine ? 100 : kPeriod);
-    const TimeUs now = r.bus.now();
-    if (injected && now >= t_end) {
+    if (w.injected && r.bus.now() >= t.end) {
       end(r, f);
-      injected = false;
+      w.injected = false;
     }
-    const TimeUs reacted = r.ctrl->reactedAtUs();
-    if (reacted != canopen::kNever && out.detect_cycles < 0)
-      out.detect_cycles = static_cast<double>(std::max(reacted, t_inj) - t_inj) / kPeriod;
-    if (r.ctrl->fault() != Fault::None && !faulted) {
-      faulted = true;
-      out.first = r.ctrl->fault();
-    }
-    if (!safe && faulted && std::fabs(r.emu->valveVolts() - safe_volts) < 1e-9) {
-      safe = true;
-      out.safe_cycles = static_cast<double>(std::max(r.emu->valveChangedUs(), t_inj) - t_inj) / kPeriod;
-    }
-    if (faulted && out.resume_s < 0 && r.ctrl->fault() == Fault::None && now >= t_end)
-      out.resume_s = static_cast<double>(now - t_end) * 1e-6;
+    observe(r, t, w, out);
   }
-  const TimeUs t_resume = out.resume_s >= 0 ? t_end + static_cast<TimeUs>(out.resume_s * 1e6) : t_inj;
-  out.max_step_v = maxStep(r, t_resume, (out.resume_s >= 0 ? t_resume : t_end) + 3'000'000);
-  out.step_before_v = maxStep(r, t_inj - 1'000'000, t_inj);
-  out.rmse_end = rmse(r, t_stop - 2'000'000, t_stop);
+}
+
+// The EMCY codes after the injection (each once, in order), whether a reset followed, the channels named.
+void collectEmcy(const Rig& r, FaultRun& out) {
   out.emcy.clear();
-  for (std::uint16_t c : r.emcy) {
-    if (c == 0)
+  for (std::size_t i = 0; i < r.emcy.size(); ++i) {
+    const std::uint16_t c = r.emcy[i];
+    if (c == 0) {
       out.emcy_reset = true;
-    else if (std::find(out.emcy.begin(), out.emcy.end(), c) == out.emcy.end())
-      out.emcy.push_back(c);
+      continue;
+    }
+    if (std::find(out.emcy.begin(), out.emcy.end(), c) == out.emcy.end()) out.emcy.push_back(c);
+    if (std::find(out.emcy_channels.begin(), out.emcy_channels.end(), r.emcy_channel[i]) == out.emcy_channels.end())
+      out.emcy_channels.push_back(r.emcy_channel[i]);
   }
-  out.recovered = r.ctrl->fault() == Fault::None && r.ctrl->running();
+  std::sort(out.emcy_channels.begin(), out.emcy_channels.end());
+}
+
+// The figures at the end of the run: the row's channel's, and each channel's tracking and safe cycles.
+void measure(const Rig& r, const Times& t, const std::vector<FaultCounters>& fc0, bool at_start, FaultRun& out) {
+  const std::size_t ch = r.channel;
+  const TimeUs t_resume = out.resume_s >= 0 ? t.end + static_cast<TimeUs>(out.resume_s * 1e6) : t.inj;
+  out.max_step_v = maxStep(r, ch, t_resume, (out.resume_s >= 0 ? t_resume : t.end) + 3'000'000);
+  out.step_before_v = maxStep(r, ch, t.inj - 1'000'000, t.inj);
+  for (std::size_t c = 0; c < r.ctrl->channels(); ++c) {
+    out.channel_rmse_end.push_back(rmse(r, c, t.stop - 2'000'000, t.stop));
+    out.channel_rmse_fault.push_back(rmse(r, c, t.inj, t.end + 1'000'000));
+    out.channel_safe_cycles.push_back(r.ctrl->channelCounters(c).safe_cycles - fc0[c].safe_cycles);
+  }
+  out.rmse_end = out.channel_rmse_end[ch];
+  collectEmcy(r, out);
+  out.recovered = r.ctrl->channelFault(ch) == Fault::None && r.ctrl->running();
   std::uint64_t cycles = 0;
-  for (TimeUs t : r.rec_us) cycles += t > t_inj && t <= t_stop;
-  const auto expected = static_cast<std::uint64_t>((t_stop - t_inj) / kPeriod);
+  for (std::size_t i = 0; i < r.rec_us.size(); ++i)
+    cycles += r.recs[i].channel == ch && r.rec_us[i] > t.inj && r.rec_us[i] <= t.stop;
+  const auto expected = static_cast<std::uint64_t>((t.stop - t.inj) / kPeriod);
   // (Before the loop's first start there are no records to count.)
-  out.cycles_without_sync = expected > cycles && !atStart(setup) ? expected - cycles : 0;
+  out.cycles_without_sync = expected > cycles && !at_start ? expected - cycles : 0;
   out.fc = r.ctrl->faultCounters();
-  out.samples_lost = out.fc.samples_missing - fc0.samples_missing;
-  out.safe_cycles_total = out.fc.safe_cycles - fc0.safe_cycles;
+  out.samples_lost = r.ctrl->channelCounters(ch).samples_missing - fc0[ch].samples_missing;
+  out.safe_cycles_total = out.channel_safe_cycles[ch];
   out.counters = r.ctrl->node().counters();
   out.bus_dropped = r.bus.framesDropped();
+}
+
+// One run: the rig set up for `setup`, fault f injected (None: the reference run) for fault_s.
+FaultRun runOne(BusFault setup, BusFault f, double fault_s, const FaultRigOptions& o) {
+  Rig r(setup, o);
+  FaultRun out;
+  out.fault = f;
+  out.fault_s = fault_s;
+  out.channel = o.channel;
+  // Settle, then inject right after a SYNC; or inject, then start the controller.
+  const Times t = settle(r, setup, f, fault_s, o);
+  r.emcy_from = t.inj;
+  std::vector<FaultCounters> fc0;
+  for (std::size_t c = 0; c < r.ctrl->channels(); ++c) fc0.push_back(r.ctrl->channelCounters(c));
+  if (!atStart(setup)) begin(r, f);
+  follow(r, f, t, out);
+  measure(r, t, fc0, atStart(setup), out);
   return out;
 }
 
@@ -228,7 +293,10 @@ std::string busFaultDescription(BusFault f) { return spec(f).description; }
 FaultRun runBusFault(BusFault f, const FaultRigOptions& o) {
   FaultRun run = runOne(f, f, faultSeconds(f), o);
   // The reference: the same rig and the same window, nothing injected.
-  run.rmse_base = f == BusFault::None ? run.rmse_end : runOne(f, BusFault::None, faultSeconds(f), o).rmse_end;
+  const FaultRun ref = f == BusFault::None ? run : runOne(f, BusFault::None, faultSeconds(f), o);
+  run.channel_rmse_base = ref.channel_rmse_end;
+  run.channel_rmse_fault_base = ref.channel_rmse_fault;
+  run.rmse_base = run.channel_rmse_base[run.channel];
   return run;
 }
 
@@ -238,32 +306,76 @@ std::vector<FaultRun> runFaultTable(const std::vector<BusFault>& faults, const F
   return out;
 }
 
+namespace {
+
+std::string dataLost(const FaultRun& r) {
+  char b[128];
+  std::snprintf(b, sizeof b, "%llu sample%s", static_cast<unsigned long long>(r.samples_lost),
+                r.samples_lost == 1 ? "" : "s");
+  std::string lost = b;
+  if (r.cycles_without_sync > 0) {
+    std::snprintf(b, sizeof b, ", %llu cycles without SYNC", static_cast<unsigned long long>(r.cycles_without_sync));
+    lost += b;
+  }
+  std::snprintf(b, sizeof b, "; %llu cycles safe", static_cast<unsigned long long>(r.safe_cycles_total));
+  return lost + b;
+}
+
+// The cells of the one-muscle table, from "| fault" to "data lost |".
+std::string rowCells(const FaultRun& r) {
+  char b[512];
+  std::string reaction =
+      r.first != Fault::None ? toString(r.first) : (r.emcy.empty() ? "none (not detected)" : "warning only");
+  std::string detect = r.detect_cycles >= 0 ? (std::snprintf(b, sizeof b, "%.1f", r.detect_cycles), b) : "-";
+  std::string safe = r.safe_cycles >= 0 ? (std::snprintf(b, sizeof b, "%.1f", r.safe_cycles), b) : "-";
+  std::string back = r.resume_s >= 0 ? (std::snprintf(b, sizeof b, "%.3f s", r.resume_s), b) : "-";
+  std::snprintf(b, sizeof b, "| %s | %s | %s | %s | %s%s | %s | %s | %.3f (%.3f) | %.3f (%.3f) | %s |",
+                busFaultDescription(r.fault).c_str(), reaction.c_str(), detect.c_str(), safe.c_str(),
+                codes(r.emcy).c_str(), r.emcy_reset && !r.emcy.empty() ? " + reset" : "", r.recovered ? "yes" : "no",
+                back.c_str(), r.max_step_v, r.step_before_v, r.rmse_end, r.rmse_base, dataLost(r).c_str());
+  return b;
+}
+
+// The other channels: the one whose RMSE of the last 2 s rose most over its reference run's, and those
+// that sent the safe value (with their cycles safe).
+std::string othersCell(const FaultRun& r) {
+  std::size_t worst = r.channel;
+  std::string safe;
+  char b[128];
+  for (std::size_t c = 0; c < r.channel_rmse_end.size(); ++c) {
+    if (c == r.channel) continue;
+    const double rise = r.channel_rmse_end[c] - r.channel_rmse_base[c];
+    if (worst == r.channel || rise > r.channel_rmse_end[worst] - r.channel_rmse_base[worst]) worst = c;
+    if (r.channel_safe_cycles[c] == 0) continue;
+    std::snprintf(b, sizeof b, "%s%zu (%llu)", safe.empty() ? "" : ", ", c + 1,
+                  static_cast<unsigned long long>(r.channel_safe_cycles[c]));
+    safe += b;
+  }
+  if (worst == r.channel) return "-";
+  std::snprintf(b, sizeof b, "%zu: %.3f (%.3f); ", worst + 1, r.channel_rmse_end[worst], r.channel_rmse_base[worst]);
+  return b + (safe.empty() ? std::string("none safe") : "safe: " + safe);
+}
+
+std::string channelList(const std::vector<std::uint8_t>& v) {
+  std::string s;
+  for (std::uint8_t c : v) s += (s.empty() ? "" : ", ") + std::to_string(c);
+  return s.empty() ? "-" : s;
+}
+
+}  // namespace
+
 std::string faultTableMarkdown(const std::vector<FaultRun>& runs) {
+  bool several = false;
+  for (const auto& r : runs) several = several || r.channel_rmse_end.size() > 1;
   std::string s =
       "| fault injected | controller's reaction | cycles to reaction | cycles to valve safe | EMCY | recovered | "
-      "control back after | max step after (before) [V] | RMSE last 2 s [mm] (no fault) | data lost |\n"
-      "|---|---|---|---|---|---|---|---|---|---|\n";
-  char b[512];
+      "control back after | max step after (before) [V] | RMSE last 2 s [mm] (no fault) | data lost |";
+  s += several ? " EMCY naming channels | other channels: worst RMSE last 2 s [mm] (no fault); cycles safe |\n" : "\n";
+  s += several ? "|---|---|---|---|---|---|---|---|---|---|---|---|\n" : "|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : runs) {
-    std::string reaction =
-        r.first != Fault::None ? toString(r.first) : (r.emcy.empty() ? "none (not detected)" : "warning only");
-    std::string detect = r.detect_cycles >= 0 ? (std::snprintf(b, sizeof b, "%.1f", r.detect_cycles), b) : "-";
-    std::string safe = r.safe_cycles >= 0 ? (std::snprintf(b, sizeof b, "%.1f", r.safe_cycles), b) : "-";
-    std::string back = r.resume_s >= 0 ? (std::snprintf(b, sizeof b, "%.3f s", r.resume_s), b) : "-";
-    std::snprintf(b, sizeof b, "%llu sample%s", static_cast<unsigned long long>(r.samples_lost),
-                  r.samples_lost == 1 ? "" : "s");
-    std::string lost = b;
-    if (r.cycles_without_sync > 0) {
-      std::snprintf(b, sizeof b, ", %llu cycles without SYNC", static_cast<unsigned long long>(r.cycles_without_sync));
-      lost += b;
-    }
-    std::snprintf(b, sizeof b, "; %llu cycles safe", static_cast<unsigned long long>(r.safe_cycles_total));
-    lost += b;
-    std::snprintf(b, sizeof b, "| %s | %s | %s | %s | %s%s | %s | %s | %.3f (%.3f) | %.3f (%.3f) | %s |\n",
-                  busFaultDescription(r.fault).c_str(), reaction.c_str(), detect.c_str(), safe.c_str(),
-                  codes(r.emcy).c_str(), r.emcy_reset && !r.emcy.empty() ? " + reset" : "", r.recovered ? "yes" : "no",
-                  back.c_str(), r.max_step_v, r.step_before_v, r.rmse_end, r.rmse_base, lost.c_str());
-    s += b;
+    s += rowCells(r);
+    if (several) s += " " + channelList(r.emcy_channels) + " | " + othersCell(r) + " |";
+    s += "\n";
   }
   return s;
 }

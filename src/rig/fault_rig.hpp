@@ -5,19 +5,23 @@
 // the trajectory, clears it, and measures what the controller did: cycles until it detected the
 // fault and until the valve output its safe value, the EMCY codes on the bus, whether and how
 // smoothly control resumed, and what was lost. `pamc rig faults` prints the table
-// (docs/RELIABILITY.md); tests/unit/test_faults.cpp checks each row.
+// (docs/RELIABILITY.md); tests/unit/test_faults.cpp checks each row. On a rig file of several channels
+// (`--rig`) the faults of the sensor hit one channel's (`--channel`), and the table adds what the other
+// channels did (tests/unit/test_faults_per_channel.cpp).
 //
 // Also here: the parameter guard of the controller over SDO, write by write (`pamc rig guards`).
 #pragma once
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "canopen/service.hpp"
 #include "control/controller.hpp"
 #include "nodes/controller_node.hpp"
+#include "nodes/rig_file.hpp"
 
 namespace pamc::rig {
 
@@ -62,6 +66,11 @@ struct FaultRigOptions {
   double inject_at_s = 3.0;  // trajectory time of the injection
   double after_s = 8.0;      // run on this long after the fault cleared
   std::uint64_t seed = 7;
+  // A rig file of several channels (docs/RIG.md, "Several muscles") to run instead of the built-in
+  // one-muscle layout, played by rig::emulatorOf's devices; the faults of "the sensor" hit the sensor of
+  // `channel` (0-based), those of the valve module, the SYNC and the bus what every channel shares.
+  std::optional<nodes::RigFile> rig;
+  std::size_t channel = 0;
 };
 
 struct FaultRun {
@@ -84,13 +93,24 @@ struct FaultRun {
   canopen::Counters counters;             // the controller node's counters at the end
   nodes::FaultCounters fc;
   std::uint64_t bus_dropped = 0;  // frames the in-process bus refused (port queue full)
+  // The channels (one without a rig file): the figures above are of `channel` (0-based), the one the row
+  // faulted; these of each channel, index the channel.
+  std::size_t channel = 0;
+  std::vector<double> channel_rmse_end, channel_rmse_base;  // as rmse_end, rmse_base
+  // RMSE from the injection to 1 s after the fault cleared, and the same window of the reference run [mm].
+  std::vector<double> channel_rmse_fault, channel_rmse_fault_base;
+  std::vector<std::uint64_t> channel_safe_cycles;  // cycles it sent the safe value after the injection
+  // The channels the EMCYs after the injection named (1-based, ascending; 0: a node of one channel names none).
+  std::vector<std::uint8_t> emcy_channels;
 };
 
 // One run with the fault (and its reference run without it).
 FaultRun runBusFault(BusFault f, const FaultRigOptions& o = {});
 // Runs the faults given (all if empty) and returns them in order.
 std::vector<FaultRun> runFaultTable(const std::vector<BusFault>& faults, const FaultRigOptions& o = {});
-// Markdown table: fault, reaction, cycles to safe state, EMCY, recovered, data lost.
+// Markdown table: fault, reaction, cycles to safe state, EMCY, recovered, data lost. Runs of several
+// channels add the channels the EMCYs named and what the other channels did (worst RMSE of the last 2 s
+// against its own reference run, which of them went to the safe value).
 std::string faultTableMarkdown(const std::vector<FaultRun>& runs);
 
 // Soak: one long run of the rig in virtual time with faults of the catalogue injected one after the

@@ -1,0 +1,128 @@
+// The fault table per channel (`pamc rig faults --rig od/rigs/four_muscles.ini --channel N`,
+// docs/RELIABILITY.md "Faults per channel"): a few rows of the catalogue on the four-muscle rig. A fault
+// of one channel's sensor must take that channel to its safe value as the one-muscle row does
+// (tests/unit/test_faults.cpp, the same bounds) while the other three keep tracking; a fault of the valve
+// module or of the SYNC, which every channel shares, must take every channel there and back.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "nodes/rig_file.hpp"
+#include "rig/fault_rig.hpp"
+
+using namespace pamc;
+using nodes::Fault;
+using rig::BusFault;
+
+namespace {
+
+// The four-muscle rig with the faults of the sensor on channel (1-based).
+rig::FaultRigOptions fourMuscles(std::size_t channel) {
+  rig::FaultRigOptions o;
+  o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
+  o.rig = nodes::readRigFile(o.od_dir + "/rigs/four_muscles.ini");
+  o.channel = channel - 1;
+  return o;
+}
+
+bool sent(const rig::FaultRun& r, std::uint16_t code) {
+  return std::find(r.emcy.begin(), r.emcy.end(), code) != r.emcy.end();
+}
+
+// The one-muscle table's bounds (test_faults.cpp): the bumpless return, tracking back to the reference
+// run's within 20 % + 0.02 mm.
+constexpr double kStepBound = 0.1;
+bool tracksAsWithout(double rmse, double base) { return rmse <= 1.2 * base + 0.02; }
+
+// The row's channel as the one-muscle row: the fault, the valve safe in time, its EMCY, then back.
+void expectSafeAndBack(const rig::FaultRun& r, Fault first, std::uint16_t code, double max_detect, double max_safe) {
+  EXPECT_EQ(r.first, first) << nodes::toString(r.first);
+  EXPECT_GE(r.detect_cycles, 0.0);
+  EXPECT_LE(r.detect_cycles, max_detect);
+  EXPECT_GE(r.safe_cycles, 0.0);
+  EXPECT_LE(r.safe_cycles, max_safe);
+  EXPECT_TRUE(sent(r, code)) << "EMCY 0x" << std::hex << code << " not on the bus";
+  EXPECT_TRUE(r.emcy_reset) << "no EMCY error reset after recovery";
+  EXPECT_TRUE(r.recovered);
+  EXPECT_GE(r.resume_s, 0.0);
+  EXPECT_LE(r.resume_s, 0.7);
+  EXPECT_LE(r.max_step_v, kStepBound);
+  EXPECT_TRUE(tracksAsWithout(r.rmse_end, r.rmse_base)) << r.rmse_end << " mm (" << r.rmse_base << ")";
+  EXPECT_GT(r.safe_cycles_total, 400u);
+}
+
+// The channels other than the row's: never safe, tracking through the fault and at the end as without it.
+void expectOthersTrackOn(const rig::FaultRun& r) {
+  ASSERT_EQ(r.channel_rmse_end.size(), 4u);
+  for (std::size_t c = 0; c < 4; ++c) {
+    if (c == r.channel) continue;
+    SCOPED_TRACE("channel " + std::to_string(c + 1));
+    EXPECT_EQ(r.channel_safe_cycles[c], 0u);
+    EXPECT_TRUE(tracksAsWithout(r.channel_rmse_fault[c], r.channel_rmse_fault_base[c]))
+        << r.channel_rmse_fault[c] << " mm during the fault (" << r.channel_rmse_fault_base[c] << ")";
+    EXPECT_TRUE(tracksAsWithout(r.channel_rmse_end[c], r.channel_rmse_base[c]))
+        << r.channel_rmse_end[c] << " mm at the end (" << r.channel_rmse_base[c] << ")";
+  }
+}
+
+// Every channel safe for the fault's length and back to tracking as without it.
+void expectEveryChannelSafeAndBack(const rig::FaultRun& r) {
+  ASSERT_EQ(r.channel_rmse_end.size(), 4u);
+  for (std::size_t c = 0; c < 4; ++c) {
+    SCOPED_TRACE("channel " + std::to_string(c + 1));
+    EXPECT_GT(r.channel_safe_cycles[c], 400u);
+    EXPECT_TRUE(tracksAsWithout(r.channel_rmse_end[c], r.channel_rmse_base[c]))
+        << r.channel_rmse_end[c] << " mm (" << r.channel_rmse_base[c] << ")";
+  }
+}
+
+}  // namespace
+
+TEST(FaultsPerChannel, ASilentSensorOfChannel3StopsChannel3Only) {
+  const auto r = rig::runBusFault(BusFault::SensorSilentLong, fourMuscles(3));
+  EXPECT_EQ(r.channel, 2u);
+  expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
+  EXPECT_TRUE(sent(r, 0x8130));
+  EXPECT_GE(r.fc.nmt_reboots, 1u);
+  EXPECT_EQ(r.emcy_channels, std::vector<std::uint8_t>{3}) << "EMCYs naming channel 3 only";
+  expectOthersTrackOn(r);
+}
+
+TEST(FaultsPerChannel, ABurstOfLostPdosOfChannel2StopsChannel2Only) {
+  const auto r = rig::runBusFault(BusFault::PdoDropBurst, fourMuscles(2));
+  expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
+  EXPECT_EQ(r.samples_lost, 10u);
+  EXPECT_EQ(r.emcy_channels, std::vector<std::uint8_t>{2});
+  expectOthersTrackOn(r);
+}
+
+TEST(FaultsPerChannel, ASilentValveModuleStopsEveryChannel) {
+  const auto r = rig::runBusFault(BusFault::ValveSilentLong, fourMuscles(1));
+  expectSafeAndBack(r, Fault::ValvePdoMissing, 0x8250, 5.0, 6.0);
+  EXPECT_TRUE(sent(r, 0x8130));
+  EXPECT_GE(r.fc.nmt_reboots, 1u);
+  EXPECT_EQ(r.emcy_channels, (std::vector<std::uint8_t>{1, 2, 3, 4})) << "each channel's output lost";
+  expectEveryChannelSafeAndBack(r);
+}
+
+TEST(FaultsPerChannel, AStoppedSyncStopsEveryChannelWithOneEmcy) {
+  const auto r = rig::runBusFault(BusFault::SyncStop, fourMuscles(1));
+  expectSafeAndBack(r, Fault::SyncLost, 0x8100, 1.5, 1.5);
+  EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8100});
+  EXPECT_EQ(r.emcy_channels.size(), 1u) << "a cause of the bus is reported once";
+  expectEveryChannelSafeAndBack(r);
+}
+
+// Without a rig file the row is the one-muscle table's: one channel, the same figures as before.
+TEST(FaultsPerChannel, WithoutARigFileTheTableHasOneChannel) {
+  rig::FaultRigOptions o;
+  o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
+  const auto r = rig::runBusFault(BusFault::PdoDropBurst, o);
+  ASSERT_EQ(r.channel_rmse_end.size(), 1u);
+  EXPECT_EQ(r.rmse_end, r.channel_rmse_end[0]);
+  EXPECT_EQ(r.emcy_channels, std::vector<std::uint8_t>{0}) << "a node of one channel names none";
+  const std::string table = rig::faultTableMarkdown({r});
+  EXPECT_EQ(table.find("other channels"), std::string::npos) << table;
+}
