@@ -79,7 +79,7 @@ class Emcy {
 
  private:
   static constexpr std::size_t kMaxActive = 16;
-  static constexpr std::size_t kQueue = 8;
+  static constexpr std::size_t kQueue = 32;  // an error reset per code and channel of 8 channels, spaced by the inhibit time
   void updateRegister();
   bool queue(std::uint16_t code, const std::uint8_t* manufacturer);
   void flushQueue(TimeUs now);

@@ -115,6 +115,20 @@ TEST(FaultsPerChannel, AStoppedSyncStopsEveryChannelWithOneEmcy) {
   expectEveryChannelSafeAndBack(r);
 }
 
+// Four channels recovering in one cycle send their EMCY error resets together; on the timed bus of the
+// flood rows they must not crowd out the next cycle's SYNC and setpoints (the controller's EMCY inhibit
+// time, 0x1015, spaces them): every channel safe for as long as the one-muscle row (200 cycles of
+// flood, 500 to recover: 700), not a second overrun's 500 more.
+TEST(FaultsPerChannel, TheErrorResetsOfFourChannelsDoNotCauseASecondOverrun) {
+  const auto r = rig::runBusFault(BusFault::FloodFull, fourMuscles(1));
+  expectSafeAndBack(r, Fault::CanOverrun, 0x8110, 1.0, 2.0);
+  ASSERT_EQ(r.channel_safe_cycles.size(), 4u);
+  for (std::size_t c = 0; c < 4; ++c) {
+    SCOPED_TRACE("channel " + std::to_string(c + 1));
+    EXPECT_LE(r.channel_safe_cycles[c], 750u);
+  }
+}
+
 // Without a rig file the row is the one-muscle table's: one channel, the same figures as before.
 TEST(FaultsPerChannel, WithoutARigFileTheTableHasOneChannel) {
   rig::FaultRigOptions o;
