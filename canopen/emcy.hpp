@@ -79,7 +79,8 @@ class Emcy {
 
  private:
   static constexpr std::size_t kMaxActive = 16;
-  static constexpr std::size_t kQueue = 32;  // an error reset per code and channel of 8 channels, spaced by the inhibit time
+  // Room for an error reset per code and channel of 8 channels, spaced by the inhibit time.
+  static constexpr std::size_t kQueue = 32;
   void updateRegister();
   bool queue(std::uint16_t code, const std::uint8_t* manufacturer);
   void flushQueue(TimeUs now);

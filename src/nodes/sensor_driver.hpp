@@ -72,7 +72,7 @@ class SensorDriver final : public Driver {
   pd::Scaling scaling_;  // the step may be read at the sensor's boot, before it starts
   double no_position_s_;
   canopen::Ref<std::int32_t> position_{nullptr};
-  const canopen::Rpdo* pdo_ = nullptr;  // the position's RPDO (bind())
+  const canopen::Rpdo* pdo_ = nullptr;                // the position's RPDO (bind())
   canopen::TimeUs operational_at_ = canopen::kNever;  // the node entered Operational (kNever: it is not)
   int conflict_run_ = 0;
   // Plausibility: positions outside the range in a row; the run of identical positions and the

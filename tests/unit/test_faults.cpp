@@ -14,12 +14,16 @@
 #include "canopen/node.hpp"
 #include "rig/fault_rig.hpp"
 #include "rig/bus_fault_rig.hpp"
+#include "../common/fault_checks.hpp"
 
 #include <cstring>
 
 using namespace pamc;
 using nodes::Fault;
 using rig::BusFault;
+using test::expectSafeAndBack;
+using test::kStepBound;
+using test::sent;
 
 namespace {
 
@@ -27,33 +31,6 @@ rig::FaultRigOptions options() {
   rig::FaultRigOptions o;
   o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
   return o;
-}
-
-bool sent(const rig::FaultRun& r, std::uint16_t code) {
-  return std::find(r.emcy.begin(), r.emcy.end(), code) != r.emcy.end();
-}
-
-// Normal operation's largest command step is ~0.002 V per cycle. The return after a fault is
-// rate-limited to 0.02 V per cycle while the setpoint ramps back (ControllerNodeConfig::ramp_slew_v);
-// the restarted AMC estimator's transient after that stays below 0.1 V per cycle.
-constexpr double kStepBound = 0.1;
-
-// The common part: a safety fault, the valve safe within max_safe cycles, its EMCY, then recovery.
-void expectSafeAndBack(const rig::FaultRun& r, Fault first, std::uint16_t code, double max_detect, double max_safe) {
-  SCOPED_TRACE(rig::busFaultDescription(r.fault));
-  EXPECT_EQ(r.first, first) << nodes::toString(r.first);
-  EXPECT_GE(r.detect_cycles, 0.0);
-  EXPECT_LE(r.detect_cycles, max_detect);
-  EXPECT_GE(r.safe_cycles, 0.0);
-  EXPECT_LE(r.safe_cycles, max_safe);
-  EXPECT_TRUE(sent(r, code)) << "EMCY 0x" << std::hex << code << " not on the bus";
-  EXPECT_TRUE(r.emcy_reset) << "no EMCY error reset after recovery";
-  EXPECT_TRUE(r.recovered);
-  EXPECT_GE(r.resume_s, 0.0);
-  EXPECT_LE(r.resume_s, 0.7);  // 500 clean cycles after the cause is gone (plus a re-boot)
-  EXPECT_LE(r.max_step_v, kStepBound);
-  EXPECT_LE(r.rmse_end, 1.2 * r.rmse_base + 0.02) << "tracking error not back to normal";
-  EXPECT_GT(r.safe_cycles_total, 400u);
 }
 
 // Faults the loop rides through: no safe state, no jump, tracking as without the fault.

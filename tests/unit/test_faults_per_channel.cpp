@@ -11,10 +11,14 @@
 
 #include "nodes/rig_file.hpp"
 #include "rig/fault_rig.hpp"
+#include "../common/fault_checks.hpp"
 
 using namespace pamc;
 using nodes::Fault;
 using rig::BusFault;
+using test::expectSafeAndBack;
+using test::sent;
+using test::tracksAsWithout;
 
 namespace {
 
@@ -25,32 +29,6 @@ rig::FaultRigOptions fourMuscles(std::size_t channel) {
   o.rig = nodes::readRigFile(o.od_dir + "/rigs/four_muscles.ini");
   o.channel = channel - 1;
   return o;
-}
-
-bool sent(const rig::FaultRun& r, std::uint16_t code) {
-  return std::find(r.emcy.begin(), r.emcy.end(), code) != r.emcy.end();
-}
-
-// The one-muscle table's bounds (test_faults.cpp): the bumpless return, tracking back to the reference
-// run's within 20 % + 0.02 mm.
-constexpr double kStepBound = 0.1;
-bool tracksAsWithout(double rmse, double base) { return rmse <= 1.2 * base + 0.02; }
-
-// The row's channel as the one-muscle row: the fault, the valve safe in time, its EMCY, then back.
-void expectSafeAndBack(const rig::FaultRun& r, Fault first, std::uint16_t code, double max_detect, double max_safe) {
-  EXPECT_EQ(r.first, first) << nodes::toString(r.first);
-  EXPECT_GE(r.detect_cycles, 0.0);
-  EXPECT_LE(r.detect_cycles, max_detect);
-  EXPECT_GE(r.safe_cycles, 0.0);
-  EXPECT_LE(r.safe_cycles, max_safe);
-  EXPECT_TRUE(sent(r, code)) << "EMCY 0x" << std::hex << code << " not on the bus";
-  EXPECT_TRUE(r.emcy_reset) << "no EMCY error reset after recovery";
-  EXPECT_TRUE(r.recovered);
-  EXPECT_GE(r.resume_s, 0.0);
-  EXPECT_LE(r.resume_s, 0.7);
-  EXPECT_LE(r.max_step_v, kStepBound);
-  EXPECT_TRUE(tracksAsWithout(r.rmse_end, r.rmse_base)) << r.rmse_end << " mm (" << r.rmse_base << ")";
-  EXPECT_GT(r.safe_cycles_total, 400u);
 }
 
 // The channels other than the row's: never safe, tracking through the fault and at the end as without it.
