@@ -217,6 +217,7 @@ class Pi final : public Controller {
     o.y_hat = y_.get();
     return o;
   }
+  void limited(double u_applied) noexcept override { pi_.limited(u_applied); }
   double integral() const noexcept override { return pi_.integral(); }
 
  private:
@@ -312,6 +313,10 @@ class PiAmc final : public Controller {
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
     hist_.push(o.u);
     return o;
+  }
+  void limited(double u_applied) noexcept override {
+    pi_.limited(u_applied);
+    hist_.replaceLatest(u_applied);
   }
   double integral() const noexcept override { return pi_.integral(); }
   const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
@@ -423,6 +428,10 @@ class PidEso final : public Controller {
     sat_dir_ = !o.saturated ? 0 : o.u >= cfg_.u_max ? 1 : -1;
     hist_.push(o.u);
     return o;
+  }
+  void limited(double u_applied) noexcept override {
+    pi_.limited(u_applied);
+    hist_.replaceLatest(u_applied);
   }
   double integral() const noexcept override { return pi_.integral(); }
   double disturbance() const noexcept override { return cfg_.eso.order == 1 ? x2_ : x3_; }

@@ -149,6 +149,10 @@ class Controller {
   virtual void activate(double u0, double y0) noexcept = 0;
   // One cycle: setpoint now and lookahead() cycles ahead, measured position (and load if measured).
   virtual ControlOutput update(double yd, double yd_next, double y, double load = 0.0) noexcept = 0;
+  // The loop sent u_applied instead of this cycle's command (its slew limit after a restart): the
+  // estimators' command history holds what went out, and the integral does not wind up against the
+  // limit (conditional integration, as at saturation).
+  virtual void limited(double u_applied) noexcept { (void)u_applied; }
 
   // Read-only views for tests and diagnostics (not needed by the cycle).
   // The PI integral [V] (0 for the open loop).

@@ -24,6 +24,7 @@ class History {
   }
   // ago = 0: the latest value.
   double get(int ago) const noexcept { return buf_[(head_ - static_cast<unsigned>(ago)) & (N - 1)]; }
+  void replaceLatest(double v) noexcept { buf_[head_] = v; }
 
  private:
   std::array<double, N> buf_{};
@@ -105,13 +106,20 @@ class PiCore {
     const double raw = u_n + extra;
     const double u = std::clamp(raw, u_min_, u_max_);
     saturated = u != raw;
+    before_ = integ_;
     if (saturated && (raw - u) * e_ > 0.0) {
       u_n_out = u_n - pending_ + integ_;  // integration undone
-      return std::clamp(u_n_out + extra, u_min_, u_max_);
+      return out_ = std::clamp(u_n_out + extra, u_min_, u_max_);
     }
     integ_ = pending_;
     u_n_out = u_n;
-    return u;
+    return out_ = u;
+  }
+  // The command that went out was u_applied, not finish()'s: this cycle's integration is undone where
+  // it pushed further past it.
+  void limited(double u_applied) noexcept {
+    if (std::isfinite(u_applied) && (out_ - u_applied) * e_ > 0.0) integ_ = before_;
+    out_ = u_applied;
   }
   double integral() const noexcept { return integ_; }
   // Moves the integral by delta (a feedforward switched on or off beside it, bumpless).
@@ -123,6 +131,7 @@ class PiCore {
   double kp_ = 0, ki_ts_ = 0, u_min_ = kCommandMin, u_max_ = kCommandMax;
   double i_lo_ = kCommandMin, i_hi_ = kCommandMax;  // the integral's limits (configure)
   double integ_ = 0, pending_ = 0, e_ = 0;
+  double before_ = 0, out_ = 0;  // the integral before this cycle's, the command finish() gave
 };
 
 // The last usable (finite) measured position: a non-finite one is never used.

@@ -94,6 +94,10 @@ class Mbc final : public Controller {
     hist_.push(o.u);
     return o;
   }
+  void limited(double u_applied) noexcept override {
+    pi_.limited(u_applied);
+    hist_.replaceLatest(u_applied);
+  }
 
   double integral() const noexcept override { return pi_.integral(); }
   const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }

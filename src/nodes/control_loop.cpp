@@ -70,6 +70,7 @@ bool ControlLoop::step(const PositionSample& s, Setpoint sp, double safe_u, Cycl
     // rest); the valve gets it as a ramp, until the controller's command is within reach.
     const double u = std::clamp(o.u, last_u_ - ramp_slew_v_, last_u_ + ramp_slew_v_);
     if (!ramp_ && u == o.u) slew_ = false;
+    if (u != o.u) ctrl_->limited(u);  // what went out, for its estimator and its integral
     last_u_ = u;
   } else {
     last_u_ = o.u;
