@@ -46,7 +46,7 @@ class RigCommand final : public Command {
                                        "the abort codes and what the loop saw");
     addRunOptions(run_cmd_);
     addFaultToolOptions(faults_cmd_, rig::FaultRigOptions{});
-    faults_cmd_->add_option("--only", only, kOnlyHelp);
+    faults_cmd_->add_option("--only", ft_.only, kOnlyHelp);
     addChannelOptions(faults_cmd_);
     addFaultToolOptions(soak_cmd_, rig::SoakOptions{});
     addSoakOptions(soak_cmd_);
@@ -57,8 +57,8 @@ class RigCommand final : public Command {
   }
   int run() override {
     from_ = selectedApp();
-    if (from_ == soak_cmd_ || (from_ == cmd_ && soak_hours > 0)) return runSoak();
-    if (from_ == faults_cmd_ || from_ == guards_cmd_ || (from_ == cmd_ && (faults || sdo_guards)))
+    if (from_ == soak_cmd_ || (from_ == cmd_ && ft_.soak_hours > 0)) return runSoak();
+    if (from_ == faults_cmd_ || from_ == guards_cmd_ || (from_ == cmd_ && (ft_.faults || ft_.sdo_guards)))
       return runRigChecks();
     const auto c = controllerNodeConfig(od_, kind_, ctrl_, run_, false, &rig_);
     ec = emu_.config(od_.dir, run_.period_us);
@@ -116,20 +116,20 @@ class RigCommand final : public Command {
   }
   // rig faults on a rig file of several channels, the faults of the sensor on one channel's.
   void addChannelOptions(CLI::App* a) {
-    a->add_option("--rig", fault_rig_,
+    a->add_option("--rig", ft_.rig,
                   "rig file of one to eight channels (docs/RIG.md, e.g. od/rigs/four_muscles.ini) to run the table "
                   "on, its devices played by the emulator; adds the channels the EMCYs named and what the other "
                   "channels did (without it: the built-in one-muscle rig)");
-    a->add_option("--channel", channel_,
+    a->add_option("--channel", ft_.channel,
                   "with --rig: the channel (1-based) whose sensor the faults of the sensor hit; the faults of the "
                   "valve module, the SYNC and the bus hit what every channel shares")
         ->capture_default_str();
   }
   void addSoakOptions(CLI::App* a) {
-    a->add_option("--hours", soak_hours, "hours of cycles in virtual time")->check(CLI::PositiveNumber);
-    a->add_option("--only", only, kOnlyHelp);
-    a->add_option("--seed", seed, "seed of the fault times, fault choices and sensor noise")->capture_default_str();
-    a->add_option("--report-every", report_every, "simulated seconds per report line")
+    a->add_option("--hours", ft_.soak_hours, "hours of cycles in virtual time")->check(CLI::PositiveNumber);
+    a->add_option("--only", ft_.only, kOnlyHelp);
+    a->add_option("--seed", ft_.seed, "seed of the fault times, fault choices and sensor noise")->capture_default_str();
+    a->add_option("--report-every", ft_.report_every, "simulated seconds per report line")
         ->capture_default_str()
         ->check(CLI::Range(1.0, 1e6));
   }
@@ -137,12 +137,12 @@ class RigCommand final : public Command {
   // --soak HOURS and their --only, --seed, --report-every; hidden from --help.
   void addOldForms() {
     addRunOptions(cmd_);
-    addOldFlag(cmd_, "--faults", "rig faults", faults);
-    addOldFlag(cmd_, "--sdo-guards", "rig guards", sdo_guards);
-    addOldSpelling(cmd_, "--soak", "soak --hours", soak_hours);
-    cmd_->add_option("--only", only);
-    cmd_->add_option("--seed", seed);
-    cmd_->add_option("--report-every", report_every);
+    addOldFlag(cmd_, "--faults", "rig faults", ft_.faults);
+    addOldFlag(cmd_, "--sdo-guards", "rig guards", ft_.sdo_guards);
+    addOldSpelling(cmd_, "--soak", "soak --hours", ft_.soak_hours);
+    cmd_->add_option("--only", ft_.only);
+    cmd_->add_option("--seed", ft_.seed);
+    cmd_->add_option("--report-every", ft_.report_every);
     for (auto* o : cmd_->get_options())
       if (o->get_name() != "--help") o->group("");
   }
@@ -166,7 +166,7 @@ class RigCommand final : public Command {
   }
   std::vector<rig::BusFault> faultList() const {
     std::vector<rig::BusFault> list;
-    std::string rest = only;
+    std::string rest = ft_.only;
     while (!rest.empty()) {
       const auto c = rest.find(',');
       const std::string name = rest.substr(0, c);
@@ -186,18 +186,18 @@ class RigCommand final : public Command {
   // --rig and --channel into o: the rig file read, the channel one of its own.
   void applyChannel(rig::FaultRigOptions& o) const {
     int channels = 1;
-    if (!fault_rig_.empty()) {
-      o.rig = readRig(fault_rig_);
+    if (!ft_.rig.empty()) {
+      o.rig = readRig(ft_.rig);
       channels = static_cast<int>(o.rig->channels.size());
     }
-    if (channel_ >= 1 && channel_ <= channels) {
-      o.channel = static_cast<std::size_t>(channel_ - 1);
+    if (ft_.channel >= 1 && ft_.channel <= channels) {
+      o.channel = static_cast<std::size_t>(ft_.channel - 1);
       return;
     }
-    const std::string what = fault_rig_.empty() ? "the built-in rig" : fault_rig_;
+    const std::string what = ft_.rig.empty() ? "the built-in rig" : ft_.rig;
     const std::string has =
         channels == 1 ? "one channel (1)" : std::to_string(channels) + " channels (1-" + std::to_string(channels) + ")";
-    throw std::invalid_argument("--channel " + std::to_string(channel_) + ": " + what + " has " + has);
+    throw std::invalid_argument("--channel " + std::to_string(ft_.channel) + ": " + what + " has " + has);
   }
 
   int runRigChecks() {
@@ -205,9 +205,9 @@ class RigCommand final : public Command {
     o.od_dir = od_.dir;
     applyController(o);
     if (from_ == faults_cmd_) applyChannel(o);
-    if (from_ == guards_cmd_ || sdo_guards) {
+    if (from_ == guards_cmd_ || ft_.sdo_guards) {
       std::printf("%s", rig::guardTableMarkdown(rig::runParameterGuards(o)).c_str());
-      if (from_ == guards_cmd_ || !faults) return 0;
+      if (from_ == guards_cmd_ || !ft_.faults) return 0;
       std::printf("\n");
     }
     const auto list = faultList();
@@ -215,7 +215,7 @@ class RigCommand final : public Command {
                  "in-process bus, %s, fault injected after %g s of a 0.2 Hz sine, run on %g s after it cleared\n",
                  control::toString(o.kind), o.inject_at_s, o.after_s);
     if (o.rig)
-      std::fprintf(stderr, "%s: %zu channel%s; the sensor is channel %zu's (node-ID %u)\n", fault_rig_.c_str(),
+      std::fprintf(stderr, "%s: %zu channel%s; the sensor is channel %zu's (node-ID %u)\n", ft_.rig.c_str(),
                    o.rig->channels.size(), o.rig->channels.size() == 1 ? "" : "s", o.channel + 1,
                    o.rig->channels[o.channel].cfg.sensor_id);
     std::printf("%s", rig::faultTableMarkdown(rig::runFaultTable(list, o)).c_str());
@@ -225,9 +225,9 @@ class RigCommand final : public Command {
   int runSoak() {
     rig::SoakOptions o;
     o.od_dir = od_.dir;
-    o.hours = soak_hours;
-    o.seed = seed;
-    o.report_s = report_every;
+    o.hours = ft_.soak_hours;
+    o.seed = ft_.seed;
+    o.report_s = ft_.report_every;
     o.faults = faultList();
     // The fault table's controller and gains unless given.
     applyController(o);
@@ -393,14 +393,18 @@ class RigCommand final : public Command {
   unsigned bitrate_ = 1000000;  // the rig's
   std::vector<nodes::RigJoint> joints_;
   std::string figure_;
-  std::string fault_rig_;  // rig faults --rig
-  int channel_ = 1;        // rig faults --channel (1-based)
   CLI::App *run_cmd_ = nullptr, *faults_cmd_ = nullptr, *soak_cmd_ = nullptr, *guards_cmd_ = nullptr;
   const CLI::App* from_ = nullptr;  // the subcommand parsed (rig itself for the old forms)
-  std::string candump, only, progress;
-  bool faults = false, sdo_guards = false;
-  double soak_hours = 0, report_every = 3600;
-  std::uint64_t seed = 1;
+  std::string candump, progress;
+  // The fault tools' options: rig faults (--only, --rig, --channel), rig soak (--hours, --only, --seed,
+  // --report-every), and the old forms' --faults and --sdo-guards.
+  struct FaultToolArgs {
+    std::string only, rig;
+    int channel = 1;  // 1-based
+    bool faults = false, sdo_guards = false;
+    double soak_hours = 0, report_every = 3600;
+    std::uint64_t seed = 1;
+  } ft_;
 };
 
 }  // namespace

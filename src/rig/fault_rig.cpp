@@ -210,10 +210,10 @@ void collectEmcy(const Rig& r, FaultRun& out) {
       continue;
     }
     if (std::find(out.emcy.begin(), out.emcy.end(), c) == out.emcy.end()) out.emcy.push_back(c);
-    if (std::find(out.emcy_channels.begin(), out.emcy_channels.end(), r.emcy_channel[i]) == out.emcy_channels.end())
-      out.emcy_channels.push_back(r.emcy_channel[i]);
+    if (std::find(out.channels.emcy_named.begin(), out.channels.emcy_named.end(), r.emcy_channel[i]) == out.channels.emcy_named.end())
+      out.channels.emcy_named.push_back(r.emcy_channel[i]);
   }
-  std::sort(out.emcy_channels.begin(), out.emcy_channels.end());
+  std::sort(out.channels.emcy_named.begin(), out.channels.emcy_named.end());
 }
 
 // The figures at the end of the run: the row's channel's, and each channel's tracking and safe cycles.
@@ -223,11 +223,11 @@ void measure(const Rig& r, const Times& t, const std::vector<FaultCounters>& fc0
   out.max_step_v = maxStep(r, ch, t_resume, (out.resume_s >= 0 ? t_resume : t.end) + 3'000'000);
   out.step_before_v = maxStep(r, ch, t.inj - 1'000'000, t.inj);
   for (std::size_t c = 0; c < r.ctrl->channels(); ++c) {
-    out.channel_rmse_end.push_back(rmse(r, c, t.stop - 2'000'000, t.stop));
-    out.channel_rmse_fault.push_back(rmse(r, c, t.inj, t.end + 1'000'000));
-    out.channel_safe_cycles.push_back(r.ctrl->channelCounters(c).safe_cycles - fc0[c].safe_cycles);
+    out.channels.rmse_end.push_back(rmse(r, c, t.stop - 2'000'000, t.stop));
+    out.channels.rmse_fault.push_back(rmse(r, c, t.inj, t.end + 1'000'000));
+    out.channels.safe_cycles.push_back(r.ctrl->channelCounters(c).safe_cycles - fc0[c].safe_cycles);
   }
-  out.rmse_end = out.channel_rmse_end[ch];
+  out.rmse_end = out.channels.rmse_end[ch];
   collectEmcy(r, out);
   out.recovered = r.ctrl->channelFault(ch) == Fault::None && r.ctrl->running();
   std::uint64_t cycles = 0;
@@ -238,7 +238,7 @@ void measure(const Rig& r, const Times& t, const std::vector<FaultCounters>& fc0
   out.cycles_without_sync = expected > cycles && !at_start ? expected - cycles : 0;
   out.fc = r.ctrl->faultCounters();
   out.samples_lost = r.ctrl->channelCounters(ch).samples_missing - fc0[ch].samples_missing;
-  out.safe_cycles_total = out.channel_safe_cycles[ch];
+  out.safe_cycles_total = out.channels.safe_cycles[ch];
   out.counters = r.ctrl->node().counters();
   out.bus_dropped = r.bus.framesDropped();
 }
@@ -249,7 +249,7 @@ FaultRun runOne(BusFault setup, BusFault f, double fault_s, const FaultRigOption
   FaultRun out;
   out.fault = f;
   out.fault_s = fault_s;
-  out.channel = o.channel;
+  out.channels.faulted = o.channel;
   // Settle, then inject right after a SYNC; or inject, then start the controller.
   const Times t = settle(r, setup, f, fault_s, o);
   r.emcy_from = t.inj;
@@ -294,9 +294,9 @@ FaultRun runBusFault(BusFault f, const FaultRigOptions& o) {
   FaultRun run = runOne(f, f, faultSeconds(f), o);
   // The reference: the same rig and the same window, nothing injected.
   const FaultRun ref = f == BusFault::None ? run : runOne(f, BusFault::None, faultSeconds(f), o);
-  run.channel_rmse_base = ref.channel_rmse_end;
-  run.channel_rmse_fault_base = ref.channel_rmse_fault;
-  run.rmse_base = run.channel_rmse_base[run.channel];
+  run.channels.rmse_base = ref.channels.rmse_end;
+  run.channels.rmse_fault_base = ref.channels.rmse_fault;
+  run.rmse_base = run.channels.rmse_base[run.channels.faulted];
   return run;
 }
 
@@ -339,20 +339,20 @@ std::string rowCells(const FaultRun& r) {
 // The other channels: the one whose RMSE of the last 2 s rose most over its reference run's, and those
 // that sent the safe value (with their cycles safe).
 std::string othersCell(const FaultRun& r) {
-  std::size_t worst = r.channel;
+  std::size_t worst = r.channels.faulted;
   std::string safe;
   char b[128];
-  for (std::size_t c = 0; c < r.channel_rmse_end.size(); ++c) {
-    if (c == r.channel) continue;
-    const double rise = r.channel_rmse_end[c] - r.channel_rmse_base[c];
-    if (worst == r.channel || rise > r.channel_rmse_end[worst] - r.channel_rmse_base[worst]) worst = c;
-    if (r.channel_safe_cycles[c] == 0) continue;
+  for (std::size_t c = 0; c < r.channels.rmse_end.size(); ++c) {
+    if (c == r.channels.faulted) continue;
+    const double rise = r.channels.rmse_end[c] - r.channels.rmse_base[c];
+    if (worst == r.channels.faulted || rise > r.channels.rmse_end[worst] - r.channels.rmse_base[worst]) worst = c;
+    if (r.channels.safe_cycles[c] == 0) continue;
     std::snprintf(b, sizeof b, "%s%zu (%llu)", safe.empty() ? "" : ", ", c + 1,
-                  static_cast<unsigned long long>(r.channel_safe_cycles[c]));
+                  static_cast<unsigned long long>(r.channels.safe_cycles[c]));
     safe += b;
   }
-  if (worst == r.channel) return "-";
-  std::snprintf(b, sizeof b, "%zu: %.3f (%.3f); ", worst + 1, r.channel_rmse_end[worst], r.channel_rmse_base[worst]);
+  if (worst == r.channels.faulted) return "-";
+  std::snprintf(b, sizeof b, "%zu: %.3f (%.3f); ", worst + 1, r.channels.rmse_end[worst], r.channels.rmse_base[worst]);
   return b + (safe.empty() ? std::string("none safe") : "safe: " + safe);
 }
 
@@ -366,7 +366,7 @@ std::string channelList(const std::vector<std::uint8_t>& v) {
 
 std::string faultTableMarkdown(const std::vector<FaultRun>& runs) {
   bool several = false;
-  for (const auto& r : runs) several = several || r.channel_rmse_end.size() > 1;
+  for (const auto& r : runs) several = several || r.channels.rmse_end.size() > 1;
   std::string s =
       "| fault injected | controller's reaction | cycles to reaction | cycles to valve safe | EMCY | recovered | "
       "control back after | max step after (before) [V] | RMSE last 2 s [mm] (no fault) | data lost |";
@@ -374,7 +374,7 @@ std::string faultTableMarkdown(const std::vector<FaultRun>& runs) {
   s += several ? "|---|---|---|---|---|---|---|---|---|---|---|---|\n" : "|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : runs) {
     s += rowCells(r);
-    if (several) s += " " + channelList(r.emcy_channels) + " | " + othersCell(r) + " |";
+    if (several) s += " " + channelList(r.channels.emcy_named) + " | " + othersCell(r) + " |";
     s += "\n";
   }
   return s;

@@ -93,15 +93,17 @@ struct FaultRun {
   canopen::Counters counters;             // the controller node's counters at the end
   nodes::FaultCounters fc;
   std::uint64_t bus_dropped = 0;  // frames the in-process bus refused (port queue full)
-  // The channels (one without a rig file): the figures above are of `channel` (0-based), the one the row
-  // faulted; these of each channel, index the channel.
-  std::size_t channel = 0;
-  std::vector<double> channel_rmse_end, channel_rmse_base;  // as rmse_end, rmse_base
-  // RMSE from the injection to 1 s after the fault cleared, and the same window of the reference run [mm].
-  std::vector<double> channel_rmse_fault, channel_rmse_fault_base;
-  std::vector<std::uint64_t> channel_safe_cycles;  // cycles it sent the safe value after the injection
-  // The channels the EMCYs after the injection named (1-based, ascending; 0: a node of one channel names none).
-  std::vector<std::uint8_t> emcy_channels;
+  // The channels (one without a rig file): the figures above are of `channels.faulted` (0-based), the one
+  // the row faulted; these of each channel, index the channel.
+  struct Channels {
+    std::size_t faulted = 0;
+    std::vector<double> rmse_end, rmse_base;  // as rmse_end, rmse_base
+    // RMSE from the injection to 1 s after the fault cleared, and the same window of the reference run [mm].
+    std::vector<double> rmse_fault, rmse_fault_base;
+    std::vector<std::uint64_t> safe_cycles;  // cycles it sent the safe value after the injection
+    // The channels the EMCYs after the injection named (1-based, ascending; 0: a node of one channel names none).
+    std::vector<std::uint8_t> emcy_named;
+  } channels;
 };
 
 // One run with the fault (and its reference run without it).

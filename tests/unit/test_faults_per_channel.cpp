@@ -33,26 +33,26 @@ rig::FaultRigOptions fourMuscles(std::size_t channel) {
 
 // The channels other than the row's: never safe, tracking through the fault and at the end as without it.
 void expectOthersTrackOn(const rig::FaultRun& r) {
-  ASSERT_EQ(r.channel_rmse_end.size(), 4u);
+  ASSERT_EQ(r.channels.rmse_end.size(), 4u);
   for (std::size_t c = 0; c < 4; ++c) {
-    if (c == r.channel) continue;
+    if (c == r.channels.faulted) continue;
     SCOPED_TRACE("channel " + std::to_string(c + 1));
-    EXPECT_EQ(r.channel_safe_cycles[c], 0u);
-    EXPECT_TRUE(tracksAsWithout(r.channel_rmse_fault[c], r.channel_rmse_fault_base[c]))
-        << r.channel_rmse_fault[c] << " mm during the fault (" << r.channel_rmse_fault_base[c] << ")";
-    EXPECT_TRUE(tracksAsWithout(r.channel_rmse_end[c], r.channel_rmse_base[c]))
-        << r.channel_rmse_end[c] << " mm at the end (" << r.channel_rmse_base[c] << ")";
+    EXPECT_EQ(r.channels.safe_cycles[c], 0u);
+    EXPECT_TRUE(tracksAsWithout(r.channels.rmse_fault[c], r.channels.rmse_fault_base[c]))
+        << r.channels.rmse_fault[c] << " mm during the fault (" << r.channels.rmse_fault_base[c] << ")";
+    EXPECT_TRUE(tracksAsWithout(r.channels.rmse_end[c], r.channels.rmse_base[c]))
+        << r.channels.rmse_end[c] << " mm at the end (" << r.channels.rmse_base[c] << ")";
   }
 }
 
 // Every channel safe for the fault's length and back to tracking as without it.
 void expectEveryChannelSafeAndBack(const rig::FaultRun& r) {
-  ASSERT_EQ(r.channel_rmse_end.size(), 4u);
+  ASSERT_EQ(r.channels.rmse_end.size(), 4u);
   for (std::size_t c = 0; c < 4; ++c) {
     SCOPED_TRACE("channel " + std::to_string(c + 1));
-    EXPECT_GT(r.channel_safe_cycles[c], 400u);
-    EXPECT_TRUE(tracksAsWithout(r.channel_rmse_end[c], r.channel_rmse_base[c]))
-        << r.channel_rmse_end[c] << " mm (" << r.channel_rmse_base[c] << ")";
+    EXPECT_GT(r.channels.safe_cycles[c], 400u);
+    EXPECT_TRUE(tracksAsWithout(r.channels.rmse_end[c], r.channels.rmse_base[c]))
+        << r.channels.rmse_end[c] << " mm (" << r.channels.rmse_base[c] << ")";
   }
 }
 
@@ -60,11 +60,11 @@ void expectEveryChannelSafeAndBack(const rig::FaultRun& r) {
 
 TEST(FaultsPerChannel, ASilentSensorOfChannel3StopsChannel3Only) {
   const auto r = rig::runBusFault(BusFault::SensorSilentLong, fourMuscles(3));
-  EXPECT_EQ(r.channel, 2u);
+  EXPECT_EQ(r.channels.faulted, 2u);
   expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
   EXPECT_TRUE(sent(r, 0x8130));
   EXPECT_GE(r.fc.nmt_reboots, 1u);
-  EXPECT_EQ(r.emcy_channels, std::vector<std::uint8_t>{3}) << "EMCYs naming channel 3 only";
+  EXPECT_EQ(r.channels.emcy_named, std::vector<std::uint8_t>{3}) << "EMCYs naming channel 3 only";
   expectOthersTrackOn(r);
 }
 
@@ -72,7 +72,7 @@ TEST(FaultsPerChannel, ABurstOfLostPdosOfChannel2StopsChannel2Only) {
   const auto r = rig::runBusFault(BusFault::PdoDropBurst, fourMuscles(2));
   expectSafeAndBack(r, Fault::PositionMissing, 0x8250, 5.0, 6.0);
   EXPECT_EQ(r.samples_lost, 10u);
-  EXPECT_EQ(r.emcy_channels, std::vector<std::uint8_t>{2});
+  EXPECT_EQ(r.channels.emcy_named, std::vector<std::uint8_t>{2});
   expectOthersTrackOn(r);
 }
 
@@ -81,7 +81,7 @@ TEST(FaultsPerChannel, ASilentValveModuleStopsEveryChannel) {
   expectSafeAndBack(r, Fault::ValvePdoMissing, 0x8250, 5.0, 6.0);
   EXPECT_TRUE(sent(r, 0x8130));
   EXPECT_GE(r.fc.nmt_reboots, 1u);
-  EXPECT_EQ(r.emcy_channels, (std::vector<std::uint8_t>{1, 2, 3, 4})) << "each channel's output lost";
+  EXPECT_EQ(r.channels.emcy_named, (std::vector<std::uint8_t>{1, 2, 3, 4})) << "each channel's output lost";
   expectEveryChannelSafeAndBack(r);
 }
 
@@ -89,7 +89,7 @@ TEST(FaultsPerChannel, AStoppedSyncStopsEveryChannelWithOneEmcy) {
   const auto r = rig::runBusFault(BusFault::SyncStop, fourMuscles(1));
   expectSafeAndBack(r, Fault::SyncLost, 0x8100, 1.5, 1.5);
   EXPECT_EQ(r.emcy, std::vector<std::uint16_t>{0x8100});
-  EXPECT_EQ(r.emcy_channels.size(), 1u) << "a cause of the bus is reported once";
+  EXPECT_EQ(r.channels.emcy_named.size(), 1u) << "a cause of the bus is reported once";
   expectEveryChannelSafeAndBack(r);
 }
 
@@ -100,10 +100,10 @@ TEST(FaultsPerChannel, AStoppedSyncStopsEveryChannelWithOneEmcy) {
 TEST(FaultsPerChannel, TheErrorResetsOfFourChannelsDoNotCauseASecondOverrun) {
   const auto r = rig::runBusFault(BusFault::FloodFull, fourMuscles(1));
   expectSafeAndBack(r, Fault::CanOverrun, 0x8110, 1.0, 2.0);
-  ASSERT_EQ(r.channel_safe_cycles.size(), 4u);
+  ASSERT_EQ(r.channels.safe_cycles.size(), 4u);
   for (std::size_t c = 0; c < 4; ++c) {
     SCOPED_TRACE("channel " + std::to_string(c + 1));
-    EXPECT_LE(r.channel_safe_cycles[c], 750u);
+    EXPECT_LE(r.channels.safe_cycles[c], 750u);
   }
 }
 
@@ -112,9 +112,9 @@ TEST(FaultsPerChannel, WithoutARigFileTheTableHasOneChannel) {
   rig::FaultRigOptions o;
   o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
   const auto r = rig::runBusFault(BusFault::PdoDropBurst, o);
-  ASSERT_EQ(r.channel_rmse_end.size(), 1u);
-  EXPECT_EQ(r.rmse_end, r.channel_rmse_end[0]);
-  EXPECT_EQ(r.emcy_channels, std::vector<std::uint8_t>{0}) << "a node of one channel names none";
+  ASSERT_EQ(r.channels.rmse_end.size(), 1u);
+  EXPECT_EQ(r.rmse_end, r.channels.rmse_end[0]);
+  EXPECT_EQ(r.channels.emcy_named, std::vector<std::uint8_t>{0}) << "a node of one channel names none";
   const std::string table = rig::faultTableMarkdown({r});
   EXPECT_EQ(table.find("other channels"), std::string::npos) << table;
 }
