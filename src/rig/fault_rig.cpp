@@ -210,7 +210,8 @@ void collectEmcy(const Rig& r, FaultRun& out) {
       continue;
     }
     if (std::find(out.emcy.begin(), out.emcy.end(), c) == out.emcy.end()) out.emcy.push_back(c);
-    if (std::find(out.channels.emcy_named.begin(), out.channels.emcy_named.end(), r.emcy_channel[i]) == out.channels.emcy_named.end())
+    if (std::find(out.channels.emcy_named.begin(), out.channels.emcy_named.end(), r.emcy_channel[i]) ==
+        out.channels.emcy_named.end())
       out.channels.emcy_named.push_back(r.emcy_channel[i]);
   }
   std::sort(out.channels.emcy_named.begin(), out.channels.emcy_named.end());
@@ -227,7 +228,6 @@ void measure(const Rig& r, const Times& t, const std::vector<FaultCounters>& fc0
     out.channels.rmse_fault.push_back(rmse(r, c, t.inj, t.end + 1'000'000));
     out.channels.safe_cycles.push_back(r.ctrl->channelCounters(c).safe_cycles - fc0[c].safe_cycles);
   }
-  out.rmse_end = out.channels.rmse_end[ch];
   collectEmcy(r, out);
   out.recovered = r.ctrl->channelFault(ch) == Fault::None && r.ctrl->running();
   std::uint64_t cycles = 0;
@@ -238,7 +238,6 @@ void measure(const Rig& r, const Times& t, const std::vector<FaultCounters>& fc0
   out.cycles_without_sync = expected > cycles && !at_start ? expected - cycles : 0;
   out.fc = r.ctrl->faultCounters();
   out.samples_lost = r.ctrl->channelCounters(ch).samples_missing - fc0[ch].samples_missing;
-  out.safe_cycles_total = out.channels.safe_cycles[ch];
   out.counters = r.ctrl->node().counters();
   out.bus_dropped = r.bus.framesDropped();
 }
@@ -296,7 +295,6 @@ FaultRun runBusFault(BusFault f, const FaultRigOptions& o) {
   const FaultRun ref = f == BusFault::None ? run : runOne(f, BusFault::None, faultSeconds(f), o);
   run.channels.rmse_base = ref.channels.rmse_end;
   run.channels.rmse_fault_base = ref.channels.rmse_fault;
-  run.rmse_base = run.channels.rmse_base[run.channels.faulted];
   return run;
 }
 
@@ -317,7 +315,7 @@ std::string dataLost(const FaultRun& r) {
     std::snprintf(b, sizeof b, ", %llu cycles without SYNC", static_cast<unsigned long long>(r.cycles_without_sync));
     lost += b;
   }
-  std::snprintf(b, sizeof b, "; %llu cycles safe", static_cast<unsigned long long>(r.safe_cycles_total));
+  std::snprintf(b, sizeof b, "; %llu cycles safe", static_cast<unsigned long long>(r.safeCyclesTotal()));
   return lost + b;
 }
 
@@ -332,7 +330,7 @@ std::string rowCells(const FaultRun& r) {
   std::snprintf(b, sizeof b, "| %s | %s | %s | %s | %s%s | %s | %s | %.3f (%.3f) | %.3f (%.3f) | %s |",
                 busFaultDescription(r.fault).c_str(), reaction.c_str(), detect.c_str(), safe.c_str(),
                 codes(r.emcy).c_str(), r.emcy_reset && !r.emcy.empty() ? " + reset" : "", r.recovered ? "yes" : "no",
-                back.c_str(), r.max_step_v, r.step_before_v, r.rmse_end, r.rmse_base, dataLost(r).c_str());
+                back.c_str(), r.max_step_v, r.step_before_v, r.rmseEnd(), r.rmseBase(), dataLost(r).c_str());
   return b;
 }
 

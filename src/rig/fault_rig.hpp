@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -85,10 +86,7 @@ struct FaultRun {
   double resume_s = -1;                   // from the end of the injection until control resumed (-1: it never stopped)
   double max_step_v = 0;                  // largest |u_k - u_k-1| in the first 3 s of control after the fault
   double step_before_v = 0;               // ... in the second before the injection (for comparison)
-  double rmse_end = 0;                    // tracking RMSE over the last 2 s [mm]
-  double rmse_base = 0;                   // the same window of the reference run
   std::uint64_t samples_lost = 0;         // cycles the controller had no usable position
-  std::uint64_t safe_cycles_total = 0;    // cycles the controller sent the safe value
   std::uint64_t cycles_without_sync = 0;  // SYNC periods in which no control cycle ran
   canopen::Counters counters;             // the controller node's counters at the end
   nodes::FaultCounters fc;
@@ -97,13 +95,24 @@ struct FaultRun {
   // the row faulted; these of each channel, index the channel.
   struct Channels {
     std::size_t faulted = 0;
-    std::vector<double> rmse_end, rmse_base;  // as rmse_end, rmse_base
+    std::vector<double> rmse_end, rmse_base;  // tracking RMSE over the last 2 s, and of the reference run [mm]
     // RMSE from the injection to 1 s after the fault cleared, and the same window of the reference run [mm].
     std::vector<double> rmse_fault, rmse_fault_base;
     std::vector<std::uint64_t> safe_cycles;  // cycles it sent the safe value after the injection
     // The channels the EMCYs after the injection named (1-based, ascending; 0: a node of one channel names none).
     std::vector<std::uint8_t> emcy_named;
   } channels;
+  // The row's channel's: its RMSE of the last 2 s and the reference run's [mm], its cycles at the safe value.
+  double rmseEnd() const noexcept { return at(channels.rmse_end); }
+  double rmseBase() const noexcept { return at(channels.rmse_base); }
+  std::uint64_t safeCyclesTotal() const noexcept {
+    return channels.faulted < channels.safe_cycles.size() ? channels.safe_cycles[channels.faulted] : 0;
+  }
+
+ private:
+  double at(const std::vector<double>& v) const noexcept {
+    return channels.faulted < v.size() ? v[channels.faulted] : std::numeric_limits<double>::quiet_NaN();
+  }
 };
 
 // One run with the fault (and its reference run without it).

@@ -39,9 +39,9 @@ inline void expectSafeAndBack(const rig::FaultRun& r, nodes::Fault first, std::u
   EXPECT_GE(r.resume_s, 0.0);
   EXPECT_LE(r.resume_s, 0.7);  // 500 clean cycles after the cause is gone (plus a re-boot)
   EXPECT_LE(r.max_step_v, kStepBound);
-  EXPECT_TRUE(tracksAsWithout(r.rmse_end, r.rmse_base))
-      << r.rmse_end << " mm: tracking error not back to normal (" << r.rmse_base << ")";
-  EXPECT_GT(r.safe_cycles_total, 400u);
+  EXPECT_TRUE(tracksAsWithout(r.rmseEnd(), r.rmseBase()))
+      << r.rmseEnd() << " mm: tracking error not back to normal (" << r.rmseBase() << ")";
+  EXPECT_GT(r.safeCyclesTotal(), 400u);
 }
 
 }  // namespace pamc::test

@@ -37,10 +37,10 @@ rig::FaultRigOptions options() {
 void expectRideThrough(const rig::FaultRun& r) {
   SCOPED_TRACE(rig::busFaultDescription(r.fault));
   EXPECT_EQ(r.first, Fault::None) << nodes::toString(r.first);
-  EXPECT_EQ(r.safe_cycles_total, 0u);
+  EXPECT_EQ(r.safeCyclesTotal(), 0u);
   EXPECT_TRUE(r.recovered);
   EXPECT_LE(r.max_step_v, kStepBound);
-  EXPECT_LE(r.rmse_end, 1.2 * r.rmse_base + 0.02);
+  EXPECT_LE(r.rmseEnd(), 1.2 * r.rmseBase() + 0.02);
 }
 
 }  // namespace
@@ -226,7 +226,7 @@ TEST(Faults, RunsAreRepeatable) {
   const auto a = rig::runBusFault(BusFault::PdoDropRandom, options());
   const auto b = rig::runBusFault(BusFault::PdoDropRandom, options());
   EXPECT_EQ(a.samples_lost, b.samples_lost);
-  EXPECT_EQ(a.rmse_end, b.rmse_end);
+  EXPECT_EQ(a.rmseEnd(), b.rmseEnd());
   EXPECT_EQ(rig::faultTableMarkdown({a}), rig::faultTableMarkdown({b}));
 }
 

@@ -113,7 +113,7 @@ TEST(FaultsPerChannel, WithoutARigFileTheTableHasOneChannel) {
   o.od_dir = std::string(PAMC_SOURCE_DIR) + "/od";
   const auto r = rig::runBusFault(BusFault::PdoDropBurst, o);
   ASSERT_EQ(r.channels.rmse_end.size(), 1u);
-  EXPECT_EQ(r.rmse_end, r.channels.rmse_end[0]);
+  EXPECT_EQ(r.rmseEnd(), r.channels.rmse_end[0]);
   EXPECT_EQ(r.channels.emcy_named, std::vector<std::uint8_t>{0}) << "a node of one channel names none";
   const std::string table = rig::faultTableMarkdown({r});
   EXPECT_EQ(table.find("other channels"), std::string::npos) << table;
