@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "ident/identify.hpp"
 #include "io/measurement.hpp"
@@ -21,6 +22,10 @@ class FitCommand final : public Command {
     cmd_->add_option("data", data_, "measurement CSV with header t,u,y")->required();
     cmd_->add_option("--out", out_, "model file (JSON) to write");
     cmd_->add_option("--effects", effects_, "comma list of effects to add to the Bouc-Wen core (see `pamc effects`)");
+    cmd_->add_option("--start", start_,
+                     "model file (JSON) to start from: its effects join the structure, its parameters start the "
+                     "search (refit a model on a new record, or add --effects to it)")
+        ->check(CLI::ExistingFile);
     cmd_->add_option("--method", method_,
                      "lm: Levenberg-Marquardt from spread starts (fast); ga: the paper's genetic algorithm first; "
                      "auto: lm for the plain Bouc-Wen model, ga when effects are added (see docs/PERFORMANCE.md)")
@@ -50,7 +55,14 @@ class FitCommand final : public Command {
     printWarnings(warnings);
     model::Model structure;
     structure.setOutputForm(outputFormOf(form_));
-    for (const auto& e : splitList(effects)) structure.addEffect(e);
+    std::optional<model::Model> start;
+    if (!start_.empty()) {
+      start = io::readModelFile(start_);
+      structure.setOutputForm(start->outputForm());
+      for (int i = 0; i < start->numEffects(); ++i) structure.addEffect(start->effect(i).name());
+    }
+    for (const auto& e : splitList(effects))
+      if (!structure.hasEffect(e)) structure.addEffect(e);
     ident::FitSettings fs = ident::FitSettings::forMethod(method_ == "auto" ? ident::autoFitMethod(structure)
                                                                             : ident::fitMethodFromString(method_));
     fs.ga = fs_.ga;
@@ -66,7 +78,7 @@ class FitCommand final : public Command {
       } else if (std::string(stage) == "refine") {
         std::fprintf(stderr, "  refined  RMSE %.6g\n", rmse);
       }
-    });
+    }, start ? &*start : nullptr);
     const auto specs = r.model.paramSpecs();
     const auto p = r.model.params();
     std::printf("model: %s\n", r.model.describe().c_str());
@@ -88,7 +100,7 @@ class FitCommand final : public Command {
   }
 
  private:
-  std::string data_, out_, effects_, method_ = "auto";
+  std::string data_, out_, effects_, start_, method_ = "auto";
   ident::FitSettings fs_;
   bool quiet_ = false;
   std::string form_ = "aligned";

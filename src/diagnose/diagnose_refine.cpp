@@ -76,18 +76,33 @@ bool refines(const std::string& richer, const std::string& effect) {
 // training samples; taken into the ladder when it lowers the validated RMSE by min_gain. The richer forms
 // of one effect compete (mass_spring as hysteretic_spring or as muscle_balance): the best is taken. Not
 // when the final model is at the noise.
+// A richer form taken may itself have a richer one (muscle_balance: pneumatic_balance): the effects a
+// pass brought in are tried again, up to kRefinementPasses.
 void Diagnosis::refinements() {
-  const Rung fin = res_.ladder.back();
-  if (noise_ > 0 && fin.rmse_val < kAtNoise * noise_) return;
-  for (const auto& e : fin.effects) {
-    std::optional<Rung> best;
-    for (const auto& richer : richer_) {
-      if (!refines(richer, e)) continue;
-      auto r = tryRefinement(e, richer);
-      if (r && (!best || r->rmse_val < best->rmse_val)) best = std::move(r);
+  constexpr int kRefinementPasses = 3;
+  std::vector<std::string> tried;
+  for (int pass = 0; pass < kRefinementPasses; ++pass) {
+    const Rung fin = res_.ladder.back();
+    if (noise_ > 0 && fin.rmse_val < kAtNoise * noise_) return;
+    const size_t rungs = res_.ladder.size();
+    for (const auto& e : fin.effects) {
+      if (std::find(tried.begin(), tried.end(), e) != tried.end()) continue;
+      tried.push_back(e);
+      refineOne(e);
     }
-    if (best) res_.ladder.push_back(std::move(*best));
+    if (res_.ladder.size() == rungs) return;
   }
+}
+
+// The best of an effect's richer forms, taken into the ladder when it lowers the validated RMSE.
+void Diagnosis::refineOne(const std::string& e) {
+  std::optional<Rung> best;
+  for (const auto& richer : richer_) {
+    if (!refines(richer, e)) continue;
+    auto r = tryRefinement(e, richer);
+    if (r && (!best || r->rmse_val < best->rmse_val)) best = std::move(r);
+  }
+  if (best) res_.ladder.push_back(std::move(*best));
 }
 
 // The richer form searched by the GA over its whole box as well (the core with it), longer than a round's

@@ -88,6 +88,7 @@ class Diagnosis {
   void prune();
   // diagnose_refine.cpp: the final model in richer forms and direction-dependent versions.
   void refinements();
+  void refineOne(const std::string& effect);
   // The rung with `effect` in its richer form, when that lowers the validated RMSE by min_gain.
   std::optional<Rung> tryRefinement(const std::string& effect, const std::string& richer);
   void searchByGa(CandidateResult& c, const model::Model& base) const;

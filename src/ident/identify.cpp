@@ -35,7 +35,9 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   // The search runs over a = k rho and c = k (1 - rho) - the gains of u and of h in the output,
   // which the data bound directly - instead of (k, rho), whose product couples them.
   // With alpha fixed at +1 a lagging (counter-clockwise) loop has c < 0 (see bouc_wen.hpp).
-  const double kmax = 4.0 * ry / ru;
+  double reach = 1.0;
+  for (int i = 0; i < m.numEffects(); ++i) reach = std::max(reach, m.effect(i).coreReach());
+  const double kmax = 4.0 * reach * ry / ru;
   b.lo[0] = -kmax;
   b.hi[0] = kmax;  // a = k rho
   b.lo[1] = -10.0 * ry / ru;

@@ -76,6 +76,11 @@ class Effect {
   // Effects of the chain whose physics this richer form holds as well (muscle_balance's force-length map:
   // saturation's stiffening towards the end of the stroke). A refinement into it drops them.
   virtual std::vector<std::string> absorbs() const { return {}; }
+  // How far the core's static displacement may reach beyond the output's span, as a multiple of the
+  // search's usual box: a balance whose force-length map holds a muscle's stiffening (muscle_balance)
+  // turns a larger static displacement into the stroke - on the physics plant 4.5x the output's slope
+  // per volt, past the box of 4x that fits every other chain.
+  virtual double coreReach() const { return 1.0; }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }
   // Whether the effect has a direction-dependent version ("<name>_updown": separate parameters for a

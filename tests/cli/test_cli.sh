@@ -62,6 +62,15 @@ check "fit records the output form" grep -q '"output_form": "aligned"' "$work/m.
 check "fit --output-form printed is recorded" grep -q '"output_form": "printed"' "$work/mp.json"
 "$PAMC" fit "$work/d.csv" --output-form sideways 2> "$work/err_form.txt" > /dev/null
 check "a bad output form exits non-zero" test $? -ne 0
+# A fit started from a model file: its effects and the ones added, searched from its parameters.
+"$PAMC" fit "$work/d.csv" --start "$work/m.json" --effects creep --out "$work/ms.json" --quiet > "$work/fit_start.txt"
+check "fit --start exits 0" test $? -eq 0
+check "fit --start adds the effects to the start's" grep -q "^model: bouc_wen + creep" "$work/fit_start.txt"
+check "fit --start ends no worse than its start" \
+  awk 'FNR == 1 { f++ } /^RMSE/ { r[f] = $2 } END { exit !(r[2] <= r[1] * 1.0001) }' "$work/fit.txt" "$work/fit_start.txt"
+"$PAMC" fit "$work/d.csv" --start "$work/nope.json" 2> "$work/err_start.txt" > /dev/null
+check "fit --start with a missing file exits non-zero" test $? -ne 0
+check "fit --start: the error is one line" test "$(wc -l < "$work/err_start.txt")" -eq 1
 
 # A recorded command replayed through the plant; the record's sample time must be the plant's.
 "$PAMC" emulate --input-from "$work/d.csv" --out "$work/replay.csv" > /dev/null

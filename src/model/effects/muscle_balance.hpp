@@ -1,0 +1,158 @@
+// The muscle's force balance (muscle_balance.cpp describes it), shared with its form with the pressure's
+// own dynamics (pneumatic_balance.cpp).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+#include "model/bouc_wen.hpp"
+#include "model/effect.hpp"
+#include "model/effects/second_order.hpp"
+
+namespace pamc::model::balance {
+
+constexpr int kSubsteps = 4;
+constexpr int kElements = 3;
+
+// Parameter indices.
+enum : int { kFn, kZeta, kZmax, kDelta, kW, kA1, kA2, kZp, kSpread, kLo, kHi, kNumParams };
+// State indices: position, velocity, the Dahl elements, then the cached sub-step map (A row-major, B).
+enum : int { kY = 0, kV = 1, kZ0 = 2, kMap = kZ0 + kElements, kNumStates = kMap + 6 };
+
+class MuscleBalance : public Effect {
+ public:
+  const char* name() const override { return "muscle_balance"; }
+  const char* explanation() const override {
+    return "the muscle's force-length-pressure map in the payload's force balance, with braid friction of several "
+           "break-away levels growing with the pressure, and the end stops";
+  }
+  Stage stage() const override { return Stage::Output; }
+  int rank() const override { return 40; }  // force_loop's place: the last block of the chain
+  const char* alternativeTo() const override { return "mass_spring"; }
+  std::vector<std::string> refines() const override { return {"mass_spring", "force_loop", "friction_hysteresis"}; }
+  std::vector<std::string> absorbs() const override { return {"saturation"}; }
+  double coreReach() const override { return 2.0; }
+  const std::vector<ParamSpec>& params() const override {
+    static const std::vector<ParamSpec> p = {
+        {"fn", 0.2, 100.0, 10.0, "Hz"},  // payload against the nominal stiffness
+        {"zeta", 0.01, 1.0, 0.5, "-"},
+        {"zmax", 0.0, 10.0, 0.5, "y-unit"},        // friction's level at no pressure, over the stiffness
+        {"delta", 0.01, 2.0, 0.5, "y-unit"},       // shortest pre-sliding travel
+        {"w", -100.0, 100.0, 0.0, "y-unit"},       // weight and preload over the stiffness
+        {"a1", -0.1, 0.1, 0.0, "1/y-unit"},        // force-length map: slope ...
+        {"a2", -0.005, 0.005, 0.0, "1/y-unit^2"},  // ... and curvature
+        {"zp", 0.0, 0.2, 0.0, "-"},                // friction's growth with the pressure's force
+        {"spread", 1.0, 20.0, 1.0, "-"},           // longest over shortest pre-sliding travel
+        {"lo", -1e9, 1e9, -1e9, "y-level"},        // end stops (outside the data: none)
+        {"hi", -1e9, 1e9, 1e9, "y-level"},
+    };
+    return p;
+  }
+  int numStates() const override { return kNumStates; }
+  int numFilterStates() const override { return 2; }  // y, v: the core reaches y through them
+  void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
+    secondOrderMap(p[kFn], p[kZeta], c.Ts / kSubsteps, s + kMap);
+    s[kY] = std::clamp(restPosition(p, in0), std::min(p[kLo], p[kHi]), std::max(p[kLo], p[kHi]));
+    s[kV] = 0.0;
+    for (int i = 0; i < kElements; ++i) s[kZ0 + i] = 0.0;
+  }
+  double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
+    Travels d;  // their inverses
+    travels(p, d);
+    for (int i = 0; i < kSubsteps; ++i) subStep(p, d, s, in);
+    return s[kY];
+  }
+
+ protected:
+  // The map's force over the nominal stiffness beyond the linear spring: (in + w) g(y) - w - in.
+  static double mapExcess(const double* p, double in, double y) noexcept {
+    return (in + p[kW]) * (p[kA1] * y + p[kA2] * y * y);
+  }
+  static double level(const double* p, double in) noexcept {
+    return std::fabs(p[kZmax]) + std::fabs(p[kZp]) * std::max(in + p[kW], 0.0);
+  }
+  // The inverses of the elements' pre-sliding travels: delta, delta sqrt(spread), delta spread.
+  using Travels = double[kElements];
+  static void travels(const double* p, Travels& d) noexcept {
+    const double spread = std::sqrt(std::max(p[kSpread], 1.0));
+    d[0] = 1.0 / std::max(std::fabs(p[kDelta]), 1e-9);
+    for (int i = 1; i < kElements; ++i) d[i] = d[i - 1] / spread;
+  }
+
+  // Static equilibrium without friction, in + mapExcess(y) = y, by a few Newton steps from y = in.
+  static double restPosition(const double* p, double in) noexcept {
+    double y = in;
+    for (int k = 0; k < 30; ++k) {
+      const double f = in + mapExcess(p, in, y) - y;
+      const double df = (in + p[kW]) * (p[kA1] + 2.0 * p[kA2] * y) - 1.0;
+      if (!(df < -1e-6)) break;  // the balance lost its stiffness: keep the last point
+      const double dy = -f / df;
+      y += dy;
+      if (std::fabs(dy) < 1e-12) break;
+    }
+    return std::isfinite(y) ? y : in;
+  }
+
+  // One sub-step of the balance under the static displacement `in` of the pressure's force.
+  static void subStep(const double* p, const Travels& d, double* s, double in) noexcept {
+    const double y = s[kY], v = s[kV];
+    const double lvl = level(p, in);
+    double z = 0.0, slope_pos = 0.0, slope_neg = 0.0;  // friction, and its slope dz/dy moving up / down
+    for (int i = 0; i < kElements; ++i) {
+      const double zi = s[kZ0 + i];
+      z += zi;
+      slope_pos += (1.0 - zi) * d[i];
+      slope_neg += (1.0 + zi) * d[i];
+    }
+    const double scale = lvl / kElements;
+    z *= scale;
+    // The payload under the force of the sub-step's start.
+    const double force = in + mapExcess(p, in, y) - z;
+    double y1 = s[kMap + 0] * y + s[kMap + 1] * v + s[kMap + 4] * force;
+    double v1 = s[kMap + 2] * y + s[kMap + 3] * v + s[kMap + 5] * force;
+    if (lvl > 0.0 && y1 != y) {
+      // The friction stiffens by its slope over the sub-step, taken at its end (implicit, as force_loop).
+      const double g = scale * (y1 > y ? slope_pos : slope_neg);
+      const double b0 = std::max(s[kMap + 4], 0.0), b1 = s[kMap + 5];
+      const double shrink = 1.0 / (1.0 + b0 * g);
+      const double dz = g * (y1 - y) * shrink;
+      y1 = y + (y1 - y) * shrink;
+      v1 -= b1 * dz;
+    }
+    advanceFriction(d, s, y1 - y);
+    endStops(p, y1, v1);
+    s[kY] = y1;
+    s[kV] = v1;
+  }
+
+  // Each Dahl element exactly along the travel dy: z -> sgn + (z - sgn) exp(-|dy| / delta_i).
+  static void advanceFriction(const Travels& d, double* s, double dy) noexcept {
+    if (dy == 0.0) return;
+    const double sgn = dy > 0.0 ? 1.0 : -1.0;
+    for (int i = 0; i < kElements; ++i) {
+      double& zi = s[kZ0 + i];
+      if (zi == sgn) continue;  // sliding: stays at its level
+      // exp(-x) = 1 - x (1 - exp(-x)) / x: the Bouc-Wen core's series below its limit (no exp on a
+      // sub-step's short travel, within 2e-12 relative), exp above it.
+      const double x = std::fabs(dy) * d[i];
+      const double decay = x < detail::kSeriesLimit ? 1.0 - x * detail::boucWenSeries(x) : std::exp(-x);
+      zi = sgn + (zi - sgn) * decay;
+    }
+  }
+
+  // A payload past a stop rests on it; its velocity into the stop is lost.
+  static void endStops(const double* p, double& y, double& v) noexcept {
+    const double lo = std::min(p[kLo], p[kHi]), hi = std::max(p[kLo], p[kHi]);
+    if (y < lo) {
+      y = lo;
+      v = std::max(v, 0.0);
+    } else if (y > hi) {
+      y = hi;
+      v = std::min(v, 0.0);
+    }
+  }
+};
+
+static_assert(kNumStates <= kMaxEffectStates, "muscle_balance's states fit an effect's storage");
+
+}  // namespace pamc::model::balance

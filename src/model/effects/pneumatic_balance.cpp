@@ -1,0 +1,131 @@
+// pneumatic_balance: muscle_balance with the pressure's own dynamics - the regulator fills the muscle from
+// the supply and vents it to the atmosphere through orifices whose flow depends on the pressures on both
+// sides, into a volume that grows as the muscle contracts. The balance's force comes from that pressure P,
+// not from the setpoint in (the stage input, the static displacement the setpoint's pressure would give):
+//
+//   x  = clamp((in - P) / band, -1, 1)                    the regulator's opening (its proportional band)
+//   q  = x rate phi(a / a_sup)                (x > 0)      filling from the supply
+//   q  = x rate vent (a / a_sup) phi(a_atm / a)  (x < 0)   venting to the atmosphere
+//   P' = (q - n a swell g(y) y') / (1 + swell G(y))       the volume grows with the contraction y: a larger
+//                                                          volume fills slower, and contracting expands the
+//                                                          air (the pressure falls), extending compresses it
+//
+// Every pressure is in the balance's units (the static displacement its force would give, as in), where
+// P + w is the gauge pressure's force (muscle_balance): a = P + w + span is the absolute pressure (span:
+// the atmosphere's), a_sup = supply + span (supply: the supply's gauge pressure), a_atm = span. phi(r) is an orifice's flow function of
+// the downstream-to-upstream ratio r: choked (1) up to the critical ratio b, then the subsonic ellipse
+// sqrt(1 - ((r - b) / (1 - b))^2) down to 0 at r = 1 (ISO 6358's form; b fitted, it stands as well for a
+// nozzle's law, b = 0.528, or a sharp-edged orifice's lower ratio), linear in the pressure difference over
+// the last kLaminar of the ratio, where the ellipse's slope grows without bound.
+//
+// The volume: a muscle's force is its gauge pressure times the volume it gains per unit of contraction
+// (F = p dV/dy, the virtual work of an ideal muscle), so the balance's force-length map g is the shape of
+// dV/dy as well: V(y) = V(0) (1 + swell G(y)), G(y) = y + a1 y^2 / 2 + a2 y^3 / 3, swell the volume's
+// growth at zero contraction over the volume (the tubing's dead volume included). n is the air's
+// polytropic index, between isothermal (1) and adiabatic (1.4).
+//
+// So the muscle vents fast while the flow is choked and ever slower as it nears the atmosphere - an
+// exponential approach, not pressure_lag's straight slew - and a payload falling as it vents pushes the
+// pressure back up. With a large rate and a narrow band it is muscle_balance; it refines muscle_balance
+// (Effect::refines, warm-started from its parameters): diagnose tries it in muscle_balance's place when
+// the ladder ends above the noise with it.
+//
+// Integration: the balance's sub-steps, each with the pressure advanced first (explicit, never past the
+// setpoint by the valve's own flow).
+#include <algorithm>
+#include <cmath>
+
+#include "model/effects/muscle_balance.hpp"
+
+namespace pamc::model {
+namespace {
+
+using namespace balance;
+
+constexpr double kLaminar = 0.01;  // the last fraction of the pressure ratio, where the flow is linear in it
+
+// Parameter indices after the balance's; the pressure's state after the balance's states.
+enum : int { kRate = kNumParams, kVent, kBand, kSpan, kSupply, kCritical, kSwell, kPoly, kAllParams };
+enum : int { kP = kNumStates, kAllStates };
+
+// An orifice's flow function of the pressure ratio r (downstream over upstream), 0..1.
+double flowFunction(double r, double b) noexcept {
+  if (r >= 1.0) return 0.0;
+  if (r <= b) return 1.0;
+  const double r_lam = 1.0 - kLaminar;
+  const double q = (std::min(r, r_lam) - b) / (1.0 - b);
+  const double phi = std::sqrt(std::max(1.0 - q * q, 0.0));
+  return r <= r_lam ? phi : phi * (1.0 - r) / kLaminar;
+}
+
+class PneumaticBalance final : public MuscleBalance {
+ public:
+  const char* name() const override { return "pneumatic_balance"; }
+  const char* explanation() const override {
+    return "muscle_balance driven by the muscle's pressure, filled and vented through the valve's orifices whose flow "
+           "chokes and falls near the supply and the atmosphere, into a volume that grows as the muscle contracts";
+  }
+  std::vector<std::string> refines() const override { return {"muscle_balance"}; }
+  std::vector<std::string> absorbs() const override { return {}; }  // muscle_balance's went with it
+  const std::vector<ParamSpec>& params() const override {
+    // The pressure's defaults, in the units of a 40 mm stroke (the bounds scale with the data): a valve
+    // that fills the stroke's pressure within tens of milliseconds through a band of a few units, an
+    // atmosphere of 25 units and a supply eight times that, ISO 6358's typical critical ratio - chosen,
+    // the fit moves them.
+    static const std::vector<ParamSpec> p = [] {
+      std::vector<ParamSpec> v = MuscleBalance().params();
+      v.push_back({"rate", 10.0, 1e5, 2000.0, "y-unit/s"});   // choked filling rate at zero contraction
+      v.push_back({"vent", 0.05, 20.0, 1.0, "-"});            // the exhaust's conductance over the supply's
+      v.push_back({"band", 0.01, 100.0, 5.0, "y-unit"});      // setpoint error that opens the valve fully
+      v.push_back({"span", 0.5, 500.0, 25.0, "y-unit"});      // the atmosphere's absolute pressure
+      v.push_back({"supply", 1.0, 2000.0, 200.0, "y-unit"});  // the supply's gauge pressure
+      v.push_back({"b", 0.0, 0.9, 0.3, "-"});               // the orifices' critical pressure ratio
+      v.push_back({"swell", 0.0, 0.2, 0.0, "1/y-unit"});  // the volume's growth per unit of contraction
+      v.push_back({"n", 1.0, 1.4, 1.2, "-"});             // the air's polytropic index
+      return v;
+    }();
+    return p;
+  }
+  int numStates() const override { return kAllStates; }
+  void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
+    MuscleBalance::init(p, s, in0, c);
+    s[kP] = in0;
+  }
+  double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
+    Travels d;
+    travels(p, d);
+    const double h = c.Ts / kSubsteps;
+    for (int i = 0; i < kSubsteps; ++i) {
+      s[kP] = pressureStep(p, s, in, h);
+      subStep(p, d, s, s[kP]);
+    }
+    return s[kY];
+  }
+
+ private:
+  // The pressure after one sub-step h towards the setpoint in, with the volume's change by the motion.
+  static double pressureStep(const double* p, const double* s, double in, double h) noexcept {
+    const double span = std::max(std::fabs(p[kSpan]), 1e-6);
+    const double vac = -p[kW] - span;  // the level of zero absolute pressure (gauge zero at in = -w)
+    const double a_sup = std::max(p[kSupply], 0.0) + span;
+    const double P = s[kP];
+    const double a = std::max(P - vac, 1e-9);
+    const double e = in - P;
+    const double x = std::clamp(e / std::max(std::fabs(p[kBand]), 1e-6), -1.0, 1.0);
+    const double phi = x > 0.0 ? flowFunction(a / a_sup, p[kCritical])
+                               : (a / a_sup) * flowFunction(span / a, p[kCritical]) * std::fabs(p[kVent]);
+    const double y = s[kY], swell = std::fabs(p[kSwell]);
+    const double cap = std::max(1.0 + swell * y * (1.0 + y * (p[kA1] / 2.0 + y * p[kA2] / 3.0)), 0.1);
+    double flow = x * std::fabs(p[kRate]) * phi * h / cap;
+    flow = e > 0.0 ? std::min(flow, e) : std::max(flow, e);  // the valve closes at the setpoint
+    const double g = 1.0 + y * (p[kA1] + y * p[kA2]);
+    const double motion = p[kPoly] * a * swell * g * s[kV] * h / cap;
+    return std::max(P + flow - motion, vac);
+  }
+};
+
+static_assert(kAllStates <= kMaxEffectStates, "pneumatic_balance's states fit an effect's storage");
+
+}  // namespace
+std::unique_ptr<Effect> make_pneumatic_balance() { return std::make_unique<PneumaticBalance>(); }
+}  // namespace pamc::model
