@@ -66,6 +66,27 @@ const std::vector<EffectInfo>& effectTable() {
        false,
        "payload's force balance with an exponential force-length map, elastoplastic Maxwell-slip friction whose "
        "levels grow with the pressure, and inelastic end stops"},
+      {"pneumatic_balance",
+       {{"fn", 0.2, 100.0, 10.0},
+        {"zeta", 0.01, 3.0, 0.5},
+        {"w", -100.0, 100.0, 0.0},
+        {"L", 5.0, 1e4, 1e4},
+        {"f0", 0.0, 10.0, 0.0},
+        {"fp", 0.0, 0.2, 0.0},
+        {"k_slip", 0.01, 100.0, 1.0},
+        {"spread", 1.0, 100.0, 1.0},
+        {"lo", -1e9, 1e9, -1e9},
+        {"hi", -1e9, 1e9, 1e9},
+        {"rate", 10.0, 1e5, 1000.0},
+        {"vent", 0.05, 20.0, 1.0},
+        {"band", 0.01, 100.0, 1.0},
+        {"span", 0.5, 500.0, 14.0},
+        {"supply", 1.0, 2000.0, 100.0},
+        {"swell", 0.0, 0.2, 0.0},
+        {"n", 1.0, 1.4, 1.3}},
+       false,
+       "muscle_balance driven by the muscle's own pressure: a regulator fills it from the supply and vents it to "
+       "the atmosphere through isentropic nozzles, polytropic air in a volume that grows with the contraction"},
       {"warm_up",
        {{"tau", 1.0, 3600.0, 60.0}, {"gain", -0.5, 0.5, 0.1}, {"shift", -10.0, 10.0, 0.0}},
        false,
@@ -227,16 +248,71 @@ void validateEffects(const std::vector<EffectSpec>& effects) {
       }
     }
   }
-  if (seen.count("mass_spring") + seen.count("force_loop") + seen.count("muscle_balance") > 1)
-    throw std::invalid_argument("mass_spring, force_loop and muscle_balance are alternatives: take one");
-  if (seen.count("muscle_balance")) {
+  if (seen.count("mass_spring") + seen.count("force_loop") + seen.count("muscle_balance") +
+          seen.count("pneumatic_balance") >
+      1)
+    throw std::invalid_argument(
+        "mass_spring, force_loop, muscle_balance and pneumatic_balance are alternatives: take one");
+  for (const char* name : {"muscle_balance", "pneumatic_balance"}) {
+    if (!seen.count(name)) continue;
     const EffectSpec& e =
-        *std::find_if(effects.begin(), effects.end(), [](const EffectSpec& x) { return x.name == "muscle_balance"; });
+        *std::find_if(effects.begin(), effects.end(), [&](const EffectSpec& x) { return x.name == name; });
     auto at = [&](const char* k, double def) { return e.params.count(k) ? e.params.at(k) : def; };
-    if (!(at("lo", -1e9) < at("hi", 1e9))) throw std::invalid_argument("effect muscle_balance: lo must be below hi");
+    if (!(at("lo", -1e9) < at("hi", 1e9)))
+      throw std::invalid_argument("effect " + std::string(name) + ": lo must be below hi");
   }
   if (seen.count("pressure_lag") + seen.count("direction_lag") + seen.count("valve_flow") > 1)
     throw std::invalid_argument("pressure_lag, direction_lag and valve_flow are alternatives: take one");
+}
+
+// ---------------------------------------------------------------------------------------------
+// pneumatic_balance's air (oracle_sim.hpp): isentropic nozzles, polytropic air, the volume of the map.
+
+namespace {
+constexpr double kKappa = 1.4;
+// The critical ratio (2 / (k + 1))^(k / (k - 1)) = 0.5283
+const double kCritical = std::pow(2.0 / (kKappa + 1.0), kKappa / (kKappa - 1.0));
+}  // namespace
+
+double PneumaticAir::psi(double r) {
+  r = std::clamp(r, kCritical, 1.0);  // choked below the critical ratio
+  const double v = std::pow(r, 2.0 / kKappa) - std::pow(r, (kKappa + 1.0) / kKappa);
+  return std::sqrt(2.0 * kKappa / (kKappa - 1.0) * std::max(v, 0.0));
+}
+
+double PneumaticAir::opening(double y, double p) const { return std::clamp((y - p) / band, -1.0, 1.0); }
+
+double PneumaticAir::volume(double x) const { return 1.0 + swell * L * -std::expm1(-x / L); }
+
+double PneumaticAir::flow(double p, double o) const {
+  // Mass flow through a nozzle from P_u to P_d (P_u psi(P_d / P_u)), reversed when P_d > P_u.
+  auto nozzle = [](double pu, double pd) { return pu >= pd ? pu * psi(pd / pu) : -pd * psi(pu / pd); };
+  const double P = p + w + span, Ps = supply + span, Pa = span;
+  const double scale = rate / (Ps * psi(0.0));  // choked filling at o = 1: q = rate
+  if (o > 0.0) return scale * o * nozzle(Ps, P);
+  if (o < 0.0) return scale * vent * -o * -nozzle(P, Pa);
+  return 0.0;
+}
+
+double PneumaticAir::pressureRate(double y, double p, double x, double xd) const {
+  const double P = p + w + span;
+  const double vd = swell * std::exp(-x / L) * xd;
+  return n / volume(x) * (flow(p, opening(y, p)) - P * vd);
+}
+
+PneumaticAir pneumaticAir(const EffectSpec& e) {
+  if (e.name != "pneumatic_balance") throw std::invalid_argument("not pneumatic_balance: " + e.name);
+  auto at = [&](const char* k) {
+    auto it = e.params.find(k);
+    if (it != e.params.end()) return it->second;
+    for (const auto& p : effectInfo(e.name).params)
+      if (p.name == k) return p.def;
+    throw std::invalid_argument(std::string("no parameter ") + k);
+  };
+  PneumaticAir a;
+  a.rate = at("rate"), a.vent = at("vent"), a.band = at("band"), a.span = at("span"), a.supply = at("supply");
+  a.swell = at("swell"), a.n = at("n"), a.w = at("w"), a.L = at("L");
+  return a;
 }
 
 double Record::noise() const { return std::sqrt(noise_std * noise_std + quantum * quantum / 12.0); }
@@ -247,7 +323,7 @@ double Record::noise() const { return std::sqrt(noise_std * noise_std + quantum 
 namespace {
 
 constexpr int kSlipElements = 4;  // muscle_balance's Maxwell-slip elements
-enum : int { kV, kL, kP, kH, kZa, kZc, kZf, kX, kXd, kZl, kE0, kN = kE0 + kSlipElements };
+enum : int { kV, kL, kP, kH, kZa, kZc, kZf, kX, kXd, kZl, kPr, kE0, kN = kE0 + kSlipElements };
 using Vec = std::array<double, kN>;
 
 double param(const EffectSpec& e, const std::string& name) {
@@ -344,8 +420,9 @@ struct System {
   Core c;
   double tv = 1e-6;
   bool dead = false, lag = false, asym = false, load = false, sat = false, creep = false, fric = false, mass = false,
-       floop = false, mb = false, warm = false;
+       floop = false, mb = false, pb = false, warm = false;
   Balance bal;
+  PneumaticAir air;  // pneumatic_balance's (pb): the balance driven by the pressure state x[kPr]
   double delay = 0.0;
   double thr = 0, lag_tau = 0, lag_slew = 0;
   double as_gain = 0, as_wu = 1, as_wd = 1;
@@ -467,6 +544,18 @@ struct System {
       y = bal.rates(x, y, wn, zeta, d);
       yd = d[kX];
     }
+    if (pb) {  // the balance driven by the pressure p, which the regulator moves towards the setpoint y
+      if (rest) {
+        x[kPr] = std::clamp(y, -air.w, air.supply - air.w);  // between the atmosphere and the supply
+        x[kX] = bal.rest(x[kPr]);
+        for (int i = 0; i < kSlipElements; ++i) x[kE0 + i] = x[kX];
+      }
+      const double p = x[kPr];
+      const double setpoint = y;
+      y = bal.rates(x, p, wn, zeta, d);
+      d[kPr] = air.pressureRate(setpoint, p, x[kX], d[kX]);
+      yd = d[kX];
+    }
     if (warm) {
       const double phi = -std::expm1(-t / wu_tau);
       y += phi * (wu_gain * (y - y_start) + wu_shift);
@@ -513,6 +602,9 @@ System makeSystem(const Core& core, const std::vector<EffectSpec>& effects, cons
       s.fl_delta = param(e, "delta");
     else if (n == "muscle_balance")
       s.mb = true, s.wn = 2.0 * M_PI * param(e, "fn"), s.zeta = param(e, "zeta"), s.bal = balanceOf(e);
+    else if (n == "pneumatic_balance")
+      s.pb = true, s.wn = 2.0 * M_PI * param(e, "fn"), s.zeta = param(e, "zeta"), s.bal = balanceOf(e),
+      s.air = pneumaticAir(e);
     else if (n == "warm_up")
       s.warm = true, s.wu_tau = param(e, "tau"), s.wu_gain = param(e, "gain"), s.wu_shift = param(e, "shift");
     else if (n == "dead_zone")
@@ -631,7 +723,7 @@ class Integrator {
         err = std::max(err, std::fabs(e) / sc);
       }
       if (err <= 1.0 || h < 1e-14) {
-        if (sys_.mb) {
+        if (sys_.mb || sys_.pb) {
           const double f = sys_.bal.eventFraction(x, xn);
           if (f < 1.0 && h * f > 1e-14) {  // the step cut where the payload turns round or meets a stop
             h_ = h * f;
@@ -763,6 +855,7 @@ double Stepper::step(double u, double load) {
 
 bool Stepper::needsLoad() const { return impl_->sys.load; }
 double Stepper::clean() const { return impl_->clean; }
+double Stepper::pressure() const { return impl_->sys.pb ? impl_->x[kPr] : std::nan(""); }
 long Stepper::steps() const { return impl_->integ.steps(); }
 long Stepper::rejected() const { return impl_->integ.rejected(); }
 

@@ -22,6 +22,9 @@
 //        or force_loop x'' = wn^2 (y - x - z) - 2 zeta wn x',  z' = (zmax / delta)(1 - sgn(x') z / zmax) x'
 //        or muscle_balance x'' = wn^2 ((y + w) exp(-x / L) - w - x - F_f) - 2 zeta wn x', F_f elastoplastic
 //                    Maxwell-slip elements with levels f0 + fp max(y + w, 0), inelastic stops lo, hi
+//        or pneumatic_balance: muscle_balance with y replaced by the muscle's pressure p, which a regulator
+//                    opened by (y - p) / band fills from the supply and vents to the atmosphere through
+//                    isentropic nozzles (choked below 0.528), polytropic air in V(x) = V0 (1 + swell L (1 - exp(-x / L)))
 //     -> warm_up      y += (1 - exp(-t / tau)) (gain (y - y(0)) + shift)
 //
 // The sample y_k is the output at the end of the sample in which u_k was held ((k+1) Ts: open-loop DAQ
@@ -71,9 +74,30 @@ struct EffectSpec {
 EffectSpec parseEffect(const std::string& text);
 // "k=6.5,rho=1.15,..." over the given core; throws std::invalid_argument.
 Core parseCore(const std::string& text, Core base = {});
-// Checks names, parameters, bounds and combinations (one of mass_spring, force_loop, muscle_balance); throws
+// Checks names, parameters, bounds and combinations (one of mass_spring, force_loop, muscle_balance,
+// pneumatic_balance); throws
 // std::invalid_argument.
 void validateEffects(const std::vector<EffectSpec>& effects);
+
+// pneumatic_balance's air (README, "The physics"), in the balance's units: pressures in y-units (mm), the
+// gauge pressure's force p + w, so the absolute pressure is P = p + w + span; volumes over V0.
+//   opening  o = clamp((y - p) / band, -1, 1)                        y: the setpoint (the chain's output so far)
+//   nozzle   psi(r) = sqrt(2 k / (k - 1) (r^(2/k) - r^((k+1)/k))), k = 1.4, psi(r_c) below r_c = 0.528 (choked)
+//   flow     q = rate o Q(P_s, P) / (P_s psi(r_c))                    o > 0: from the supply, P_s = supply + span
+//            q = vent rate o Q(P, P_a) / (P_s psi(r_c))               o < 0: to the atmosphere, P_a = span
+//            Q(P_u, P_d) = P_u psi(P_d / P_u) (reversed when P_d > P_u): mass flow R T mdot / V0 [y-unit/s]
+//   volume   v(x) = V / V0 = 1 + swell L (1 - exp(-x / L))            (dV/dx ~ exp(-x / L): virtual work of the map)
+//   air      p' = P' = (n / v) (q - P v'(x) x')                       polytropic
+struct PneumaticAir {
+  double rate = 1000, vent = 1, band = 1, span = 14, supply = 100, swell = 0, n = 1.3, w = 0, L = 1e4;
+  static double psi(double r);                                // the nozzle's flow function (r in [0, 1])
+  double opening(double y, double p) const;                   // o
+  double volume(double x) const;                              // v(x)
+  double flow(double p, double o) const;                      // q [y-unit/s]
+  double pressureRate(double y, double p, double x, double xd) const;  // p' [y-unit/s]
+};
+// The air of a pneumatic_balance spec (missing parameters at their defaults); throws std::invalid_argument.
+PneumaticAir pneumaticAir(const EffectSpec& e);
 
 struct SimOptions {
   double Ts = 1e-3;         // sample time [s]
@@ -113,6 +137,7 @@ class Stepper {
   double step(double u, double load = 0.0);
   double clean() const;    // the last sample's output without noise [mm]
   bool needsLoad() const;  // the effect load is on
+  double pressure() const;  // pneumatic_balance's pressure p at the last sample's end (NaN without it)
   long steps() const;      // integrator statistics since the reset
   long rejected() const;
 

@@ -223,6 +223,141 @@ TEST(OracleBalance, IsAnAlternativeOfTheOtherPayloads) {
   EXPECT_THROW(validateEffects({parseEffect("muscle_balance:L=1")}), std::invalid_argument);
 }
 
+// ---- pneumatic_balance ------------------------------------------------------------------------
+
+namespace {
+
+// pneumatic_balance's air written here once more (README): absolute pressure P = p + w + span, the volume
+// over V0 of the exponential map, the choked nozzle's rate.
+struct AirLaw {
+  double w, span, supply, rate, vent, swell, n, L;
+  double absolute(double p) const { return p + w + span; }
+  double volume(double x) const { return 1.0 + swell * L * (1.0 - std::exp(-x / L)); }
+  // dP/dt / P when venting choked at full opening: q = -vent rate P / P_s, P' = n q / v.
+  double chokedVentRate(double x) const { return n * vent * rate / ((supply + span) * volume(x)); }
+};
+
+EffectSpec pneumatic(const std::string& extra) {
+  return parseEffect("pneumatic_balance:fn=8,zeta=0.7,w=10,L=60,rate=400,vent=0.5,span=14,supply=100" + extra);
+}
+
+}  // namespace
+
+TEST(OraclePneumatic, ChokedVentingDecaysTheAbsolutePressureExponentially) {
+  // Volume fixed (swell 0): from p = 39.5 (u = 3) the setpoint drops far below (u = -8: y = -32), the
+  // regulator opens fully to the atmosphere, and while P_a / P < 0.528 the nozzle is choked:
+  // P' = -n vent rate P / (P_s v), P = P_0 exp(-r t). Below the choke the flow falls: slower than that.
+  const AirLaw law{10.0, 14.0, 100.0, 400.0, 0.5, 0.0, 1.3, 60.0};
+  const double r = law.chokedVentRate(0.0);
+  Stepper st(linearCore(), {pneumatic(",swell=0,n=1.3,band=1")}, clean());
+  st.reset(3.0);
+  EXPECT_NEAR(st.pressure(), 39.5, 1e-12);
+  std::vector<double> P;
+  for (int k = 0; k < 1500; ++k) {
+    st.step(-8.0);
+    P.push_back(law.absolute(st.pressure()));
+  }
+  const double choke = law.span / 0.5282817877171743;  // (2 / 2.4)^3.5
+  int checked = 0, slower = 0;
+  for (size_t k = 2; k + 1 < P.size(); ++k) {
+    const double expected = P[1] * std::exp(-r * static_cast<double>(k - 1) * Ts);
+    if (P[k] > choke * 1.001) {
+      ASSERT_NEAR(P[k], expected, 1e-7 * expected) << k;
+      ++checked;
+    } else if (P[k] < choke * 0.99 && P[k - 1] - law.span > 0.5) {
+      // the rate of decay per sample below the choke is less than the choked one
+      EXPECT_GT(P[k + 1] / P[k], std::exp(-r * Ts)) << k;
+      ++slower;
+    }
+  }
+  EXPECT_GT(checked, 300);
+  EXPECT_GT(slower, 100);
+  EXPECT_NEAR(P.back(), law.span, 1e-6);  // at the atmosphere: gauge zero at p = -w
+  EXPECT_GE(P.back(), law.span - 1e-9);
+}
+
+TEST(OraclePneumatic, AHeldSetpointSettlesAtThePressureAndTheStaticBalance) {
+  // A frictionless payload, a volume that grows: the pressure settles at the setpoint (the regulator's
+  // opening (y - p) / band closes there) and the payload at the map's balance F(p, x) = x, filling and venting.
+  const BalanceLaw law{10.0, 60.0, 0.0, 0.0};
+  Stepper st(linearCore(), {pneumatic(",swell=0.02,n=1.25,band=2")}, clean());
+  st.reset(0.0);  // y = 20
+  EXPECT_NEAR(st.clean(), law.rest(20.0, 0.0), 1e-9);
+  for (const auto& [u, y] : std::vector<std::pair<double, double>>{{2.0, 33.0}, {-1.0, 13.5}, {4.0, 46.0}}) {
+    double early = 0.0;
+    for (int k = 0; k < 3000; ++k) {
+      st.step(u);
+      if (k == 20) early = st.pressure();
+    }
+    EXPECT_GT(std::fabs(early - y), 0.5) << u;  // the pressure takes its time
+    EXPECT_NEAR(st.pressure(), y, 1e-6) << u;
+    EXPECT_NEAR(st.clean(), law.rest(y, 0.0), 1e-6) << u;
+    EXPECT_GT(std::fabs(st.clean() - y), 1.0) << u;  // the map is felt
+  }
+}
+
+TEST(OraclePneumatic, AContractionAtAClosedValveFollowsThePolytrope) {
+  // The valve's opening held at zero (setpoint = pressure): P V^n stays constant as the muscle contracts
+  // (the pressure falls) and extends (it rises). The law's rate integrated along x(t) by RK4 here.
+  const AirLaw law{10.0, 14.0, 100.0, 400.0, 0.5, 0.03, 1.25, 60.0};
+  const PneumaticAir air = pneumaticAir(pneumatic(",swell=0.03,n=1.25,band=1"));
+  for (double speed : {150.0, -150.0}) {  // mm/s over 0.2 s: 30 mm
+    const double x0 = speed > 0 ? -5.0 : 25.0;
+    auto rate = [&](double t, double p) { return air.pressureRate(p, p, x0 + speed * t, speed); };
+    double p = 40.0, t = 0.0;
+    const double h = 1e-4;
+    for (int k = 0; k < 2000; ++k, t += h) {
+      const double a = rate(t, p), b = rate(t + h / 2, p + h / 2 * a), c = rate(t + h / 2, p + h / 2 * b),
+                   d = rate(t + h, p + h * c);
+      p += h / 6 * (a + 2 * b + 2 * c + d);
+    }
+    const double x1 = x0 + speed * t;
+    const double expected = law.absolute(40.0) * std::pow(law.volume(x0) / law.volume(x1), law.n);
+    EXPECT_NEAR(law.absolute(p), expected, 1e-8 * expected) << speed;
+    EXPECT_GT(std::fabs(law.absolute(p) - law.absolute(40.0)), 10.0) << speed;  // it moved a lot
+    EXPECT_EQ(law.absolute(p) < law.absolute(40.0), speed > 0) << speed;       // contracting lowers it
+  }
+  // A closed valve passes nothing; an open one fills choked at `rate` (v = 1) and stops at the supply.
+  EXPECT_EQ(air.flow(30.0, 0.0), 0.0);
+  EXPECT_NEAR(air.pressureRate(100.0, -10.0, 0.0, 0.0), 1.25 * 400.0, 1e-9);
+  EXPECT_NEAR(air.flow(90.0, 1.0), 0.0, 1e-12);  // p = supply - w
+  EXPECT_NEAR(PneumaticAir::psi(0.1), PneumaticAir::psi(0.5282817877171743), 1e-15);
+  EXPECT_NEAR(PneumaticAir::psi(0.8), std::sqrt(7.0 * (std::pow(0.8, 1 / 0.7) - std::pow(0.8, 1.2 / 0.7))), 1e-15);
+}
+
+TEST(OraclePneumatic, IntegrationConverges) {
+  // Over a wide range, filling and venting, with friction and both stops met: 1e-11 against 1e-13, and
+  // steps of at most 10 us.
+  const auto u =
+      makeSignal("steps:lo=-3.5,hi=4,min=0.3,max=1.5,dur=5+multisine:fmin=0.1,fmax=4,n=15,lo=-3.5,hi=4", 10.0, Ts, 5);
+  const std::vector<EffectSpec> e = {parseEffect(
+      "pneumatic_balance:fn=7,zeta=0.4,w=20,L=80,f0=0.1,fp=0.01,k_slip=3,spread=8,lo=2,hi=26,rate=600,vent=0.7,"
+      "band=2,span=15,supply=110,swell=0.02,n=1.3")};
+  const double noise = std::sqrt(0.005 * 0.005 + 0.001 * 0.001 / 12.0);
+  const auto base = yClean(Core{}, e, u);
+  SimOptions fine = clean();
+  fine.rtol = fine.atol = 1e-13;
+  SimOptions tiny = clean();
+  tiny.max_step = 1e-5;
+  const double d_fine = maxAbsDiff(base, yClean(Core{}, e, u, fine)), d_tiny = maxAbsDiff(base, yClean(Core{}, e, u, tiny));
+  std::printf("pneumatic_balance: 1e-13 moves it by %.2g mm, 10 us steps by %.2g mm\n", d_fine, d_tiny);
+  EXPECT_LT(d_fine, 1e-3 * noise);
+  EXPECT_LT(d_tiny, 1e-3 * noise);
+  EXPECT_GT(std::count_if(base.begin(), base.end(), [](double v) { return v == 2.0; }), 50);
+  EXPECT_GT(std::count_if(base.begin(), base.end(), [](double v) { return v == 26.0; }), 50);
+}
+
+TEST(OraclePneumatic, IsAnAlternativeOfTheOtherPayloads) {
+  EXPECT_THROW(validateEffects({parseEffect("pneumatic_balance"), parseEffect("muscle_balance")}),
+               std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("pneumatic_balance"), parseEffect("mass_spring")}), std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("pneumatic_balance:lo=3,hi=2")}), std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("pneumatic_balance:rate=1")}), std::invalid_argument);
+  EXPECT_THROW(validateEffects({parseEffect("pneumatic_balance:n=1.5")}), std::invalid_argument);
+  Stepper st(linearCore(), {balance("")}, clean());
+  EXPECT_TRUE(std::isnan(st.pressure()));
+}
+
 // ---- the core ---------------------------------------------------------------------------------
 
 TEST(OracleCore, SlowRampFollowsTheBoucWenClosedForm) {
@@ -633,6 +768,57 @@ TEST(OracleCases, TheWideRangeCaseIsWellFormedAndMeetsBothStops) {
     const double at = c.effects[0].params.at(stop);
     EXPECT_GT(std::count(r.y_clean.begin(), r.y_clean.end(), at), 20) << stop;
   }
+}
+
+TEST(OracleCases, ThePneumaticRangeCaseIsWellFormedAndMeetsBothStops) {
+  const auto cases = loadCases(std::string(PAMC_ORACLE_SOURCE_DIR) + "/pneumatic_range.json");
+  const auto wide = loadCases(std::string(PAMC_ORACLE_SOURCE_DIR) + "/wide_range.json");
+  ASSERT_EQ(cases.size(), 1u);
+  const Case& c = cases[0];
+  ASSERT_EQ(c.effects.size(), 1u);
+  EXPECT_EQ(c.effects[0].name, "pneumatic_balance");
+  EXPECT_EQ(c.expected, std::vector<std::string>{"pneumatic_balance"});
+  EXPECT_EQ(c.noise_std, 0.005);
+  EXPECT_NE(c.train.seed, c.validate.seed);
+  EXPECT_NE(c.train.input, c.validate.input);
+  EXPECT_TRUE(c.train.duration >= 30 && c.train.duration <= 60);
+  EXPECT_TRUE(c.validate.duration >= 20 && c.validate.duration <= 30);
+  for (const Case& o : wide) {  // another case than wide_range.json's
+    for (const RecordSpec* a : {&c.train, &c.validate})
+      for (const RecordSpec* b : {&o.train, &o.validate}) {
+        EXPECT_NE(a->seed, b->seed);
+        EXPECT_NE(a->input, b->input);
+      }
+    for (const char* k : {"fn", "zeta", "w", "L", "f0", "fp", "k_slip", "spread", "lo", "hi"})
+      EXPECT_NE(c.effects[0].params.at(k), o.effects[0].params.at(k)) << k;
+  }
+  // A plausible pressure: 1 bar = span, the supply 6-9 bar gauge.
+  const auto& q = c.effects[0].params;
+  EXPECT_GE(q.at("supply") / q.at("span"), 6.0);
+  EXPECT_LE(q.at("supply") / q.at("span"), 9.0);
+  const Record r = makeCaseRecord(c, "train");
+  EXPECT_NEAR(*std::min_element(r.u.begin(), r.u.end()), -3.5, 0.2);
+  EXPECT_NEAR(*std::max_element(r.u.begin(), r.u.end()), 4.0, 0.2);
+  for (const char* stop : {"lo", "hi"}) {
+    const double at = q.at(stop);
+    EXPECT_GT(std::count(r.y_clean.begin(), r.y_clean.end(), at), 20) << stop;
+  }
+  // The valve fills the stroke (from the lower stop to the upper, -3.5 -> 4 V) in 50-200 ms and vents it slower.
+  double took[2];
+  for (int j = 0; j < 2; ++j) {
+    Stepper st(c.core, c.effects, clean());
+    st.reset(j == 0 ? -3.5 : 4.0);
+    const double target = q.at(j == 0 ? "hi" : "lo");
+    int k = 0;
+    while (k < 2000 && st.step(j == 0 ? 4.0 : -3.5) != target) ++k;
+    took[j] = (k + 1) * Ts;
+  }
+  std::printf("pneumatic_range: the stroke fills in %.3f s, vents in %.3f s\n", took[0], took[1]);
+  EXPECT_GE(took[0], 0.05);
+  EXPECT_LE(took[0], 0.2);
+  EXPECT_GT(took[1], took[0]);
+  const Record v = makeCaseRecord(c, "validate");
+  for (const char* stop : {"lo", "hi"}) EXPECT_GT(std::count(v.y_clean.begin(), v.y_clean.end(), q.at(stop)), 0) << stop;
 }
 
 // The pre-committed set outside the catalogue (unseen.json): every case loads, names its kind, and its
