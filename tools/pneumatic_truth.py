@@ -4,14 +4,16 @@
 records, before any search (docs/MODELING.md, "The pressure's own dynamics").
 
   tools/pneumatic_truth.py [--pamc BIN] [--plant FILE] [--effect pneumatic_balance|muscle_balance]
-                           [--coulomb-in-friction] --out MODEL.json
+                           [--coulomb-in-friction | --coulomb-as-guide] [--valve-lag] --out MODEL.json
 
 The balance is divided by the plant's linear stiffness (rubber + load spring); the Tondu-Lopez map gives
 a1, a2; the braid's Dahl friction zmax, zp and delta; the regulator's gauge pressure, atmosphere and supply
 in the balance's units give the pressure's levels; the ISO 6358 conductance at the supply over the
 volume at zero contraction its rate; the braid's volume growth at zero contraction over that volume its
 swell. The plant's payload Coulomb friction (tanh of the velocity) has no exact place in the balance:
---coulomb-in-friction adds its level to zmax. The regulator's valve-opening lag has none either.
+--coulomb-in-friction adds its level to zmax, --coulomb-as-guide puts it on pneumatic_balance's guide
+element (zc, with a pre-sliding travel dc of 0.01 mm, a choice: the tanh has a velocity width, not a
+travel). --valve-lag gives pneumatic_balance the regulator's valve-opening time constant.
 """
 import argparse
 import json
@@ -34,7 +36,7 @@ def balance_of(pc, coulomb_in_friction):
     cos2 = math.cos(th) ** 2
     a, b = 3 * cos2 / (1 - cos2), 1 / (1 - cos2)
     length = m["length_mm"] * m.get("tondu_k", 1.0) ** -1
-    kn = m["rubber_N_per_mm"] + l["spring_N_per_mm"]  # N/mm
+    kn = kn_of(pc)  # N/mm
     per_bar = area * (a - b) * 1e5 / kn  # the pressure's static displacement per bar [mm]
     weight = l["mass_kg"] * l["gravity_m_per_s2"] + l["spring_preload_N"]
     wn = math.sqrt(kn * 1e3 / l["mass_kg"])
@@ -48,7 +50,7 @@ def balance_of(pc, coulomb_in_friction):
     return balance, core, per_bar, area * (a - b)
 
 
-def pressure_of(pc, per_bar, dvol_dy):
+def pressure_of(pc, per_bar, dvol_dy, coulomb_as_guide, valve_lag):
     g, m = pc["regulator"], pc["muscle"]
     vol0 = math.pi * (0.5e-3 * m["diameter_mm"]) ** 2 * m["length_mm"] * 1e-3 + g["dead_volume_cm3"] * 1e-6
     p_sup = (g["supply_bar"] + g["atmosphere_bar"]) * 1e5
@@ -56,7 +58,13 @@ def pressure_of(pc, per_bar, dvol_dy):
     rate = g["polytropic_index"] * rt * g["conductance_dm3_per_s_bar"] * 1e-8 * 1.185 * p_sup / vol0  # Pa/s
     return {"rate": rate / 1e5 * per_bar, "vent": 1.0, "band": g["band_bar"] * per_bar,
             "span": g["atmosphere_bar"] * per_bar, "supply": g["supply_bar"] * per_bar, "b": g["critical_ratio"],
-            "swell": dvol_dy * 1e-3 / vol0, "n": g["polytropic_index"]}
+            "swell": dvol_dy * 1e-3 / vol0, "n": g["polytropic_index"],
+            "lag": g["tau_s"] if valve_lag else 0.0,
+            "zc": pc["payload"]["coulomb_N"] / kn_of(pc) if coulomb_as_guide else 0.0, "dc": 0.01}
+
+
+def kn_of(pc):
+    return pc["muscle"]["rubber_N_per_mm"] + pc["payload"]["spring_N_per_mm"]
 
 
 def main():
@@ -64,7 +72,10 @@ def main():
     ap.add_argument("--pamc", default="build/src/pamc")
     ap.add_argument("--plant", help="plant file (JSON); default: `pamc plant`")
     ap.add_argument("--effect", default="pneumatic_balance", choices=["pneumatic_balance", "muscle_balance"])
-    ap.add_argument("--coulomb-in-friction", action="store_true")
+    how = ap.add_mutually_exclusive_group()
+    how.add_argument("--coulomb-in-friction", action="store_true")
+    how.add_argument("--coulomb-as-guide", action="store_true")
+    ap.add_argument("--valve-lag", action="store_true")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     pc = plant_config(a.pamc, a.plant)
@@ -73,7 +84,7 @@ def main():
     balance, core, per_bar, dvol_dy = balance_of(pc, a.coulomb_in_friction)
     params = dict(balance)
     if a.effect == "pneumatic_balance":
-        params.update(pressure_of(pc, per_bar, dvol_dy))
+        params.update(pressure_of(pc, per_bar, dvol_dy, a.coulomb_as_guide, a.valve_lag))
     model = {"format": "pamc-model/1", "core": core, "output_form": "aligned",
              "effects": [{"name": a.effect, "params": params}]}
     with open(a.out, "w") as f:

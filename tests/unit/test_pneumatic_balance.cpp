@@ -132,3 +132,42 @@ TEST(PneumaticBalance, ALargerVolumeFillsSlowerAndSettlesAlike) {
   EXPECT_GT(riseTime(y1), riseTime(y0) + 10) << riseTime(y0) << " " << riseTime(y1);
   EXPECT_NEAR(y1.back(), y0.back(), 1e-3);
 }
+
+// The guide's friction (zc) holds the payload back by its own level wherever the pressure is: on a slow
+// triangle the rising and the falling branch differ by 2 zc at a low and at a high pressure alike, while
+// the braid's (zp) grows with the pressure.
+TEST(PneumaticBalance, TheGuidesFrictionDoesNotGrowWithThePressure) {
+  const double zc = 0.4;
+  auto branchGap = [&](const std::map<std::string, double>& extra, double level) {
+    std::map<std::string, double> p = {{"fn", 50.0}, {"zeta", 1.0}, {"zmax", 0.0}, {"w", 10.0}, {"rate", 1e5},
+                                       {"band", 0.01}, {"span", 10.0}, {"supply", 1900.0}, {"dc", 0.01}};
+    for (const auto& [k, v] : extra) p[k] = v;
+    std::vector<double> u(200000);
+    for (size_t i = 0; i < u.size(); ++i) {  // 0 -> 40 -> 0 over 200 s: the payload lags by 0.005 mm
+      const double t = static_cast<double>(i) / static_cast<double>(u.size());
+      u[i] = 80.0 * (t < 0.5 ? t : 1.0 - t);
+    }
+    const auto y = alone("pneumatic_balance", p).simulate(u, kTs);
+    const auto up = static_cast<size_t>(level / 80.0 * static_cast<double>(u.size()));
+    return y[up] - y[u.size() - 1 - up];  // rising minus falling at the same command: negative by the friction
+  };
+  EXPECT_NEAR(branchGap({{"zc", zc}}, 8.0), -2.0 * zc, 0.05 * zc);
+  EXPECT_NEAR(branchGap({{"zc", zc}}, 32.0), -2.0 * zc, 0.05 * zc);
+  const double braid_low = branchGap({{"zp", 0.01}}, 8.0), braid_high = branchGap({{"zp", 0.01}}, 32.0);
+  EXPECT_LT(braid_high, 1.5 * braid_low) << braid_low << " " << braid_high;  // more negative: wider
+}
+
+// The regulator's opening follows its error with the lag's time constant: choked filling starts later by
+// about that time.
+TEST(PneumaticBalance, TheOpeningsLagDelaysTheFilling) {
+  const double lag = 0.01;
+  auto timeTo = [&](double lag_s) {
+    const auto m = alone("pneumatic_balance", fastPayload({{"rate", 200.0}, {"band", 0.01}, {"span", 10.0},
+                                                            {"supply", 30.0}, {"b", 0.5}, {"lag", lag_s}}));
+    const auto y = m.simulate(stepInput(0.0, 50.0, 600), kTs);
+    size_t i = 200;
+    while (i < y.size() && y[i] < 5.0) ++i;
+    return static_cast<double>(i) * kTs;
+  };
+  EXPECT_NEAR(timeTo(lag) - timeTo(0.0), lag, 0.2 * lag) << timeTo(0.0) << " " << timeTo(lag);
+}

@@ -93,8 +93,18 @@ class MuscleBalance : public Effect {
     return std::isfinite(y) ? y : in;
   }
 
+  // A friction element of its own level, not pressed by the pressure (pneumatic_balance's guide): its
+  // level, the inverse of its pre-sliding travel, its state. None at level 0.
+  struct Guide {
+    double level = 0.0, inv_travel = 0.0;
+    double* z = nullptr;
+  };
+
   // One sub-step of the balance under the static displacement `in` of the pressure's force.
   static void subStep(const double* p, const Travels& d, double* s, double in) noexcept {
+    subStep(p, d, s, in, Guide{});
+  }
+  static void subStep(const double* p, const Travels& d, double* s, double in, const Guide& guide) noexcept {
     const double y = s[kY], v = s[kV];
     const double lvl = level(p, in);
     double z = 0.0, slope_pos = 0.0, slope_neg = 0.0;  // friction, and its slope dz/dy moving up / down
@@ -106,13 +116,21 @@ class MuscleBalance : public Effect {
     }
     const double scale = lvl / kElements;
     z *= scale;
+    slope_pos *= scale;
+    slope_neg *= scale;
+    const bool guided = guide.level > 0.0 && guide.z != nullptr;
+    if (guided) {
+      z += guide.level * *guide.z;
+      slope_pos += guide.level * (1.0 - *guide.z) * guide.inv_travel;
+      slope_neg += guide.level * (1.0 + *guide.z) * guide.inv_travel;
+    }
     // The payload under the force of the sub-step's start.
     const double force = in + mapExcess(p, in, y) - z;
     double y1 = s[kMap + 0] * y + s[kMap + 1] * v + s[kMap + 4] * force;
     double v1 = s[kMap + 2] * y + s[kMap + 3] * v + s[kMap + 5] * force;
-    if (lvl > 0.0 && y1 != y) {
+    if ((lvl > 0.0 || guided) && y1 != y) {
       // The friction stiffens by its slope over the sub-step, taken at its end (implicit, as force_loop).
-      const double g = scale * (y1 > y ? slope_pos : slope_neg);
+      const double g = y1 > y ? slope_pos : slope_neg;
       const double b0 = std::max(s[kMap + 4], 0.0), b1 = s[kMap + 5];
       const double shrink = 1.0 / (1.0 + b0 * g);
       const double dz = g * (y1 - y) * shrink;
@@ -120,6 +138,7 @@ class MuscleBalance : public Effect {
       v1 -= b1 * dz;
     }
     advanceFriction(d, s, y1 - y);
+    if (guided) advanceElement(*guide.z, y1 - y, guide.inv_travel);
     endStops(p, y1, v1);
     s[kY] = y1;
     s[kV] = v1;
@@ -127,17 +146,17 @@ class MuscleBalance : public Effect {
 
   // Each Dahl element exactly along the travel dy: z -> sgn + (z - sgn) exp(-|dy| / delta_i).
   static void advanceFriction(const Travels& d, double* s, double dy) noexcept {
+    for (int i = 0; i < kElements; ++i) advanceElement(s[kZ0 + i], dy, d[i]);
+  }
+  static void advanceElement(double& z, double dy, double inv_travel) noexcept {
     if (dy == 0.0) return;
     const double sgn = dy > 0.0 ? 1.0 : -1.0;
-    for (int i = 0; i < kElements; ++i) {
-      double& zi = s[kZ0 + i];
-      if (zi == sgn) continue;  // sliding: stays at its level
-      // exp(-x) = 1 - x (1 - exp(-x)) / x: the Bouc-Wen core's series below its limit (no exp on a
-      // sub-step's short travel, within 2e-12 relative), exp above it.
-      const double x = std::fabs(dy) * d[i];
-      const double decay = x < detail::kSeriesLimit ? 1.0 - x * detail::boucWenSeries(x) : std::exp(-x);
-      zi = sgn + (zi - sgn) * decay;
-    }
+    if (z == sgn) return;  // sliding: stays at its level
+    // exp(-x) = 1 - x (1 - exp(-x)) / x: the Bouc-Wen core's series below its limit (no exp on a
+    // sub-step's short travel, within 2e-12 relative), exp above it.
+    const double x = std::fabs(dy) * inv_travel;
+    const double decay = x < detail::kSeriesLimit ? 1.0 - x * detail::boucWenSeries(x) : std::exp(-x);
+    z = sgn + (z - sgn) * decay;
   }
 
   // A payload past a stop rests on it; its velocity into the stop is lost.

@@ -26,12 +26,18 @@
 //
 // So the muscle vents fast while the flow is choked and ever slower as it nears the atmosphere - an
 // exponential approach, not pressure_lag's straight slew - and a payload falling as it vents pushes the
-// pressure back up. With a large rate and a narrow band it is muscle_balance; it refines muscle_balance
-// (Effect::refines, warm-started from its parameters): diagnose tries it in muscle_balance's place when
-// the ladder ends above the noise with it.
+// pressure back up. With a large rate and a narrow band it is muscle_balance. It refines muscle_balance
+// and pressure_lag (Effect::refines, warm-started from their parameters) and absorbs saturation as
+// muscle_balance does: diagnose tries it in the place of either when the ladder ends above the noise
+// with it - with pressure_lag only where the ladder holds saturation too (the stroke's stiffening).
 //
-// Integration: the balance's sub-steps, each with the pressure advanced first (explicit, never past the
-// setpoint by the valve's own flow).
+// Two refinements a rig needs, both off by default: the regulator's opening follows its error with a
+// first-order lag (`lag`, its spool), and a friction element of its own level that the pressure does not
+// press (`zc`, `dc`: the payload's guide, a Coulomb friction with a short pre-sliding travel) beside the
+// balance's braid friction.
+//
+// Integration: the balance's sub-steps, each with the pressure advanced first (explicit, not past the
+// setpoint by a flow towards it).
 #include <algorithm>
 #include <cmath>
 
@@ -45,8 +51,8 @@ using namespace balance;
 constexpr double kLaminar = 0.01;  // the last fraction of the pressure ratio, where the flow is linear in it
 
 // Parameter indices after the balance's; the pressure's state after the balance's states.
-enum : int { kRate = kNumParams, kVent, kBand, kSpan, kSupply, kCritical, kSwell, kPoly, kAllParams };
-enum : int { kP = kNumStates, kAllStates };
+enum : int { kRate = kNumParams, kVent, kBand, kSpan, kSupply, kCritical, kSwell, kPoly, kLag, kGuide, kGuideTravel, kAllParams };
+enum : int { kP = kNumStates, kOpening, kGuideZ, kAllStates };
 
 // An orifice's flow function of the pressure ratio r (downstream over upstream), 0..1.
 double flowFunction(double r, double b) noexcept {
@@ -65,8 +71,9 @@ class PneumaticBalance final : public MuscleBalance {
     return "muscle_balance driven by the muscle's pressure, filled and vented through the valve's orifices whose flow "
            "chokes and falls near the supply and the atmosphere, into a volume that grows as the muscle contracts";
   }
-  std::vector<std::string> refines() const override { return {"muscle_balance"}; }
-  std::vector<std::string> absorbs() const override { return {}; }  // muscle_balance's went with it
+  // It holds muscle_balance (a valve that follows at once) and pressure_lag (the pressure's lag, its rate
+  // limited by the flow), and, as muscle_balance, saturation's stiffening.
+  std::vector<std::string> refines() const override { return {"muscle_balance", "pressure_lag"}; }
   const std::vector<ParamSpec>& params() const override {
     // The pressure's defaults, in the units of a 40 mm stroke (the bounds scale with the data): a valve
     // that fills the stroke's pressure within tens of milliseconds through a band of a few units, an
@@ -82,6 +89,9 @@ class PneumaticBalance final : public MuscleBalance {
       v.push_back({"b", 0.0, 0.9, 0.3, "-"});               // the orifices' critical pressure ratio
       v.push_back({"swell", 0.0, 0.2, 0.0, "1/y-unit"});  // the volume's growth per unit of contraction
       v.push_back({"n", 1.0, 1.4, 1.2, "-"});             // the air's polytropic index
+      v.push_back({"lag", 0.0, 0.05, 0.0, "s"});          // the regulator's opening: its time constant
+      v.push_back({"zc", 0.0, 10.0, 0.0, "y-unit"});      // the guide's friction, not pressed by the pressure
+      v.push_back({"dc", 0.001, 2.0, 0.05, "y-unit"});    // ... its pre-sliding travel
       return v;
     }();
     return p;
@@ -90,34 +100,39 @@ class PneumaticBalance final : public MuscleBalance {
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     MuscleBalance::init(p, s, in0, c);
     s[kP] = in0;
+    s[kOpening] = 0.0;
+    s[kGuideZ] = 0.0;
   }
   double step(const double* p, double* s, double in, const StepContext& c) const noexcept override {
     Travels d;
     travels(p, d);
     const double h = c.Ts / kSubsteps;
+    const double follow = p[kLag] > 0.0 ? 1.0 - std::exp(-h / p[kLag]) : 1.0;
+    const Guide guide{std::fabs(p[kGuide]), 1.0 / std::max(std::fabs(p[kGuideTravel]), 1e-9), s + kGuideZ};
     for (int i = 0; i < kSubsteps; ++i) {
-      s[kP] = pressureStep(p, s, in, h);
-      subStep(p, d, s, s[kP]);
+      s[kP] = pressureStep(p, s, in, h, follow);
+      subStep(p, d, s, s[kP], guide);
     }
     return s[kY];
   }
 
  private:
   // The pressure after one sub-step h towards the setpoint in, with the volume's change by the motion.
-  static double pressureStep(const double* p, const double* s, double in, double h) noexcept {
+  static double pressureStep(const double* p, double* s, double in, double h, double follow) noexcept {
     const double span = std::max(std::fabs(p[kSpan]), 1e-6);
     const double vac = -p[kW] - span;  // the level of zero absolute pressure (gauge zero at in = -w)
     const double a_sup = std::max(p[kSupply], 0.0) + span;
     const double P = s[kP];
     const double a = std::max(P - vac, 1e-9);
     const double e = in - P;
-    const double x = std::clamp(e / std::max(std::fabs(p[kBand]), 1e-6), -1.0, 1.0);
+    s[kOpening] += follow * (std::clamp(e / std::max(std::fabs(p[kBand]), 1e-6), -1.0, 1.0) - s[kOpening]);
+    const double x = s[kOpening];
     const double phi = x > 0.0 ? flowFunction(a / a_sup, p[kCritical])
                                : (a / a_sup) * flowFunction(span / a, p[kCritical]) * std::fabs(p[kVent]);
     const double y = s[kY], swell = std::fabs(p[kSwell]);
     const double cap = std::max(1.0 + swell * y * (1.0 + y * (p[kA1] / 2.0 + y * p[kA2] / 3.0)), 0.1);
     double flow = x * std::fabs(p[kRate]) * phi * h / cap;
-    flow = e > 0.0 ? std::min(flow, e) : std::max(flow, e);  // the valve closes at the setpoint
+    if (flow * e > 0.0) flow = e > 0.0 ? std::min(flow, e) : std::max(flow, e);  // not past the setpoint
     const double g = 1.0 + y * (p[kA1] + y * p[kA2]);
     const double motion = p[kPoly] * a * swell * g * s[kV] * h / cap;
     return std::max(P + flow - motion, vac);
