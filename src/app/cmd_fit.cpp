@@ -70,15 +70,18 @@ class FitCommand final : public Command {
       std::fprintf(stderr, "fitting %s (%d parameters) to %zu samples of %s, Ts = %g s\n", structure.describe().c_str(),
                    structure.numParams() - 1, m.size(), data.c_str(), m.Ts);
     int last = 0;
-    const auto r = ident::fit(structure, m, fs, [&](const char* stage, int it, double rmse) {
-      if (quiet) return;
-      if (std::string(stage) == "ga" && (it == 1 || it - last >= 10)) {
-        last = it;
-        std::fprintf(stderr, "  GA generation %4d  best RMSE %.6g\n", it, rmse);
-      } else if (std::string(stage) == "refine") {
-        std::fprintf(stderr, "  refined  RMSE %.6g\n", rmse);
-      }
-    }, start ? &*start : nullptr);
+    const auto r = ident::fit(
+        structure, m, fs,
+        [&](const char* stage, int it, double rmse) {
+          if (quiet) return;
+          if (std::string(stage) == "ga" && (it == 1 || it - last >= 10)) {
+            last = it;
+            std::fprintf(stderr, "  GA generation %4d  best RMSE %.6g\n", it, rmse);
+          } else if (std::string(stage) == "refine") {
+            std::fprintf(stderr, "  refined  RMSE %.6g\n", rmse);
+          }
+        },
+        start ? &*start : nullptr);
     const auto specs = r.model.paramSpecs();
     const auto p = r.model.params();
     std::printf("model: %s\n", r.model.describe().c_str());

@@ -19,6 +19,20 @@ namespace pamc::oracle {
 // ---------------------------------------------------------------------------------------------
 // Effects: names, parameters and bounds as pamc's catalogue (for a 40 mm / 10 V / 1 kHz rig).
 
+namespace {
+// The payload's force balance: muscle_balance's parameters, and pneumatic_balance's first ones.
+std::vector<ParamInfo> balanceParams() {
+  return {{"fn", 0.2, 100.0, 10.0}, {"zeta", 0.01, 3.0, 0.5}, {"w", -100.0, 100.0, 0.0},    {"L", 5.0, 1e4, 1e4},
+          {"f0", 0.0, 10.0, 0.0},   {"fp", 0.0, 0.2, 0.0},    {"k_slip", 0.01, 100.0, 1.0}, {"spread", 1.0, 100.0, 1.0},
+          {"lo", -1e9, 1e9, -1e9},  {"hi", -1e9, 1e9, 1e9}};
+}
+std::vector<ParamInfo> withBalance(const std::vector<ParamInfo>& more) {
+  auto p = balanceParams();
+  p.insert(p.end(), more.begin(), more.end());
+  return p;
+}
+}  // namespace
+
 const std::vector<EffectInfo>& effectTable() {
   static const std::vector<EffectInfo> t = {
       {"pressure_lag",
@@ -52,38 +66,17 @@ const std::vector<EffectInfo>& effectTable() {
        {{"knee", 0.0, 40.0, 30.0}, {"width", 0.1, 80.0, 10.0}},
        false,
        "displacement flattens above the knee towards knee + width"},
-      {"muscle_balance",
-       {{"fn", 0.2, 100.0, 10.0},
-        {"zeta", 0.01, 3.0, 0.5},
-        {"w", -100.0, 100.0, 0.0},
-        {"L", 5.0, 1e4, 1e4},
-        {"f0", 0.0, 10.0, 0.0},
-        {"fp", 0.0, 0.2, 0.0},
-        {"k_slip", 0.01, 100.0, 1.0},
-        {"spread", 1.0, 100.0, 1.0},
-        {"lo", -1e9, 1e9, -1e9},
-        {"hi", -1e9, 1e9, 1e9}},
-       false,
+      {"muscle_balance", balanceParams(), false,
        "payload's force balance with an exponential force-length map, elastoplastic Maxwell-slip friction whose "
        "levels grow with the pressure, and inelastic end stops"},
       {"pneumatic_balance",
-       {{"fn", 0.2, 100.0, 10.0},
-        {"zeta", 0.01, 3.0, 0.5},
-        {"w", -100.0, 100.0, 0.0},
-        {"L", 5.0, 1e4, 1e4},
-        {"f0", 0.0, 10.0, 0.0},
-        {"fp", 0.0, 0.2, 0.0},
-        {"k_slip", 0.01, 100.0, 1.0},
-        {"spread", 1.0, 100.0, 1.0},
-        {"lo", -1e9, 1e9, -1e9},
-        {"hi", -1e9, 1e9, 1e9},
-        {"rate", 10.0, 1e5, 1000.0},
-        {"vent", 0.05, 20.0, 1.0},
-        {"band", 0.01, 100.0, 1.0},
-        {"span", 0.5, 500.0, 14.0},
-        {"supply", 1.0, 2000.0, 100.0},
-        {"swell", 0.0, 0.2, 0.0},
-        {"n", 1.0, 1.4, 1.3}},
+       withBalance({{"rate", 10.0, 1e5, 1000.0},
+                    {"vent", 0.05, 20.0, 1.0},
+                    {"band", 0.01, 100.0, 1.0},
+                    {"span", 0.5, 500.0, 14.0},
+                    {"supply", 1.0, 2000.0, 100.0},
+                    {"swell", 0.0, 0.2, 0.0},
+                    {"n", 1.0, 1.4, 1.3}}),
        false,
        "muscle_balance driven by the muscle's own pressure: a regulator fills it from the supply and vents it to "
        "the atmosphere through isentropic nozzles, polytropic air in a volume that grows with the contraction"},

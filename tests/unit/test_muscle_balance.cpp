@@ -11,44 +11,17 @@
 #include <vector>
 
 #include "diagnose/diagnosis.hpp"
+#include "../common/effect_alone.hpp"
 #include "model/model.hpp"
 
 using namespace pamc;
 
 namespace {
 
-constexpr double kTs = 1e-3;
-
-// y = the effect alone: a core with rho = 1, k = 1, b = 0 passes the input through.
-model::Model alone(const std::string& effect, const std::map<std::string, double>& params) {
-  model::Model m({1.0, 1.0, 0.0, 1.0, 0.3, 0.3});
-  m.addEffect(effect);
-  for (const auto& [k, v] : params) m.setEffectParam(effect, k, v);
-  return m;
-}
-
-// Random ramps and holds over [lo, hi], reproducible.
-std::vector<double> rampsAndHolds(double lo, double hi, size_t n, unsigned seed) {
-  std::vector<double> u(n);
-  unsigned s = seed;
-  auto next = [&s] { return (s = s * 1103515245u + 12345u) / 4294967296.0; };
-  double v = 0.5 * (lo + hi), target = v, rate = 0.0;
-  for (size_t i = 0; i < n; ++i) {
-    if (std::fabs(target - v) < 1e-9 && next() < 0.002) {
-      target = lo + (hi - lo) * next();
-      rate = (0.5 + 20.0 * next()) * kTs;
-    }
-    v += std::clamp(target - v, -rate, rate);
-    u[i] = v;
-  }
-  return u;
-}
-
-double rms(const std::vector<double>& a, const std::vector<double>& b) {
-  double s = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) s += (a[i] - b[i]) * (a[i] - b[i]);
-  return std::sqrt(s / static_cast<double>(a.size()));
-}
+constexpr double kTs = test::kEffectTs;
+using test::alone;
+using test::rampsAndHolds;
+using test::rms;
 
 // The balance's static position without friction, (in + w)(1 + a1 y + a2 y^2) - w - y = 0, by bisection.
 double staticPosition(double in, double w, double a1, double a2) {

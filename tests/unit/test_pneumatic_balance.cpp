@@ -10,43 +10,17 @@
 #include <string>
 #include <vector>
 
+#include "../common/effect_alone.hpp"
 #include "model/model.hpp"
 
 using namespace pamc;
 
 namespace {
 
-constexpr double kTs = 1e-3;
-
-// y = the effect alone: a core with rho = 1, k = 1, b = 0 passes the input through.
-model::Model alone(const std::string& effect, const std::map<std::string, double>& params) {
-  model::Model m({1.0, 1.0, 0.0, 1.0, 0.3, 0.3});
-  m.addEffect(effect);
-  for (const auto& [k, v] : params) m.setEffectParam(effect, k, v);
-  return m;
-}
-
-std::vector<double> rampsAndHolds(double lo, double hi, size_t n, unsigned seed) {
-  std::vector<double> u(n);
-  unsigned s = seed;
-  auto next = [&s] { return (s = s * 1103515245u + 12345u) / 4294967296.0; };
-  double v = 0.5 * (lo + hi), target = v, rate = 0.0;
-  for (size_t i = 0; i < n; ++i) {
-    if (std::fabs(target - v) < 1e-9 && next() < 0.002) {
-      target = lo + (hi - lo) * next();
-      rate = (0.5 + 20.0 * next()) * kTs;
-    }
-    v += std::clamp(target - v, -rate, rate);
-    u[i] = v;
-  }
-  return u;
-}
-
-double rms(const std::vector<double>& a, const std::vector<double>& b) {
-  double s = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) s += (a[i] - b[i]) * (a[i] - b[i]);
-  return std::sqrt(s / static_cast<double>(a.size()));
-}
+constexpr double kTs = test::kEffectTs;
+using test::alone;
+using test::rampsAndHolds;
+using test::rms;
 
 // A payload much faster than the pressure, without friction, map or volume change: y follows the pressure
 // within a few milliseconds, so the pressure's own law is read off y.
@@ -68,9 +42,9 @@ std::vector<double> stepInput(double from, double to, size_t n) {
 // outside the motion) and no volume change it is muscle_balance.
 TEST(PneumaticBalance, WithAValveThatFollowsAtOnceItIsMuscleBalance) {
   const auto u = rampsAndHolds(0.0, 30.0, 20000, 7);
-  const std::map<std::string, double> balance = {{"fn", 5.0}, {"zeta", 0.5}, {"zmax", 0.6}, {"delta", 0.3},
-                                                 {"w", 20.0}, {"a1", -0.01}, {"a2", 5e-5}, {"zp", 0.03},
-                                                 {"spread", 4.0}, {"lo", -1.0}, {"hi", 28.0}};
+  const std::map<std::string, double> balance = {{"fn", 5.0},     {"zeta", 0.5}, {"zmax", 0.6}, {"delta", 0.3},
+                                                 {"w", 20.0},     {"a1", -0.01}, {"a2", 5e-5},  {"zp", 0.03},
+                                                 {"spread", 4.0}, {"lo", -1.0},  {"hi", 28.0}};
   auto fast = balance;
   fast.insert({{"rate", 1e5}, {"band", 0.01}, {"span", 10.0}, {"supply", 1900.0}, {"swell", 0.0}});
   const auto y_mb = alone("muscle_balance", balance).simulate(u, kTs);
@@ -82,22 +56,23 @@ TEST(PneumaticBalance, WithAValveThatFollowsAtOnceItIsMuscleBalance) {
 // near the supply it slows and stops short of a setpoint above the supply.
 TEST(PneumaticBalance, ChokedFillingRunsAtItsRateAndSlowsNearTheSupply) {
   const double rate = 200.0, span = 10.0, supply = 30.0;  // absolute: 10 .. 40 (w = 0: gauge zero at 0)
-  const auto m = alone("pneumatic_balance", fastPayload({{"rate", rate}, {"band", 0.01}, {"span", span},
-                                                          {"supply", supply}, {"b", 0.5}}));
+  const auto m = alone("pneumatic_balance",
+                       fastPayload({{"rate", rate}, {"band", 0.01}, {"span", span}, {"supply", supply}, {"b", 0.5}}));
   const auto y = m.simulate(stepInput(0.0, 50.0, 600), kTs);
   // Choked while the absolute pressure is below 0.5 * 40 = 20, i.e. y below 10: a straight ramp.
   const double slope = (y[230] - y[220]) / (10 * kTs);
   EXPECT_NEAR(slope, rate, 0.02 * rate) << y[220] << " " << y[230];
-  EXPECT_LT(y[599], supply);                      // never past the supply
-  EXPECT_GT(y[599], supply - 1.0);                // but close to it
+  EXPECT_LT(y[599], supply);                          // never past the supply
+  EXPECT_GT(y[599], supply - 1.0);                    // but close to it
   EXPECT_LT(y[420] - y[410], 0.5 * rate * 10 * kTs);  // slower near it
 }
 
 // Choked, venting is an exponential approach: the absolute pressure a falls as a' = -rate vent a / a_sup.
 TEST(PneumaticBalance, ChokedVentingFallsExponentiallyWithTheAbsolutePressure) {
   const double rate = 100.0, vent = 2.0, span = 5.0, supply = 95.0;  // a_sup = 100
-  const auto m = alone("pneumatic_balance", fastPayload({{"rate", rate}, {"vent", vent}, {"band", 0.01},
-                                                          {"span", span}, {"supply", supply}, {"b", 0.3}}));
+  const auto m = alone(
+      "pneumatic_balance",
+      fastPayload({{"rate", rate}, {"vent", vent}, {"band", 0.01}, {"span", span}, {"supply", supply}, {"b", 0.3}}));
   const auto y = m.simulate(stepInput(80.0, 0.0, 800), kTs);
   // Choked while span / a < 0.3, a > 16.7 (y > 11.7). Between y = 70 and y = 25 the log of a falls linearly.
   auto timeAt = [&](double level) {
@@ -116,8 +91,8 @@ TEST(PneumaticBalance, ChokedVentingFallsExponentiallyWithTheAbsolutePressure) {
 // The volume grows as the muscle contracts: the same valve fills it slower, and the position still
 // settles where the map balances.
 TEST(PneumaticBalance, ALargerVolumeFillsSlowerAndSettlesAlike) {
-  std::map<std::string, double> p = {{"fn", 4.0},   {"zeta", 0.6}, {"zmax", 0.0},  {"w", 20.0},  {"a1", -0.01},
-                                     {"rate", 300}, {"band", 2.0}, {"span", 30}, {"supply", 200}};
+  std::map<std::string, double> p = {{"fn", 4.0},   {"zeta", 0.6}, {"zmax", 0.0}, {"w", 20.0},    {"a1", -0.01},
+                                     {"rate", 300}, {"band", 2.0}, {"span", 30},  {"supply", 200}};
   const auto u = stepInput(2.0, 25.0, 2500);
   const auto y0 = alone("pneumatic_balance", p).simulate(u, kTs);
   p["swell"] = 0.05;
@@ -139,7 +114,7 @@ TEST(PneumaticBalance, ALargerVolumeFillsSlowerAndSettlesAlike) {
 TEST(PneumaticBalance, TheGuidesFrictionDoesNotGrowWithThePressure) {
   const double zc = 0.4;
   auto branchGap = [&](const std::map<std::string, double>& extra, double level) {
-    std::map<std::string, double> p = {{"fn", 50.0}, {"zeta", 1.0}, {"zmax", 0.0}, {"w", 10.0}, {"rate", 1e5},
+    std::map<std::string, double> p = {{"fn", 50.0},   {"zeta", 1.0},  {"zmax", 0.0},      {"w", 10.0}, {"rate", 1e5},
                                        {"band", 0.01}, {"span", 10.0}, {"supply", 1900.0}, {"dc", 0.01}};
     for (const auto& [k, v] : extra) p[k] = v;
     std::vector<double> u(200000);
@@ -162,8 +137,9 @@ TEST(PneumaticBalance, TheGuidesFrictionDoesNotGrowWithThePressure) {
 TEST(PneumaticBalance, TheOpeningsLagDelaysTheFilling) {
   const double lag = 0.01;
   auto timeTo = [&](double lag_s) {
-    const auto m = alone("pneumatic_balance", fastPayload({{"rate", 200.0}, {"band", 0.01}, {"span", 10.0},
-                                                            {"supply", 30.0}, {"b", 0.5}, {"lag", lag_s}}));
+    const auto m = alone(
+        "pneumatic_balance",
+        fastPayload({{"rate", 200.0}, {"band", 0.01}, {"span", 10.0}, {"supply", 30.0}, {"b", 0.5}, {"lag", lag_s}}));
     const auto y = m.simulate(stepInput(0.0, 50.0, 600), kTs);
     size_t i = 200;
     while (i < y.size() && y[i] < 5.0) ++i;

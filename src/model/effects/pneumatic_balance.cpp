@@ -3,7 +3,7 @@
 // sides, into a volume that grows as the muscle contracts. The balance's force comes from that pressure P,
 // not from the setpoint in (the stage input, the static displacement the setpoint's pressure would give):
 //
-//   x  = clamp((in - P) / band, -1, 1)                    the regulator's opening (its proportional band)
+//   x -> clamp((in - P) / band, -1, 1)  (lag)             the regulator's opening (its proportional band)
 //   q  = x rate phi(a / a_sup)                (x > 0)      filling from the supply
 //   q  = x rate vent (a / a_sup) phi(a_atm / a)  (x < 0)   venting to the atmosphere
 //   P' = (q - n a swell g(y) y') / (1 + swell G(y))       the volume grows with the contraction y: a larger
@@ -12,11 +12,11 @@
 //
 // Every pressure is in the balance's units (the static displacement its force would give, as in), where
 // P + w is the gauge pressure's force (muscle_balance): a = P + w + span is the absolute pressure (span:
-// the atmosphere's), a_sup = supply + span (supply: the supply's gauge pressure), a_atm = span. phi(r) is an orifice's flow function of
-// the downstream-to-upstream ratio r: choked (1) up to the critical ratio b, then the subsonic ellipse
-// sqrt(1 - ((r - b) / (1 - b))^2) down to 0 at r = 1 (ISO 6358's form; b fitted, it stands as well for a
-// nozzle's law, b = 0.528, or a sharp-edged orifice's lower ratio), linear in the pressure difference over
-// the last kLaminar of the ratio, where the ellipse's slope grows without bound.
+// the atmosphere's), a_sup = supply + span (supply: the supply's gauge pressure), a_atm = span. phi(r)
+// is an orifice's flow function of the downstream-to-upstream ratio r: choked (1) up to the critical ratio b, then the
+// subsonic ellipse sqrt(1 - ((r - b) / (1 - b))^2) down to 0 at r = 1 (ISO 6358's form; b fitted, it stands as well for
+// a nozzle's law, b = 0.528, or a sharp-edged orifice's lower ratio), linear in the pressure difference over the last
+// kLaminar of the ratio, where the ellipse's slope grows without bound.
 //
 // The volume: a muscle's force is its gauge pressure times the volume it gains per unit of contraction
 // (F = p dV/dy, the virtual work of an ideal muscle), so the balance's force-length map g is the shape of
@@ -51,7 +51,20 @@ using namespace balance;
 constexpr double kLaminar = 0.01;  // the last fraction of the pressure ratio, where the flow is linear in it
 
 // Parameter indices after the balance's; the pressure's state after the balance's states.
-enum : int { kRate = kNumParams, kVent, kBand, kSpan, kSupply, kCritical, kSwell, kPoly, kLag, kGuide, kGuideTravel, kAllParams };
+enum : int {
+  kRate = kNumParams,
+  kVent,
+  kBand,
+  kSpan,
+  kSupply,
+  kCritical,
+  kSwell,
+  kPoly,
+  kLag,
+  kGuide,
+  kGuideTravel,
+  kAllParams
+};
 enum : int { kP = kNumStates, kOpening, kGuideZ, kAllStates };
 
 // An orifice's flow function of the pressure ratio r (downstream over upstream), 0..1.
@@ -86,12 +99,12 @@ class PneumaticBalance final : public MuscleBalance {
       v.push_back({"band", 0.01, 100.0, 5.0, "y-unit"});      // setpoint error that opens the valve fully
       v.push_back({"span", 0.5, 500.0, 25.0, "y-unit"});      // the atmosphere's absolute pressure
       v.push_back({"supply", 1.0, 2000.0, 200.0, "y-unit"});  // the supply's gauge pressure
-      v.push_back({"b", 0.0, 0.9, 0.3, "-"});               // the orifices' critical pressure ratio
-      v.push_back({"swell", 0.0, 0.2, 0.0, "1/y-unit"});  // the volume's growth per unit of contraction
-      v.push_back({"n", 1.0, 1.4, 1.2, "-"});             // the air's polytropic index
-      v.push_back({"lag", 0.0, 0.05, 0.0, "s"});          // the regulator's opening: its time constant
-      v.push_back({"zc", 0.0, 10.0, 0.0, "y-unit"});      // the guide's friction, not pressed by the pressure
-      v.push_back({"dc", 0.001, 2.0, 0.05, "y-unit"});    // ... its pre-sliding travel
+      v.push_back({"b", 0.0, 0.9, 0.3, "-"});                 // the orifices' critical pressure ratio
+      v.push_back({"swell", 0.0, 0.2, 0.0, "1/y-unit"});      // the volume's growth per unit of contraction
+      v.push_back({"n", 1.0, 1.4, 1.2, "-"});                 // the air's polytropic index
+      v.push_back({"lag", 0.0, 0.05, 0.0, "s"});              // the regulator's opening: its time constant
+      v.push_back({"zc", 0.0, 10.0, 0.0, "y-unit"});          // the guide's friction, not pressed by the pressure
+      v.push_back({"dc", 0.001, 2.0, 0.05, "y-unit"});        // ... its pre-sliding travel
       return v;
     }();
     return p;
