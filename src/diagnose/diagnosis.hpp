@@ -92,6 +92,7 @@ class Diagnosis {
   // The rung with `effect` in its richer form, when that lowers the validated RMSE by min_gain.
   std::optional<Rung> tryRefinement(const std::string& effect, const std::string& richer);
   void searchByGa(CandidateResult& c, const model::Model& base) const;
+  bool searchAlong(CandidateResult& c, const std::string& richer) const;
   void directions();
   void probes();
   // diagnose_probes.cpp: the probes on top of the final model and in the place of its effects.

@@ -81,6 +81,13 @@ class Effect {
   // turns a larger static displacement into the stroke - on the physics plant 4.5x the output's slope
   // per volt, past the box of 4x that fits every other chain.
   virtual double coreReach() const { return 1.0; }
+  // A direction of the parameters that the forms it refines leave unidentified and along which the static
+  // map stays (pneumatic_balance: the pressure's force s times larger, the balance's weight moved to keep
+  // the map - muscle_balance's map cannot tell s apart, the pressure's dynamics can). Rewrites p for a stage
+  // input scaled by s (the core's gain and offset go with it), given the stage input's range [lo, hi] on the
+  // record; false when the effect has no such direction or it is not defined at p. Diagnose's refinement
+  // searches the richer form from points along it (Diagnosis::searchAlong).
+  virtual bool scaleAlong(double /*s*/, double /*lo*/, double /*hi*/, double* /*p*/) const { return false; }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }
   // Whether the effect has a direction-dependent version ("<name>_updown": separate parameters for a

@@ -147,3 +147,34 @@ TEST(PneumaticBalance, TheOpeningsLagDelaysTheFilling) {
   };
   EXPECT_NEAR(timeTo(lag) - timeTo(0.0), lag, 0.2 * lag) << timeTo(0.0) << " " << timeTo(lag);
 }
+
+// Along the direction muscle_balance's map leaves open (Effect::scaleAlong) the rests stay where they
+// were: the stage input scaled by s, the weight moved, the balance settles at the same position at every
+// level - the records' static map cannot tell the two apart, so diagnose searches along it. A map without
+// slope has no such direction.
+TEST(PneumaticBalance, AlongItsDirectionTheRestsStay) {
+  const std::map<std::string, double> params = {{"fn", 5.0},    {"zeta", 0.7},   {"zmax", 0.0},    {"zp", 0.0},
+                                                {"w", 10.0},    {"a1", -0.012},  {"a2", 0.0},      {"rate", 1e4},
+                                                {"band", 0.5},  {"span", 100.0}, {"supply", 900.0}};
+  const auto m = alone("pneumatic_balance", params);
+  std::vector<double> u;
+  for (const double level : {2.0, 10.0, 18.0, 26.0}) u.insert(u.end(), 3000, level);
+  const auto y = m.simulate(u, kTs);
+  for (const double s : {1.5, 2.5}) {
+    std::vector<double> p(m.effectParams(0), m.effectParams(0) + m.effect(0).params().size());
+    ASSERT_TRUE(m.effect(0).scaleAlong(s, 0.0, 30.0, p.data()));
+    model::Model scaled = m;
+    for (size_t q = 0; q < p.size(); ++q) scaled.setEffectParam("pneumatic_balance", m.effect(0).params()[q].name, p[q]);
+    EXPECT_GT(std::fabs(p[4] - 10.0), 5.0) << "the weight moves along the direction";
+    std::vector<double> us(u);
+    for (auto& x : us) x *= s;  // the core's gain scaled with it
+    const auto ys = scaled.simulate(us, kTs);
+    for (size_t end = 2999; end < u.size(); end += 3000)
+      EXPECT_NEAR(ys[end], y[end], 1e-3 * 30.0) << "s " << s << ", level " << u[end];
+  }
+  auto flat = params;
+  flat["a1"] = 0.0;
+  const auto f = alone("pneumatic_balance", flat);
+  std::vector<double> p(f.effectParams(0), f.effectParams(0) + f.effect(0).params().size());
+  EXPECT_FALSE(f.effect(0).scaleAlong(2.0, 0.0, 30.0, p.data()));
+}

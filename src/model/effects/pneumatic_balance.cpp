@@ -109,6 +109,25 @@ class PneumaticBalance final : public MuscleBalance {
     }();
     return p;
   }
+  // Along the direction muscle_balance's static map leaves open: with a2 small, the balance's rest
+  // in + (in + w) a1 y = y keeps its shape for in scaled by s when 1 - a1 w scales by s as well; the
+  // pressure's levels follow - the flow's rate and band with the stage input, the supply and the atmosphere
+  // with the gauge pressure's force (in + w) at the top of the record - and the friction's growth with
+  // the pressure keeps its level at the middle of the record.
+  bool scaleAlong(double s, double lo, double hi, double* p) const override {
+    const double a1 = p[kA1], w = p[kW], c = 1.0 - a1 * w;
+    if (!(std::fabs(a1) > 1e-9) || !(c > 0.0) || !(s > 0.0)) return false;
+    const double w2 = (1.0 - s * c) / a1;
+    const double top = hi + w, top2 = s * hi + w2, mid = 0.5 * (lo + hi) + w, mid2 = 0.5 * s * (lo + hi) + w2;
+    if (!(top > 0.0) || !(top2 > 0.0)) return false;
+    p[kW] = w2;
+    if (mid > 0.0 && mid2 > 0.0) p[kZp] *= mid / mid2;
+    p[kRate] *= s;
+    p[kBand] *= s;
+    p[kSupply] *= top2 / top;
+    p[kSpan] *= top2 / top;
+    return true;
+  }
   int numStates() const override { return kAllStates; }
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
     MuscleBalance::init(p, s, in0, c);
