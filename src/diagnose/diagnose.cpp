@@ -466,6 +466,7 @@ void Diagnosis::verdict() {
 
 // The best probe in words: what it explains and where; at the noise, the effect it fits better than.
 std::string Diagnosis::probeText(bool val_off) const {
+  if (!res_.probes_unresolved.empty()) return " " + res_.probes_unresolved;
   if (res_.probes.empty()) return "";
   const Rung& fin = res_.ladder.back();
   const auto& p = res_.probes.front();

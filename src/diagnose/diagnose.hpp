@@ -88,6 +88,7 @@ struct DiagnoseResult {
   std::vector<std::vector<CandidateResult>> rounds;  // candidates per round, best first
   std::vector<ProbeResult> probes;                   // best first; empty when the catalogue reached the noise
   bool probe_rung = false;                           // the best probe lowers the validated RMSE by min_gain or more
+  std::string probes_unresolved;  // why the probes were not fitted (the screening record cannot resolve the model)
   ResidualReport baseline_residual, final_residual;  // on the training data
   ResidualSpectrum spectrum;                         // of the final model's residual on the training data
   double val_offset = 0;                             // mean of measured - final model on the validation data

@@ -61,6 +61,7 @@ void Diagnosis::probes() {
   }
   if (!s_.probes) return;
   if (fin.rmse_val < kAtNoise * noise_) return alternativesAtTheNoise(fin);
+  if (!screenResolves(fin)) return;
   log("probes: which kind of structure explains what is left of " + join(fin.effects) + " ...");
   auto fits = searchProbes(fin, Placement::OnTopAndInPlace);
   fitTheLine(fin, fits);
@@ -68,6 +69,30 @@ void Diagnosis::probes() {
   preferSimplestProbe();
   probeDirections(fin);
   res_.probe_rung = 1.0 - res_.probes.front().rmse_val / fin.rmse_val >= s_.min_gain;
+}
+
+// The probes are searched on the screening record. Where its decimation moves the final model's own output
+// by more than what is left of the training record (the pressure's fast dynamics under a 4 ms hold of the
+// input: pneumatic_balance on the physics plant's whole stroke, 0.056 mm against 0.042 left), a probe's fit
+// there answers the decimation, not the record - every probe then "explains" nothing. They are not fitted,
+// and the verdict says why (Diagnosis::probeText).
+bool Diagnosis::screenResolves(const Rung& fin) {
+  if (step_ <= 1) return true;
+  const auto full = simulate(fin.model, train_);
+  const auto screened = simulate(fin.model, screen_);
+  double sum = 0.0;
+  for (size_t j = 0; j < screened.size(); ++j) {
+    const double d = screened[j] - full[j * step_];
+    sum += d * d;
+  }
+  const double moved = std::sqrt(sum / static_cast<double>(std::max<size_t>(screened.size(), 1)));
+  if (!(moved > fin.rmse_train)) return true;
+  res_.probes_unresolved = "The probes were not fitted: on the screening record they are searched on (every " +
+                           std::to_string(step_) + "th sample) the final model's own output moves by " +
+                           fmt("%.3g", moved) + " rms, more than what is left of the training record (" +
+                           fmt("%.3g", fin.rmse_train) + "); a probe fitted there would answer the decimation.";
+  log("probes: " + res_.probes_unresolved);
+  return false;
 }
 
 // At the noise an effect of the final model may still stand in for a probe's physics in a simpler form:

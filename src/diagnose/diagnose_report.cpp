@@ -68,6 +68,7 @@ nlohmann::json toJson(const DiagnoseResult& r) {
     if (p.symmetric_rmse_val > 0) pj.back()["symmetric_rmse_val"] = p.symmetric_rmse_val;
   }
   j["probes"] = pj;
+  if (!r.probes_unresolved.empty()) j["probes_unresolved"] = r.probes_unresolved;
   j["spectrum"] = toJson(r.spectrum);
   j["model"] = io::modelToJson(r.ladder.back().model);
   j["verdict"] = r.verdict;

@@ -93,12 +93,14 @@ class Diagnosis {
   std::optional<Rung> tryRefinement(const std::string& effect, const std::string& richer);
   void searchByGa(CandidateResult& c, const model::Model& base) const;
   bool searchAlong(CandidateResult& c, const std::string& richer) const;
+  CandidateResult alongStep(const model::Model& start, const std::string& effect) const;
   void directions();
   void probes();
   // diagnose_probes.cpp: the probes on top of the final model and in the place of its effects.
   enum class Placement { OnTopAndInPlace, InPlaceOnly };
   std::vector<CandidateResult> searchProbes(const Rung& fin, Placement where) const;
   void alternativesAtTheNoise(const Rung& fin);
+  bool screenResolves(const Rung& fin);
   void recordProbes(const Rung& fin, const std::vector<CandidateResult>& fits);
   void fitTheLine(const Rung& fin, std::vector<CandidateResult>& fits) const;
   void probeDirections(const Rung& fin);
