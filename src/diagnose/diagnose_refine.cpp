@@ -207,14 +207,8 @@ bool Diagnosis::searchAlong(CandidateResult& c, const std::string& richer) const
 
 // One point of searchAlong's path: a short Levenberg-Marquardt run on all the training samples.
 CandidateResult Diagnosis::alongStep(const model::Model& start, const std::string& effect) const {
-  ident::FitSettings fs = ident::FitSettings::forMethod(ident::FitMethod::MultiStart);
-  fs.ga.threads = threads_;
-  fs.ga.seed = s_.seed;
-  fs.lm_spread_starts = 0;
-  fs.lm_warm_starts = 0;
-  fs.refine_evals = 0;
+  ident::FitSettings fs = singleRun(1e-5);
   fs.lm_iterations = kAlongIterations;
-  fs.lm_tolerance = 1e-5;
   const auto f = ident::fit(start, train_, fs, {}, &start);
   CandidateResult r;
   r.effect = effect;

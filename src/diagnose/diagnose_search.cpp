@@ -32,15 +32,21 @@ bool byValidation(const CandidateResult& a, const CandidateResult& b) { return a
 // has a value to start from, so one Levenberg-Marquardt run from there, whatever the method.
 ident::FitResult Diagnosis::refitOnAll(const model::Model& m) const { return refitOn(m, train_); }
 
-ident::FitResult Diagnosis::refitOn(const model::Model& m, const io::Measurement& data) const {
+// One Levenberg-Marquardt run from the start model, whatever the method: no other starts, no polish.
+ident::FitSettings Diagnosis::singleRun(double tolerance) const {
   ident::FitSettings ps = ident::FitSettings::forMethod(ident::FitMethod::MultiStart);
   ps.ga.threads = threads_;
   ps.ga.seed = s_.seed;
   ps.lm_spread_starts = 0;
   ps.lm_warm_starts = 0;
-  // The screening fit was polished by Nelder-Mead; on all samples Levenberg-Marquardt alone moves it.
   ps.refine_evals = 0;
-  ps.lm_tolerance = 1e-7;
+  ps.lm_tolerance = tolerance;
+  return ps;
+}
+
+ident::FitResult Diagnosis::refitOn(const model::Model& m, const io::Measurement& data) const {
+  // The screening fit was polished by Nelder-Mead; on all samples Levenberg-Marquardt alone moves it.
+  const ident::FitSettings ps = singleRun(1e-7);
   const auto rt = std::chrono::steady_clock::now();
   auto f = ident::fit(m, data, ps, {}, &m);
   log("  refitted on " + std::to_string(data.size()) + " training samples: train " + fmt("%.5g", f.rmse) + " (" +

@@ -125,6 +125,7 @@ class Diagnosis {
   ident::FitResult refitOnAll(const model::Model& m) const;
   std::vector<double> fitCosts(const std::vector<model::Model>& structures) const;
   ident::FitResult refitOn(const model::Model& m, const io::Measurement& data) const;
+  ident::FitSettings singleRun(double tolerance) const;
   void refitIfBetter(CandidateResult& c) const;
   std::vector<CandidateResult> fitEach(const std::vector<model::Model>& structures, const model::Model& base_model,
                                        const std::vector<std::string>& names, int round, const ResidualReport& rr,
