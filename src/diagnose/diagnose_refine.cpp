@@ -176,14 +176,14 @@ std::optional<model::Model> scaledAlong(const model::Model& m, const std::string
 // along it instead of by the GA over its whole box: the quick fit from the simpler form's stays where that
 // form put the direction, and the GA over 27 parameters ends far worse (pneumatic_balance on the physics
 // plant's whole stroke: 2.5 mm validated by the GA, 0.044 along the direction; on the oracle's whole-stroke
-// case 1.1 and 0.037). A path of kAlongSteps steps,
-// each a short Levenberg-Marquardt run from the fit before it moved one step along the direction (a start
-// moved far from the quick fit at once is a millimetre off and its run ends anywhere; going on from the
-// best point so far instead of the last ended at 0.15 mm on the physics plant's record at seed 1, 0.044
-// from the last; the same at seeds 2 and 3); each on all the training samples - the
-// screening record's 4 ms hold of the input moves the pressure's fast dynamics (the plant's own
-// parameters: 0.035 mm validated at 1 kHz, 0.094 at 250 Hz). The best point of the path, by validated
-// RMSE, is kept when better (tryRefinement refits it to convergence). False when the form has no such direction.
+// case 1.1 and 0.037). The path has kAlongSteps steps, each a short Levenberg-Marquardt run from the fit
+// before it moved one step along the direction. A start moved far from the quick fit at once is a
+// millimetre off and its run ends anywhere; going on from the best point so far instead of the last ended
+// at 0.15 mm on the physics plant's record at seed 1 (0.044 from the last), the same at seeds 2 and 3.
+// Each run is on all the training samples: the screening record's 4 ms hold of the input moves the
+// pressure's fast dynamics (the plant's own parameters: 0.035 mm validated at 1 kHz, 0.094 at 250 Hz).
+// The best point of the path, by validated RMSE, is kept when better (tryRefinement refits it to
+// convergence). False when the form has no such direction.
 bool Diagnosis::searchAlong(CandidateResult& c, const std::string& richer) const {
   const auto t = std::chrono::steady_clock::now();
   std::optional<CandidateResult> best;
