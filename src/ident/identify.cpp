@@ -18,6 +18,23 @@ double range(const std::vector<double>& v) {
   const auto [a, b] = std::minmax_element(v.begin(), v.end());
   return *b - *a;
 }
+
+// Whether the record rests at its lowest (highest) output: at least kRestShare of its samples within
+// kRestBand of the range from that extreme (chosen: records of the physics plant that lie on a stop hold
+// 3.8-4.4 % of their samples there, those that only turn at their extreme 0.02-0.04 %; the oracle's
+// whole-stroke case touches its top stop with 0.6 %, and a first choice of 1 % lost that stop).
+constexpr double kRestShare = 0.002;
+constexpr double kRestBand = 0.002;
+std::pair<bool, bool> restsAtExtremes(const std::vector<double>& y, double ymin, double ymax) {
+  const double band = kRestBand * (ymax - ymin);
+  size_t low = 0, high = 0;
+  for (double v : y) {
+    low += v <= ymin + band;
+    high += v >= ymax - band;
+  }
+  const double need = kRestShare * static_cast<double>(y.size());
+  return {static_cast<double>(low) >= need, static_cast<double>(high) >= need};
+}
 }  // namespace
 
 Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
@@ -52,6 +69,7 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   // Effect parameters: the catalogue's bounds are written for a 40 mm / 10 V rig at 1 kHz; scale
   // them to this data by their unit so any units and sample rate work.
   const double duration = d.Ts * static_cast<double>(d.size());
+  const auto rests = restsAtExtremes(d.y, *ymin, *ymax);
   const auto [umin, umax_] = std::minmax_element(d.u.begin(), d.u.end());
   const auto* load = d.column("load");
   const double rl = load ? std::max(range(*load), 1e-12) : 1.0;
@@ -72,6 +90,13 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
       // A level outside the data's range is indistinguishable from no effect (flat cost).
       lo = *ymin;
       hi = *ymax;
+    } else if (u == "y-stop") {
+      // An end stop: at the record's extreme where the record rests on it, else a range beyond it. A stop
+      // the record never reaches is none; kept within the data it clipped the model at the record's
+      // extreme (the calibrated physics plant's whole-stroke record turns at 33.1 mm, its validation
+      // record goes on to 35.05: muscle_balance validated 0.65 mm with its stop there, 0.22 mm without).
+      lo = rests.first ? *ymin : *ymin - ry;
+      hi = rests.second ? *ymax : *ymax + ry;
     } else if (u == "u-unit") {
       lo *= ru / 10.0;
       hi *= ru / 10.0;

@@ -22,6 +22,7 @@ enum class Stage { Input, Output };
 // Units say how identification bounds follow the data (ident::dataBounds):
 //  "s" time (clamped to the sample time and record length), "Hz" frequency, "y-unit" a size in
 //  output units (scaled with the output's range), "y-level" an output level (within its range),
+//  "y-stop" an end stop (at an extreme the record rests on, else a range beyond the data: none),
 //  "u-unit" a size in input units, "u-level" an input level, "u-unit/s" an input rate,
 //  "y-unit/load-unit" a compliance, "1/y-unit" and "1/y-unit^2" a curve's slope and curvature per output
 //  unit, "-" dimensionless (bounds as given).

@@ -1,6 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "ident/identify.hpp"
 
@@ -120,4 +124,46 @@ TEST(Optimize, NelderMeadFindsRosenbrockMinimum) {
   const auto r = ident::nelderMead(f, {-1.0, 2.0}, {-3, -3}, {3, 3}, 5000);
   EXPECT_NEAR(r.x[0], 1.0, 1e-3);
   EXPECT_NEAR(r.x[1], 1.0, 2e-3);
+}
+
+namespace {
+// The search's box of the parameter `name` of the model's effects on a record with output y.
+std::pair<double, double> boxOf(const model::Model& m, const std::vector<double>& y, const std::string& name) {
+  io::Measurement d;
+  d.Ts = 1e-3;
+  for (size_t i = 0; i < y.size(); ++i) {
+    d.t.push_back(static_cast<double>(i) * d.Ts);
+    d.u.push_back(std::sin(0.001 * static_cast<double>(i)));
+  }
+  d.y = y;
+  const auto specs = m.paramSpecs();
+  const auto b = ident::dataBounds(m, d);
+  for (size_t i = 0; i < specs.size(); ++i)
+    if (specs[i].name == name) return {b.lo[i], b.hi[i]};
+  ADD_FAILURE() << "no parameter " << name;
+  return {0.0, 0.0};
+}
+}  // namespace
+
+// An end stop is searched at an extreme the record rests on, and a range beyond one it only turns at: a
+// stop the record never reaches is none, not a clip at the record's top (a validation record that goes
+// further would be cut there).
+TEST(Identification, AStopIsSearchedOnlyWhereTheRecordRestsOnIt) {
+  model::Model m;
+  m.addEffect("muscle_balance");
+  std::vector<double> lies_low, lies_high;
+  for (int i = 0; i < 20000; ++i) {
+    const double phase = std::fmod(i * 1e-3, 10.0) / 10.0;  // a triangle between -20 and 20, period 10 s
+    const double s = 80.0 * std::fabs(phase - 0.5) - 20.0;
+    lies_low.push_back(std::max(s, 0.0));          // on a stop at 0 half the time, turns at 20
+    lies_high.push_back(std::min(s, 15.0) + 20.0); // turns at 0, on a stop at 35 a third of the time
+  }
+  for (const char* p : {"muscle_balance.lo", "muscle_balance.hi"}) {
+    const auto low = boxOf(m, lies_low, p);
+    EXPECT_DOUBLE_EQ(low.first, 0.0) << p;   // the stop the record rests on: its lowest output
+    EXPECT_DOUBLE_EQ(low.second, 40.0) << p; // none at the top: a range beyond
+    const auto high = boxOf(m, lies_high, p);
+    EXPECT_DOUBLE_EQ(high.first, -35.0) << p;
+    EXPECT_DOUBLE_EQ(high.second, 35.0) << p;
+  }
 }

@@ -6,11 +6,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
+#include <string>
 
 #include "control/controller.hpp"
 #include "control/controller_parts.hpp"
 #include "control/trajectory.hpp"
 #include "ident/identify.hpp"
+#include "io/model_file.hpp"
 #include "plant/plant.hpp"
 #include "sim/experiments.hpp"
 #include "sim/lockstep.hpp"
@@ -67,6 +70,34 @@ sim::ClosedLoopRun triangle() {
   return run;
 }
 
+// The MBC with `cfg` on the physics plant, tracking the paper's triangle from rest, one cycle per step().
+class MbcOnTriangle {
+ public:
+  explicit MbcOnTriangle(const control::ControllerConfig& cfg)
+      : c_(control::makeController(control::Kind::Mbc, cfg)),
+        p_(sim::paperPlant()),
+        traj_(control::Trajectory::triangle(0.05, 0.2, 30.0)),
+        ahead_(c_->lookahead()) {
+    p_.reset(0.0);
+    c_->activate(0.0, p_.measure());
+  }
+  // Cycle k: the position measured (y), the controller's output, the plant moved by it.
+  control::ControlOutput step(int k, double& y) {
+    y = p_.measure();
+    const auto o = c_->update(traj_.at(k * 1e-3), aheadAt(k), y);
+    p_.step(o.u, 0.0);
+    return o;
+  }
+  double aheadAt(int k) const { return traj_.at((k + ahead_) * 1e-3); }
+  double setpointAt(int k) const { return traj_.at(k * 1e-3); }
+
+ private:
+  std::unique_ptr<control::Controller> c_;
+  plant::Plant p_;
+  control::Trajectory traj_;
+  int ahead_;
+};
+
 }  // namespace
 
 // The physics plant's triangle (the paper's 0.05 Hz, 0.2-30 mm) with models fitted on one whole-stroke
@@ -100,18 +131,13 @@ TEST(Mbc, OutsideTheModelsRangeThePiRunsAloneAndTheSwitchIsBumpless) {
   m.setRange(r);
   control::ControllerConfig cfg;
   cfg.model = m;
-  auto c = control::makeController(control::Kind::Mbc, cfg);
-  plant::Plant p(sim::paperPlant());
-  const auto traj = control::Trajectory::triangle(0.05, 0.2, 30.0);
-  const int ahead = c->lookahead();
-  p.reset(0.0);
-  c->activate(0.0, p.measure());
+  MbcOnTriangle loop(cfg);
   int off = 0, on = 0, switches = 0;
-  double u_prev = 0.0, worst_jump_at_switch = 0.0;
+  double u_prev = 0.0, worst_jump_at_switch = 0.0, y = 0.0;
   bool was_on = false;
   for (int k = 0; k < 20000; ++k) {
-    const double yd = traj.at(k * 1e-3), yd_ahead = traj.at((k + ahead) * 1e-3);
-    const auto o = c->update(yd, yd_ahead, p.measure());
+    const double yd_ahead = loop.aheadAt(k);
+    const auto o = loop.step(k, y);
     ASSERT_TRUE(std::isfinite(o.u));
     const bool is_on = o.u_c != 0.0;
     if (yd_ahead < 9.0 || yd_ahead > 21.0) {
@@ -122,7 +148,6 @@ TEST(Mbc, OutsideTheModelsRangeThePiRunsAloneAndTheSwitchIsBumpless) {
       ++switches, worst_jump_at_switch = std::max(worst_jump_at_switch, std::fabs(o.u - u_prev));
     was_on = is_on;
     u_prev = o.u;
-    p.step(o.u, 0.0);
   }
   EXPECT_GT(on, 2000);
   EXPECT_GT(off, 2000);
@@ -134,9 +159,9 @@ TEST(Mbc, OutsideTheModelsRangeThePiRunsAloneAndTheSwitchIsBumpless) {
 // stroke, and a model that is plainly wrong (its gain a tenth of the plant's): every command finite, no
 // cycle reports the estimator as failed. The narrow model falls back to the PI where it does not hold and
 // costs at most 1.05x the PI's error. The wrong one is inside its range everywhere and is trusted: it was to
-// stay within twice the PI's error and does not (0.76 against 0.31 mm with the default error filter, 0.39
-// with a 0.5 s filter) - printed, a known miss (docs/CONTROL.md): nothing in the MBC yet tells a model that is
-// wrong where it claims to hold.
+// stay within twice the PI's error and does not (0.82 against 0.31 mm with the default error filter; 0.76
+// before its filter's lost cycles were left out of the modelling error) - printed, a known miss
+// (docs/CONTROL.md): nothing in the MBC yet tells a model that is wrong where it claims to hold.
 TEST(Mbc, AModelUsedWhereItDoesNotHoldDoesNotCostTheRun) {
   const auto run = triangle();
   const double pi = rmseFrom(track(control::Kind::PI, fitted({}), run), 1.0);
@@ -171,6 +196,29 @@ TEST(Mbc, AModelUsedWhereItDoesNotHoldDoesNotCostTheRun) {
       EXPECT_LE(std::sqrt(s / n), 1.05 * pi);
     }
   }
+}
+
+// A model the UKF cannot carry: pneumatic_balance as `pamc diagnose` found it on the calibrated physics
+// plant's whole-stroke record (tools/mbc_table.py's final model, validated 0.095 mm, tests/data/models).
+// The filter loses the plant - its posterior sticks at the model's rest and misses the position by
+// millimetres - and a modelling error followed from it aimed the feedforward 5 mm off when it came back in:
+// a 22.8 mm excursion on the triangle. Not followed while the posterior misses the position by more than
+// 1 mm, the loop stays on the triangle: every command finite, no error above 5 mm (chosen: a sixth of the
+// stroke; the PI's own largest is 1.2 mm).
+TEST(Mbc, AModelItsEstimatorCannotCarryDoesNotThrowThePayload) {
+  const model::Model m =
+      io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json");
+  const auto r = track(control::Kind::Mbc, m, triangle());
+  int lost = 0;
+  double worst = 0.0;
+  for (size_t i = 0; i < r.t.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(r.u[i])) << i;
+    if (std::fabs(r.y_hat[i] - r.y[i]) > 1.0) ++lost;
+    if (r.t[i] >= 1.0) worst = std::max(worst, std::fabs(r.yd[i] - r.y[i]));
+  }
+  std::printf("lost %d, largest error %.3f mm\n", lost, worst);
+  EXPECT_GT(lost, 1000);  // the filter does lose the plant here
+  EXPECT_LT(worst, 5.0) << "mm";
 }
 
 TEST(Mbc, HorizonIsAboveTheCommandsInFlight) {

@@ -43,8 +43,8 @@ class MuscleBalance : public Effect {
         {"a2", -0.005, 0.005, 0.0, "1/y-unit^2"},  // ... and curvature
         {"zp", 0.0, 0.2, 0.0, "-"},                // friction's growth with the pressure's force
         {"spread", 1.0, 20.0, 1.0, "-"},           // longest over shortest pre-sliding travel
-        {"lo", -1e9, 1e9, -1e9, "y-level"},        // end stops (outside the data: none)
-        {"hi", -1e9, 1e9, 1e9, "y-level"},
+        {"lo", -1e9, 1e9, -1e9, "y-stop"},         // end stops (outside the data: none)
+        {"hi", -1e9, 1e9, 1e9, "y-stop"},
     };
     return p;
   }
