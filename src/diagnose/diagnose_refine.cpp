@@ -25,16 +25,32 @@ bool hasParam(const std::vector<model::ParamSpec>& specs, const std::string& nam
 }
 }  // namespace
 
+namespace {
+
+// The effects whose physics `richer` holds as well: those it absorbs or refines, and theirs, down the chain.
+std::vector<std::string> heldBy(const std::string& richer) {
+  std::vector<std::string> held;
+  std::vector<std::string> open = {richer};
+  while (!open.empty()) {
+    const auto e = model::makeEffect(open.back());
+    open.pop_back();
+    std::vector<std::string> next = e->absorbs();
+    for (const auto& r : e->refines()) next.push_back(r);
+    for (const auto& n : next)
+      if (std::find(held.begin(), held.end(), n) == held.end()) held.push_back(n), open.push_back(n);
+  }
+  return held;
+}
+
+}  // namespace
+
 model::Model withReplacement(const Rung& fin, const std::string& effect, const std::string& by) {
   // The effects whose physics the richer form holds too go with the one it replaces: those it absorbs, and
   // the other ones it refines (muscle_balance in friction_hysteresis's place takes force_loop's as well; a
-  // model refuses both).
+  // model refuses both) - and theirs in turn (pneumatic_balance in pressure_lag's place takes force_loop's,
+  // which muscle_balance refines: the two balances' estimator states exceed what a model may carry).
   std::vector<std::string> gone;
-  if (!by.empty()) {
-    const auto richer = model::makeEffect(by);
-    gone = richer->absorbs();
-    for (const auto& r : richer->refines()) gone.push_back(r);
-  }
+  if (!by.empty()) gone = heldBy(by);
   const auto kept = [&](const std::string& e) { return std::find(gone.begin(), gone.end(), e) == gone.end(); };
   model::Model m(fin.model.core());
   m.setOutputForm(fin.model.outputForm());

@@ -128,3 +128,16 @@ TEST(MuscleBalance, InOneEffectsPlaceItTakesTheOthersItStandsFor) {
   EXPECT_TRUE(m.hasEffect("muscle_balance"));
   for (const char* e : {"saturation", "friction_hysteresis", "force_loop"}) EXPECT_FALSE(m.hasEffect(e)) << e;
 }
+
+// Down the chain as well: pneumatic_balance in pressure_lag's place (a rung the oracle's closed-loop plant
+// gave: pressure_lag + force_loop + saturation) takes force_loop, which muscle_balance refines, and
+// saturation, which it absorbs - with force_loop kept the model would carry four estimator states.
+TEST(MuscleBalance, ARicherFormTakesWhatItsOwnRefinementsStandFor) {
+  diagnose::Rung rung;
+  rung.effects = {"pressure_lag", "force_loop", "saturation"};
+  for (const auto& e : rung.effects) rung.model.addEffect(e);
+  model::Model m;
+  ASSERT_NO_THROW(m = diagnose::detail::withReplacement(rung, "pressure_lag", "pneumatic_balance"));
+  EXPECT_TRUE(m.hasEffect("pneumatic_balance"));
+  for (const char* e : {"pressure_lag", "force_loop", "saturation"}) EXPECT_FALSE(m.hasEffect(e)) << e;
+}
