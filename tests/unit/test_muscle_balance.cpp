@@ -34,6 +34,17 @@ double staticPosition(double in, double w, double a1, double a2) {
   return 0.5 * (lo + hi);
 }
 
+// A rung of `effects` with `effect` refined into `by`: the model is built, and `by` is all that is left.
+void expectAloneInTheirPlace(const std::vector<std::string>& effects, const std::string& effect, const std::string& by) {
+  diagnose::Rung rung;
+  rung.effects = effects;
+  for (const auto& e : rung.effects) rung.model.addEffect(e);
+  model::Model m;
+  ASSERT_NO_THROW(m = diagnose::detail::withReplacement(rung, effect, by));
+  EXPECT_TRUE(m.hasEffect(by));
+  for (const auto& e : effects) EXPECT_FALSE(m.hasEffect(e)) << e;
+}
+
 }  // namespace
 
 // With a straight map, friction that does not grow with the pressure, one break-away level and no stops
@@ -120,24 +131,12 @@ TEST(MuscleBalance, SpreadTravelsRoundTheReversal) {
 // well: a rung of saturation + friction_hysteresis + force_loop (where diagnose ends on the paper's u0
 // record) becomes muscle_balance alone, with no model refusing two alternatives for the same physics.
 TEST(MuscleBalance, InOneEffectsPlaceItTakesTheOthersItStandsFor) {
-  diagnose::Rung rung;
-  rung.effects = {"saturation", "friction_hysteresis", "force_loop"};
-  for (const auto& e : rung.effects) rung.model.addEffect(e);
-  model::Model m;
-  ASSERT_NO_THROW(m = diagnose::detail::withReplacement(rung, "friction_hysteresis", "muscle_balance"));
-  EXPECT_TRUE(m.hasEffect("muscle_balance"));
-  for (const char* e : {"saturation", "friction_hysteresis", "force_loop"}) EXPECT_FALSE(m.hasEffect(e)) << e;
+  expectAloneInTheirPlace({"saturation", "friction_hysteresis", "force_loop"}, "friction_hysteresis", "muscle_balance");
 }
 
 // Down the chain as well: pneumatic_balance in pressure_lag's place (a rung the oracle's closed-loop plant
 // gave: pressure_lag + force_loop + saturation) takes force_loop, which muscle_balance refines, and
 // saturation, which it absorbs - with force_loop kept the model would carry four estimator states.
 TEST(MuscleBalance, ARicherFormTakesWhatItsOwnRefinementsStandFor) {
-  diagnose::Rung rung;
-  rung.effects = {"pressure_lag", "force_loop", "saturation"};
-  for (const auto& e : rung.effects) rung.model.addEffect(e);
-  model::Model m;
-  ASSERT_NO_THROW(m = diagnose::detail::withReplacement(rung, "pressure_lag", "pneumatic_balance"));
-  EXPECT_TRUE(m.hasEffect("pneumatic_balance"));
-  for (const char* e : {"pressure_lag", "force_loop", "saturation"}) EXPECT_FALSE(m.hasEffect(e)) << e;
+  expectAloneInTheirPlace({"pressure_lag", "force_loop", "saturation"}, "pressure_lag", "pneumatic_balance");
 }
