@@ -23,9 +23,6 @@ bool hasParam(const std::vector<model::ParamSpec>& specs, const std::string& nam
     if (p.name == name) return true;
   return false;
 }
-}  // namespace
-
-namespace {
 
 // The effects whose physics `richer` holds as well: those it absorbs or refines, and theirs, down the chain.
 std::vector<std::string> heldBy(const std::string& richer) {
