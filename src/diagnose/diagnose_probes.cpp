@@ -2,6 +2,7 @@
 // the catalogue leaves the validated error above the noise, which kind of structure explains what is left.
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "diagnose/diagnosis.hpp"
 #include "io/text.hpp"
@@ -160,7 +161,12 @@ std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin, Placement 
     }
     for (const auto& e : fin.effects)
       if (p.standsFor(e)) {
-        structures.push_back(withReplacement(fin, e, inThePlaceOf(p, e)));
+        try {
+          structures.push_back(withReplacement(fin, e, inThePlaceOf(p, e)));
+        } catch (const std::invalid_argument& err) {  // a structure a model refuses: not a candidate
+          log(std::string("probe ") + p.name + " for " + e + ": not built (" + err.what() + ")");
+          continue;
+        }
         labels.push_back(std::string(p.name) + " for " + e);
         replaces.push_back(e);
       }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <stdexcept>
 
 #include "diagnose/diagnosis.hpp"
 #include "io/text.hpp"
@@ -269,7 +270,13 @@ std::optional<Rung> Diagnosis::tryRefinement(const std::string& effect, const st
       model::makeEffect(effect)->absorbs().empty())
     return std::nullopt;
   log("refinements: " + effect + " as " + richer + " ...");
-  const model::Model refined = withReplacement(cur, effect, richer);
+  model::Model refined;
+  try {
+    refined = withReplacement(cur, effect, richer);
+  } catch (const std::invalid_argument& e) {  // a structure a model refuses: not a candidate
+    log("  " + effect + " as " + richer + ": not built (" + e.what() + ")");
+    return std::nullopt;
+  }
   const model::Model base = without(refined, richer);
   const int round = static_cast<int>(res_.ladder.size());
   const ResidualReport rr = analyze(train_, simulate(base, train_));

@@ -16,43 +16,61 @@ void ActiveModel::configure(const model::Model& m, const ActiveModelSettings& s,
   Ts_ = Ts;
   ukf_.configure(s.ukf);
   core_.configure(s.ukf);
+  pos_.configure(s.ukf);
   reset(0.0);
 }
 
 template <class F>
 typename F::Mat ActiveModel::P0() const noexcept {
   typename F::Mat P = F::Mat::Identity();  // unused filter states: inert at 1
-  P(0, 0) = settings_.P0_h;
-  P(1, 1) = settings_.P0_f;
-  for (int i = 0; i < nf_ && kCore + i < F::Mat::RowsAtCompileTime; ++i) P(kCore + i, kCore + i) = settings_.P0_out;
+  if constexpr (F::Mat::RowsAtCompileTime == 1) {
+    P(0, 0) = settings_.P0_d;
+  } else {
+    P(0, 0) = settings_.P0_h;
+    P(1, 1) = settings_.P0_f;
+    for (int i = 0; i < nf_ && kCore + i < F::Mat::RowsAtCompileTime; ++i) P(kCore + i, kCore + i) = settings_.P0_out;
+  }
   return P;
 }
 
 template <class F>
 typename F::Mat ActiveModel::Q() const noexcept {
   typename F::Mat Q = F::Mat::Zero();
-  Q(0, 0) = nf_ > 0 ? settings_.Q_h_lag : settings_.Q_h;
-  Q(1, 1) = nf_ > 0 ? settings_.Q_f_lag : settings_.Q_f;
-  for (int i = 0; i < nf_ && kCore + i < F::Mat::RowsAtCompileTime; ++i) Q(kCore + i, kCore + i) = settings_.Q_out;
+  if constexpr (F::Mat::RowsAtCompileTime == 1) {
+    Q(0, 0) = settings_.Q_d;
+  } else {
+    Q(0, 0) = nf_ > 0 ? settings_.Q_h_lag : settings_.Q_h;
+    Q(1, 1) = nf_ > 0 ? settings_.Q_f_lag : settings_.Q_f;
+    for (int i = 0; i < nf_ && kCore + i < F::Mat::RowsAtCompileTime; ++i) Q(kCore + i, kCore + i) = settings_.Q_out;
+  }
   return Q;
 }
 
 ActiveModel::Filter::Vec ActiveModel::state() const noexcept {
   if (nf_ > 0) return ukf_.x();
   Filter::Vec x = Filter::Vec::Zero();
-  x.head<kCore>() = core_.x();
+  if (d_on_) {
+    x(0) = st_.h;
+    x(kD) = pos_.x()(0);
+  } else {
+    x.head<kCore>() = core_.x();
+  }
   return x;
 }
 
 ActiveModel::Filter::Mat ActiveModel::covariance() const noexcept {
   if (nf_ > 0) return ukf_.P();
   Filter::Mat P = Filter::Mat::Identity();
-  P.topLeftCorner<kCore, kCore>() = core_.P();
+  if (d_on_)
+    P(kD, kD) = pos_.P()(0, 0);
+  else
+    P.topLeftCorner<kCore, kCore>() = core_.P();
   return P;
 }
 
 void ActiveModel::reset(double u0, double load) noexcept {
-  nf_ = model_.numFilterStates();
+  d_on_ = model_.hasOutputEffects() && settings_.Q_d > 0.0;
+  nf_ = d_on_ ? 0 : model_.numFilterStates();
   model::StepContext c;
   c.Ts = Ts_;
   c.load = load;
@@ -60,7 +78,9 @@ void ActiveModel::reset(double u0, double load) noexcept {
   Filter::Vec x0 = Filter::Vec::Zero();
   x0(0) = st_.h;
   for (int i = 0; i < nf_; ++i) x0(kCore + i) = st_.s[static_cast<size_t>(model_.filterStateIndex(i))];
-  if (nf_ > 0)
+  if (d_on_)
+    pos_.reset(PositionFilter::Vec::Zero(), P0<PositionFilter>());
+  else if (nf_ > 0)
     ukf_.reset(x0, P0<Filter>());
   else
     core_.reset(x0.head<kCore>(), P0<CoreFilter>());
@@ -77,6 +97,7 @@ void ActiveModel::reset(double u0, double load) noexcept {
 }
 
 ActiveModelStep ActiveModel::update(double u, double y, double load) noexcept {
+  if (d_on_) return step(pos_, u, y, load);
   return nf_ > 0 ? step(ukf_, u, y, load) : step(core_, u, y, load);
 }
 
@@ -104,9 +125,14 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   cp.u_eff = ue_prev_;
   const int nf = nf_;
   ActiveModelStep out;
-  const model::BoucWenStep bw(p, du, ukf.x()(0));  // the same increment for every sigma point
+  const model::BoucWenStep bw(p, du, h());  // the same increment for every sigma point
+  // The position form's h: the model's own, not estimated (ActiveModelSettings::Q_d).
+  const double h_model = Vec::RowsAtCompileTime == 1 ? bw(st_.h, 0.0, Ts) : 0.0;
+  const double y_model = Vec::RowsAtCompileTime == 1 ? model_.outputPeek(st_, model_.coreOutput(ue, h_model), c) : 0.0;
   UkfStatus s1;
-  if constexpr (Vec::RowsAtCompileTime == kCore) {
+  if constexpr (Vec::RowsAtCompileTime == 1) {
+    s1 = ukf.predict([](const Vec& x) { return x; }, Q<F>());  // d' = d, a random walk
+  } else if constexpr (Vec::RowsAtCompileTime == kCore) {
     // h' = BW(h) + f_h Ts (clamped as boucWenFinish), f_h' = f_h: the Bouc-Wen part reads h alone and
     // f_h enters linearly (Ukf::predictDriven).
     s1 = ukf.predictDriven([&](double h) { return bw.advance(h); }, Ts, model::detail::kHLimit, Q<F>());
@@ -128,7 +154,9 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   const auto& st = st_;
   const bool output_effects = mdl.hasOutputEffects();
   auto H = [&](const Vec& x) {
-    if constexpr (Vec::RowsAtCompileTime > kCore)
+    if constexpr (Vec::RowsAtCompileTime == 1)  // y = model + d, the output effects on the mean
+      return Eigen::Matrix<double, 1, 1>(y_model + x(0));
+    else if constexpr (Vec::RowsAtCompileTime > kCore)
       return Eigen::Matrix<double, 1, 1>(mdl.outputWith(st, x.data() + kCore, nullptr, mdl.coreOutput(ue, x(0)), c));
     else if (output_effects)
       return Eigen::Matrix<double, 1, 1>(mdl.outputPeek(st, mdl.coreOutput(ue, x(0)), c));
@@ -138,6 +166,8 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   // The paper's model alone measures y = (k rho u + b) + k (1 - rho) h, linear in X: the Kalman update
   // without sigma points (Ukf::updateLinear).
   auto correct = [&](double gate, double widen) {
+    if constexpr (Vec::RowsAtCompileTime == 1)
+      return ukf.updateLinear(Eigen::Matrix<double, 1, 1>(1.0), y_model, y, settings_.R, gate, widen);
     if constexpr (Vec::RowsAtCompileTime == kCore) {
       if (!output_effects) {
         const Eigen::Matrix<double, 1, kCore> Hm(p.k * (1.0 - p.rho), 0.0);
@@ -183,8 +213,13 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
     }
   }
 
-  out.h = ukf.x()(0);
-  out.f_h = ukf.x()(1);
+  if constexpr (Vec::RowsAtCompileTime == 1) {
+    out.h = h_model;
+    out.f_h = 0.0;
+  } else {
+    out.h = ukf.x()(0);
+    out.f_h = ukf.x()(1);
+  }
   // The posterior filter states into the model's state, kept as the start of the next transition;
   // then the output effects advance with the posterior core output.
   if constexpr (Vec::RowsAtCompileTime > kCore) {
@@ -193,7 +228,8 @@ ActiveModelStep ActiveModel::step(F& ukf, double u, double y, double load) noexc
   }
   ue_prev_ = ue;
   load_prev_ = load;
-  out.y_post = model_.outputStage(st_, model_.coreOutput(ue, out.h), c);
+  out.d = d();
+  out.y_post = model_.outputStage(st_, model_.coreOutput(ue, out.h), c) + out.d;
   y_post_ = out.y_post;
   st_.h = out.h;
   du_pending_ = ue - st_.u_eff_prev;
@@ -224,7 +260,7 @@ double ActiveModel::predictNext(double u_eff_prev, double u_eff_next, double loa
   // applied u = u_n + u_c) is not compared against u_n through the direct feedthrough k rho, as the
   // printed form (predictNextAsPrinted) does, feeding u_c back onto itself with gain kc k rho.
   c.u_eff = u_eff_prev;
-  const double y0 = model_.outputPeek(st_, model_.coreOutput(u_eff_prev, h()), c);
+  const double y0 = model_.outputPeek(st_, model_.coreOutput(u_eff_prev, h()), c) + d();
   return y_post_ + (predictNextAsPrinted(u_eff_prev, u_eff_next, load) - y0);
 }
 
@@ -234,7 +270,7 @@ double ActiveModel::predictNextAsPrinted(double u_eff_prev, double u_eff_next, d
   c.load = load;
   c.u_eff = u_eff_next;
   const double h1 = model::boucWenNext(model_.core(), h(), u_eff_next - u_eff_prev, fh(), Ts_);
-  return model_.outputPeek(st_, model_.coreOutput(u_eff_next, h1), c);
+  return model_.outputPeek(st_, model_.coreOutput(u_eff_next, h1), c) + d();
 }
 
 double ActiveModel::predictAhead(const double* in_flight, int n_in_flight, double u_hold, int horizon,
@@ -255,7 +291,7 @@ double ActiveModel::predictAhead(const double* in_flight, int n_in_flight, doubl
     du = ue - s.u_eff_prev;
     s.u_eff_prev = ue;
     if (aligned) h = model::boucWenNext(model_.core(), h, du, f, Ts_);
-    y = model_.outputStage(s, model_.coreOutput(ue, h), c);
+    y = model_.outputStage(s, model_.coreOutput(ue, h), c) + d();
   }
   return y;
 }

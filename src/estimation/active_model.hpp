@@ -1,10 +1,19 @@
 // Active modelling (paper Section 3): a UKF over the joint state X = [h, f_h] of eqs. (6)-(9),
 // where h is the hysteresis state of the model and f_h the modelling error, a random walk.
-// The transition and measurement are the shared Model's. A model with lagging output dynamics
-// (mass_spring, creep: Model::numFilterStates) has those states in X as well, X = [h, f_h, s]: the
-// measurement of one sample hardly depends on that sample's h (through mass_spring by (wn Ts)^2), so
-// the filter must know how h reaches y over the following samples, or P_h grows without bound and the
-// gain on h with it. The other effect states are propagated alongside with the filter's mean.
+// The transition and measurement are the shared Model's.
+//
+// A model with output effects (saturation, a balance, a lag: anything between the core's output and the
+// position) takes its modelling error on the position instead, X = [d], y = model + d, h and every effect
+// state the model's own, driven by the command (ActiveModelSettings::Q_d; not in the paper). Through such
+// an effect the position stops answering h where the effect saturates - a stop, a choked pressure, a
+// sticking friction - and an error on h's rate wound h up there, far past the Bouc-Wen's bound, until
+// the filter restarted (docs/CONTROL.md, "An estimator for a model with output effects").
+//
+// With Q_d = 0 such a model keeps the paper's form, and one with lagging output dynamics (mass_spring,
+// creep: Model::numFilterStates) has those states in X as well, X = [h, f_h, s]: the measurement of one
+// sample hardly depends on that sample's h (through mass_spring by (wn Ts)^2), so the filter must know
+// how h reaches y over the following samples, or P_h grows without bound and the gain on h with it. The
+// other effect states are propagated alongside with the filter's mean.
 #pragma once
 
 #include "estimation/ukf.hpp"
@@ -17,7 +26,7 @@ struct ActiveModelSettings {
   double P0_h = 10.0, P0_f = 10.0;  // eq. (26)
   double Q_h = 10.0, Q_f = 10.0;    // eq. (26)
   double R = 0.001;                 // eq. (26) [mm^2]
-  // A model with lagging output dynamics (Model::numFilterStates() > 0; not in the paper). Eq. (26)'s
+  // A model with lagging output dynamics (Model::numFilterStates() > 0; not in the paper) and Q_d = 0. Eq. (26)'s
   // Q = 10 per sample on h and f_h is harmless while each position pins h (the paper's model: y moves
   // with h in the same sample, and R << Q); when h reaches y only over the following samples, Q is what
   // the filter believes h may jump by, and 10 (3 V per millisecond) makes its estimate noisy (up to
@@ -26,6 +35,11 @@ struct ActiveModelSettings {
   // the output effects' states with this initial spread and random walk (their own units: mm, mm/s).
   double Q_h_lag = 0.1, Q_f_lag = 0.1;
   double P0_out = 1.0, Q_out = 1e-6;
+  // A model with output effects: its modelling error on the position, d (y = model + d), a random walk of
+  // this initial spread and step [mm^2] (chosen: the middle of 1e-5..1e-3, which all carried the diagnose
+  // ladder's models of the calibrated physics plant). 0: the paper's form, or X = [h, f_h, s] with
+  // Q_h_lag and Q_f_lag for lagging output dynamics.
+  double P0_d = 1.0, Q_d = 1e-4;
   // Divergence guard (not in the paper): a used position that the posterior output misses by more
   // than this [output units] means the filter is lost, whatever its P says; it restarts from the model
   // at rest for the command (status Reset, so the controller goes to its safe state). 0: no guard.
@@ -53,6 +67,7 @@ struct ActiveModelStep {
   double y_post = 0.0;   // posterior output estimate (the paper's "with active model")
   double h = 0.0;
   double f_h = 0.0;
+  double d = 0.0;  // the modelling error on the position (ActiveModelSettings::Q_d; else 0)
   double nis = 0.0;                  // normalised innovation squared of y_k (0 if y_k was not finite)
   double nis_gate = 0.0;             // what the gate compares with gate_nis: the NIS widened by the model's own step
   bool rejected = false;             // y_k was not used: not finite, or beyond the gate (y_post is the prediction)
@@ -66,6 +81,9 @@ class ActiveModel {
   // it does not use are inert). Both fixed-size: nothing is allocated in update().
   using CoreFilter = Ukf<kCore, 1>;
   using Filter = Ukf<kCore + model::kMaxFilterStates, 1>;
+  // The filter of a model with output effects (Q_d > 0): d alone, h the model's own.
+  using PositionFilter = Ukf<1, 1>;
+  static constexpr int kD = kCore;  // d's place in state() and covariance()
 
   // May allocate (copies the model).
   void configure(const model::Model& m, const ActiveModelSettings& s, double Ts);
@@ -97,10 +115,12 @@ class ActiveModel {
 
   // The filter in use: its state [h, f_h, filter states...] and covariance (the core filter's
   // embedded in the joint size, with 1 on the diagonal it does not have).
-  int filterSize() const noexcept { return kCore + nf_; }
+  int filterSize() const noexcept { return kCore + (d_on_ ? 1 : nf_); }
   Filter::Vec state() const noexcept;
   Filter::Mat covariance() const noexcept;
-  double gateStatistic() const noexcept { return nf_ > 0 ? ukf_.gateStatistic() : core_.gateStatistic(); }
+  double gateStatistic() const noexcept {
+    return d_on_ ? pos_.gateStatistic() : nf_ > 0 ? ukf_.gateStatistic() : core_.gateStatistic();
+  }
   const model::Model::State& modelState() const { return st_; }
   double Ts() const { return Ts_; }
   unsigned resets() const { return resets_; }            // of every kind (P, gate, divergence)
@@ -120,13 +140,16 @@ class ActiveModel {
   typename F::Mat Q() const noexcept;
   template <class F>
   ActiveModelStep step(F& f, double u, double y, double load) noexcept;
-  double h() const noexcept { return nf_ > 0 ? ukf_.x()(0) : core_.x()(0); }
-  double fh() const noexcept { return nf_ > 0 ? ukf_.x()(1) : core_.x()(1); }
+  double h() const noexcept { return d_on_ ? st_.h : nf_ > 0 ? ukf_.x()(0) : core_.x()(0); }
+  double fh() const noexcept { return d_on_ ? 0.0 : nf_ > 0 ? ukf_.x()(1) : core_.x()(1); }
+  double d() const noexcept { return d_on_ ? pos_.x()(0) : 0.0; }
   CoreFilter core_;
   model::Model::State st_prev_;  // output-effect states of the last sample (filter states: posterior mean)
   double ue_prev_ = 0.0;         // effective command of the last sample
   double load_prev_ = 0.0;
   int nf_ = 0;  // filter states in use (model_.numFilterStates())
+  bool d_on_ = false;  // the filter is pos_: the modelling error on the position (ActiveModelSettings::Q_d)
+  PositionFilter pos_;
   unsigned divergences_ = 0;
   double y_post_ = 0.0;      // last posterior output
   double du_pending_ = 0.0;  // u_eff(k-1) - u_eff(k-2): drives h_k = F(h_{k-1}) in the printed form

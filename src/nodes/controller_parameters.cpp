@@ -50,7 +50,7 @@ constexpr double estimation::ActiveModelSettings::*kUkf[] = {
     &estimation::ActiveModelSettings::Q_h,     &estimation::ActiveModelSettings::Q_f,
     &estimation::ActiveModelSettings::R,       &estimation::ActiveModelSettings::Q_h_lag,
     &estimation::ActiveModelSettings::Q_f_lag, &estimation::ActiveModelSettings::Q_out,
-    &estimation::ActiveModelSettings::diverge};
+    &estimation::ActiveModelSettings::diverge, &estimation::ActiveModelSettings::Q_d};
 constexpr double ParameterSet::*kPlausibility[] = {&ParameterSet::range_steps, &ParameterSet::stuck_s,
                                                    &ParameterSet::stuck_span_v};
 

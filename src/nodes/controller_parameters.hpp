@@ -2,7 +2,7 @@
 //
 //   0x2000 gains      kp ki kc beta1 beta2 beta3 delta b0 eso_gain eso_tau eso_wo, eso form (u8)     0x2010 controller
 //   choice 0x2001 model      k rho b alpha beta gamma                0x2011/0x2012 trajectory 0x2002 UKF        P0_h
-//   P0_f Q_h Q_f R Q_h_lag Q_f_lag Q_out diverge 0x2020 safe valve voltage   0x2021 missing-PDO limit   0x2022
+//   P0_f Q_h Q_f R Q_h_lag Q_f_lag Q_out diverge Q_d 0x2020 safe valve voltage   0x2021 missing-PDO limit   0x2022
 //   plausibility (range, stuck time, span) 0x2003 commit: :01 = 1 commits the staged set, 0 discards it; :02 staged;
 //   :03 sets applied
 //

@@ -174,7 +174,9 @@ TEST(OutputDynamics, TheDivergenceGuardRestartsAFilterThatCannotFollow) {
   const auto pc = plant::PlantConfig::modelDefaults();
   plant::Plant plant(pc);
   estimation::ActiveModel am;
-  am.configure(pc.truth, estimation::ActiveModelSettings{}, kTs);
+  estimation::ActiveModelSettings on;
+  on.Q_d = 0.0;  // h, f_h and the output states in the filter: its error on the position follows any level
+  am.configure(pc.truth, on, kTs);
   plant.reset(command(0));
   am.reset(command(0));
   long k = 0;
@@ -195,7 +197,7 @@ TEST(OutputDynamics, TheDivergenceGuardRestartsAFilterThatCannotFollow) {
   EXPECT_LE(first_reset, estimation::ActiveModelSettings{}.gate_max_rejects + 1);
   EXPECT_GE(am.divergences(), 1u);
   // With the guard off the same filter stays lost without a word.
-  estimation::ActiveModelSettings off;
+  estimation::ActiveModelSettings off = on;
   off.diverge = 0.0;
   estimation::ActiveModel quiet;
   quiet.configure(pc.truth, off, kTs);
