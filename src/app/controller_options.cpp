@@ -68,6 +68,11 @@ void ControllerOptions::addStructure(CLI::App* a) {
                 "cycles from command to the measurement that shows it, beyond one sample (2 on the CAN bus)")
       ->capture_default_str()
       ->check(CLI::Range(0, 7));
+  a->add_option("--ukf-position-error", cc.ukf.Q_d,
+                "UKF: random walk [mm^2 per sample] of the modelling error on the position that a model with output "
+                "effects takes (0: the paper's error on h's rate, the lagging states in the filter)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   a->add_option(
        "--mbc-horizon", cc.mbc.horizon,
        "MBC: samples ahead its inverse reaches the setpoint at; 0 = automatic (bus delay + the model's response "

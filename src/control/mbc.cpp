@@ -38,8 +38,10 @@ constexpr int kRecoverCycles = 200;
 // Secant steps of the inverse per cycle (warm-started from the last cycle's solution).
 constexpr int kInverseSteps = 3;
 // The estimator has lost the plant when its posterior output misses the position by more than this
-// [output units] (chosen: with muscle_balance diagnosed on the calibrated physics plant the UKF follows
-// the paper's u0 within 0.0035 mm rms; with that plant's pneumatic_balance it has lost it, 4.5 mm rms).
+// [output units] (chosen: with muscle_balance diagnosed on the calibrated physics plant the UKF of the form
+// with the model's states in it (ActiveModelSettings::Q_d = 0) follows the paper's u0 within 0.0035 mm
+// rms; with that plant's pneumatic_balance it has lost it, 4.5 mm rms. The default form, the modelling
+// error on the position, follows both.)
 constexpr double kLostBy = 1.0;
 
 class Mbc final : public Controller {
