@@ -86,27 +86,50 @@ double InverseStatic::forward(double u) const noexcept {
   return y_[i - 1] + t * (y_[i] - y_[i - 1]);
 }
 
-int modelResponseSamples(const model::Model& m, double Ts, double u_min, double u_max, double fraction) {
-  constexpr int kMax = 2000;
+namespace {
+// The model's response to a step of a tenth of the command's range up from the middle, approached from
+// below so the step continues the same branch of the loop: y0 before it, then kSteps samples.
+struct StepResponse {
+  static constexpr int kSteps = 2000;
+  double y0 = 0.0;
+  std::vector<double> y;
+};
+StepResponse stepResponse(const model::Model& m, double Ts, double u_min, double u_max) {
   const double u0 = 0.5 * (u_min + u_max), du = 0.1 * (u_max - u_min);
   model::Model::State st;
   model::StepContext c;
   c.Ts = Ts;
   m.init(st, u0 - du, c);
-  // Approach the start from below so the step continues the same branch of the loop.
+  StepResponse r;
   const int settle = static_cast<int>(std::ceil(2.0 / Ts));
-  double y0 = 0.0;
-  for (int i = 0; i < settle; ++i) y0 = m.step(st, u0 - du + du * std::min(1.0, 2.0 * i / settle), c);
-  std::vector<double> y(kMax);
-  for (int i = 0; i < kMax; ++i) y[static_cast<size_t>(i)] = m.step(st, u0 + du, c);
-  const double target = y0 + fraction * (y.back() - y0);
-  for (int i = 0; i < kMax; ++i)
-    if ((y[static_cast<size_t>(i)] - target) * (y.back() - y0) >= 0.0) return i + 1;
-  return kMax;
+  for (int i = 0; i < settle; ++i) r.y0 = m.step(st, u0 - du + du * std::min(1.0, 2.0 * i / settle), c);
+  r.y.resize(StepResponse::kSteps);
+  for (auto& y : r.y) y = m.step(st, u0 + du, c);
+  return r;
+}
+}  // namespace
+
+int modelResponseSamples(const model::Model& m, double Ts, double u_min, double u_max, double fraction) {
+  const StepResponse r = stepResponse(m, Ts, u_min, u_max);
+  const double span = r.y.back() - r.y0;
+  const double target = r.y0 + fraction * span;
+  for (int i = 0; i < StepResponse::kSteps; ++i)
+    if ((r.y[static_cast<size_t>(i)] - target) * span >= 0.0) return i + 1;
+  return StepResponse::kSteps;
 }
 
+double modelGainSign(const model::Model& m, double Ts, double u_min, double u_max) {
+  const StepResponse r = stepResponse(m, Ts, u_min, u_max);
+  return r.y.back() >= r.y0 ? 1.0 : -1.0;
+}
+
+// The commands in flight, then the command held for the model's 10 % response time - and for longer than
+// the commands in flight act: at 50 and 100 Hz a pneumatic model makes 10 % of its response within one or
+// two samples, and an inverse whose held command acted no longer than the two in flight drove the
+// reference model from one end of the command's range to the other (docs/CONTROL.md, "At 50 Hz").
 int responseHorizon(const ControllerConfig& c) {
-  return std::min(2000, c.delay_cycles + modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1));
+  const int held = std::max(modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1), c.delay_cycles + 1);
+  return std::min(2000, c.delay_cycles + held);
 }
 
 int amcHorizon(const ControllerConfig& c) {

@@ -168,9 +168,12 @@ class Controller {
 // mid-range (1 for the plain Bouc-Wen model, which responds at once; about 0.1 tau/Ts for 10 % with a
 // pressure lag of time constant tau).
 int modelResponseSamples(const model::Model& m, double Ts, double u_min, double u_max, double fraction);
+// The sign of the model's response to that step once it has settled: +1 where a larger command gives a larger
+// output (the core's k alone does not say: a fitted k may be negative with rho, k rho > 0).
+double modelGainSign(const model::Model& m, double Ts, double u_min, double u_max);
 
 // The automatic horizon of the predictive forms (AMC and MBC): the bus delay plus the samples the model
-// takes to make 10 % of its response to a command step.
+// takes to make 10 % of its response to a command step, and at least one more than the bus delay.
 int responseHorizon(const ControllerConfig& c);
 // The AMC horizon in effect for a configuration (resolves amc_horizon = 0).
 int amcHorizon(const ControllerConfig& c);

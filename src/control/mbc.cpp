@@ -46,7 +46,8 @@ constexpr double kLostBy = 1.0;
 
 class Mbc final : public Controller {
  public:
-  explicit Mbc(const ControllerConfig& c) : cfg_(c), horizon_(mbcHorizon(c)) {
+  explicit Mbc(const ControllerConfig& c)
+      : cfg_(c), horizon_(mbcHorizon(c)), sign_(modelGainSign(c.model, c.Ts, c.u_min, c.u_max)) {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
     governor_.configure(c.mbc.rate_mm_s, c.mbc.accel_mm_s2, c.Ts);
@@ -67,7 +68,7 @@ class Mbc final : public Controller {
     y_ref_ = cfg_.model.step(ref_, u0, ctx_);
     ff_on_ = false;
     recover_ = 0;
-    gain_ = 1.0;
+    gain_ = sign_;
     governor_.reset(y0);
     governed_.fill(std::isfinite(y0) ? y0 : NAN);
   }
@@ -130,10 +131,13 @@ class Mbc final : public Controller {
       const double yh = rollout(u);
       if (!std::isfinite(yh)) return NAN;
       const double miss = target - yh;
-      // The slope in the direction the command will move (the loop's branches differ).
+      // The slope in the direction the command will move (the loop's branches differ). A slope of the other
+      // sign than the model's settled gain is not taken (the last one is kept): through the commands in flight a
+      // model can answer a rise of the command with a fall at the horizon (a vented pneumatic model at 50 Hz),
+      // and a step along it ran the reference model from stop to stop (docs/CONTROL.md, "At 50 Hz").
       const double du = std::copysign(0.01 * (cfg_.u_max - cfg_.u_min), miss);
       const double g = (rollout(u + du) - yh) / du;
-      if (std::isfinite(g) && std::fabs(g) > 1e-3) gain_ = g;
+      if (std::isfinite(g) && g * sign_ > 1e-3) gain_ = g;
       u = std::clamp(u + miss / gain_, cfg_.u_min, cfg_.u_max);
     }
     return u;
@@ -173,6 +177,7 @@ class Mbc final : public Controller {
 
   ControllerConfig cfg_;
   int horizon_;
+  double sign_;  // the sign of the model's settled response to a command step (modelGainSign)
   detail::PiCore pi_;
   detail::LastGood y_;
   detail::CommandHistory hist_;
