@@ -69,8 +69,9 @@ void ControllerOptions::addStructure(CLI::App* a) {
       ->capture_default_str()
       ->check(CLI::Range(0, 7));
   a->add_option("--ukf-position-error", cc.ukf.Q_d,
-                "UKF: random walk [mm^2 per sample] of the modelling error on the position that a model with output "
-                "effects takes (0: the paper's error on h's rate, the lagging states in the filter)")
+                "MBC's UKF: random walk [mm^2 per sample] of the modelling error on the position that a model with "
+                "output effects takes (0: the paper's error on h's rate, the lagging states in the filter; the AMC "
+                "keeps the paper's)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   a->add_option(

@@ -248,12 +248,22 @@ class Pi final : public Controller {
   LastGood y_;
 };
 
+// The AMC's estimator is the paper's, [h, f_h], whatever model it is given: its compensation is computed
+// from h and f_h. With the modelling error taken on the position instead (ActiveModelSettings::Q_d, the
+// MBC's form), eq. (17)'s prediction is the model's own output for the nominal command plus d, and the
+// compensation fed back on itself through the model's direct feedthrough: over the bus at 50 Hz, with a
+// model diagnosed from the plant's u0 record, 20.5 mm against 1.54 (docs/CONTROL.md, "At 50 Hz").
+estimation::ActiveModelSettings papersForm(estimation::ActiveModelSettings s) {
+  s.Q_d = 0.0;
+  return s;
+}
+
 // PI + active model compensation, eqs. (14)-(19).
 class PiAmc final : public Controller {
  public:
   explicit PiAmc(const ControllerConfig& c) : cfg_(c) {
     pi_.configure(c);
-    am_.configure(c.model, c.ukf, c.Ts);
+    am_.configure(c.model, papersForm(c.ukf), c.Ts);
     cfg_.amc_horizon = amcHorizon(c);
   }
   Kind kind() const override { return Kind::PiAmc; }

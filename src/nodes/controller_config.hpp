@@ -71,7 +71,7 @@ struct ControllerNodeConfig {
   // Overrides of the object dictionary's defaults (unset: the EDS value).
   int kind = -1;                   // control::Kind
   control::ControllerConfig ctrl;  // the model (and, with gains_from_config, the gains)
-  bool gains_from_config = false;  // write ctrl's gains into the OD instead of reading them
+  bool gains_from_config = false;  // write ctrl's gains and UKF settings into the OD instead of reading them
   // Cycles from a command to the position that shows it, beyond one sample: 2 with this node's
   // timing (a synchronous valve RPDO, a sensor sending right after the SYNC); other slaves may differ.
   int delay_cycles = control::kBusDelayCycles;

@@ -136,11 +136,15 @@ void ControllerParameters::writeModel(const model::BoucWenParams& m) {
   for (std::size_t i = 0; i < std::size(kModel); ++i) node_.od().ref<double>(0x2001, sub(i)).set(m.*kModel[i]);
 }
 
+void ControllerParameters::writeUkf(const estimation::ActiveModelSettings& u) {
+  for (std::size_t i = 0; i < std::size(kUkf); ++i) node_.od().ref<double>(0x2002, sub(i)).set(u.*kUkf[i]);
+}
+
 void ControllerParameters::write(const ParameterSet& p) {
   auto& od = node_.od();
   writeGains(p.ctrl);
   writeModel(p.ctrl.model.core());
-  for (std::size_t i = 0; i < std::size(kUkf); ++i) od.ref<double>(0x2002, sub(i)).set(p.ctrl.ukf.*kUkf[i]);
+  writeUkf(p.ctrl.ukf);
   od.ref<double>(0x2020, 0).set(pd::valveVolts(p.safe_u));
   od.ref<std::uint8_t>(0x2021, 0).set(static_cast<std::uint8_t>(p.missing_limit));
   for (std::size_t i = 0; i < std::size(kPlausibility); ++i) od.ref<double>(0x2022, sub(i)).set(p.*kPlausibility[i]);

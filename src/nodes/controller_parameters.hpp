@@ -57,6 +57,8 @@ class ControllerParameters {
   void write(const ParameterSet& p);
   void writeGains(const control::ControllerConfig& c);
   void writeModel(const model::BoucWenParams& m);
+  // The UKF's settings (0x2002), as the gains: a node started with them from its command line.
+  void writeUkf(const estimation::ActiveModelSettings& u);
   // kSdoOk, or the abort code refusing the set; why names the entry or the condition.
   std::uint32_t check(const ParameterSet& p, std::string* why) const;
 

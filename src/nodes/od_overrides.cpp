@@ -4,7 +4,10 @@ namespace pamc::nodes {
 
 void OdOverrides::apply(canopen::ObjectDictionary& od, ControllerParameters& params) {
   if (cfg_.kind >= 0) od.ref<std::uint8_t>(0x2010, 0).set(static_cast<std::uint8_t>(cfg_.kind));
-  if (cfg_.gains_from_config) params.writeGains(cfg_.ctrl);
+  if (cfg_.gains_from_config) {
+    params.writeGains(cfg_.ctrl);
+    params.writeUkf(cfg_.ctrl.ukf);
+  }
   params.writeModel(cfg_.ctrl.model.core());
   if (cfg_.has_trajectory) traj_override_ = !trajectoryToOd(od, cfg_.trajectory);
   if (cfg_.period_us) {
