@@ -3,7 +3,7 @@
 // The transition and measurement are the shared Model's.
 //
 // A model with output effects (saturation, a balance, a lag: anything between the core's output and the
-// position) takes its modelling error on the position instead, X = [d], y = model + d, h and every effect
+// position) takes its modelling error on the position instead where Q_d > 0 (the MBC's; the AMC passes 0), X = [d], y = model + d, h and every effect
 // state the model's own, driven by the command (ActiveModelSettings::Q_d; not in the paper). Through such
 // an effect the position stops answering h where the effect saturates - a stop, a choked pressure, a
 // sticking friction - and an error on h's rate wound h up there, far past the Bouc-Wen's bound, until
