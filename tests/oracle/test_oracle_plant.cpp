@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "control/controller.hpp"
+#include "io/model_file.hpp"
 #include "model/model.hpp"
 #include "oracle_plant.hpp"
 #include "sim/experiments.hpp"
@@ -54,4 +56,36 @@ TEST(OraclePlant, ThePapersPiTracksTheTriangleOnIt) {
   const auto s = sim::tracking(r, sim::scoredFrom(r, triangle.run));
   EXPECT_LT(s.rmse, 0.5) << "PI on the oracle's muscle, triangle 0.2..30 mm";
   EXPECT_GT(s.rmse, 0.01);  // a real plant, with noise and lags: never the setpoint itself
+}
+
+// At 50 Hz, as a rig node runs: this plant sampled every 20 ms, the commands two cycles on the bus, the loop
+// started from a vented muscle (-5 V) with a second's pre-roll, and the MBC given the final model of this
+// plant's diagnose ladder (pneumatic_balance, tools/mbc_table.py --oracle-plant; tests/data/models). The
+// MBC's 50 Hz rules were written on the physics plant (docs/CONTROL.md, "At 50 Hz"); here they meet a plant
+// they have not seen: the MBC tracks the triangle better than the PI, scored from the start (0.114 against
+// 0.229 mm). This does not pin those rules: without them the MBC tracks this plant at 0.106 mm.
+TEST(OraclePlant, AtFiftyHertzTheMbcWithTheLaddersModelTracksBetterThanThePi) {
+  constexpr double kTs = 0.02;
+  plant::PlantConfig pc = oracle::oraclePlant(secondPlant());
+  pc.Ts = kTs;
+  control::ControllerConfig cfg;
+  cfg.Ts = kTs;
+  cfg.u_min = pc.u_min;
+  cfg.u_max = pc.u_max;
+  cfg.model = io::readModelFile(std::string(PAMC_ORACLE_SOURCE_DIR) + "/../data/models/oracle_pneumatic_balance.json");
+  sim::ClosedLoopRun run;
+  run.reference = control::Trajectory::triangle(0.05, 0.2, 30.0);
+  run.duration_s = 40.0;
+  run.preroll_s = 1.0;
+  double rmse[2] = {0.0, 0.0};
+  for (int i = 0; i < 2; ++i) {
+    auto c = control::makeController(i == 0 ? control::Kind::PI : control::Kind::Mbc, cfg);
+    plant::Plant p(pc);
+    const sim::Record r = sim::runClosedLoop(*c, p, run, -5.0);
+    double se = 0.0;
+    for (size_t k = 0; k < r.t.size(); ++k) se += (r.yd[k] - r.y[k]) * (r.yd[k] - r.y[k]);
+    rmse[i] = std::sqrt(se / static_cast<double>(r.t.size()));
+  }
+  std::printf("50 Hz on the oracle's plant: PI %.4f mm, MBC %.4f mm\n", rmse[0], rmse[1]);
+  EXPECT_LT(rmse[1], rmse[0]);
 }
