@@ -17,8 +17,13 @@
 // physics plant's triangle 9-13x worse than the PI with the models of a diagnose ladder (docs/CONTROL.md).
 //
 // The feedforward is only used where the model was identified (model.json's `range`): a setpoint or a
-// position outside its output range, or a feedforward outside its input range, and the nominal PI runs
-// alone, its integral taking over the last feedforward (bumpless; taken back the same way on return).
+// position outside its output range, and the nominal PI runs alone, its integral taking over the last
+// feedforward (bumpless; taken back the same way on return). The inverse is solved within the model's
+// input range: a feedforward beyond it is held at its edge (switched off there instead, the fill of a
+// vented muscle left the edge's command in the integral and overshot by 27 mm). The PI starts at the
+// command in effect, or - a command outside the input range, as a vented muscle's - at the range's
+// nearest edge: from -5 V its integral rose through the muscle's first millimetres, where its gain is
+// highest, and the loop swung for seconds at 50 Hz (docs/CONTROL.md, "From a vented muscle").
 // So does a cycle whose estimator restarted or whose rollout was not finite, for kRecoverCycles after.
 // While the estimator has lost the plant (its posterior far from the measured position) its modelling
 // error is not followed: held where it was, the feedforward stays on (docs/CONTROL.md).
@@ -47,7 +52,7 @@ constexpr double kLostBy = 1.0;
 class Mbc final : public Controller {
  public:
   explicit Mbc(const ControllerConfig& c)
-      : cfg_(c), horizon_(mbcHorizon(c)), sign_(modelGainSign(c.model, c.Ts, c.u_min, c.u_max)) {
+      : cfg_(c), horizon_(mbcHorizon(c)), sign_(modelGainSign(c.model, c.Ts, c.u_min, c.u_max)), ff_(ffBounds(c)) {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
     governor_.configure(c.mbc.rate_mm_s, c.mbc.accel_mm_s2, c.Ts);
@@ -56,7 +61,7 @@ class Mbc final : public Controller {
   int lookahead() const override { return horizon_; }
 
   void activate(double u0, double y0) noexcept override {
-    pi_.reset(u0);  // the PI alone holds u0 until the first feedforward is taken in (bumpless)
+    pi_.reset(startCommand(u0));
     y_.reset(y0);
     am_.reset(u0);
     hist_.fill(u0);
@@ -66,7 +71,7 @@ class Mbc final : public Controller {
     ctx_.Ts = cfg_.Ts;
     cfg_.model.init(ref_, u0, ctx_);
     y_ref_ = cfg_.model.step(ref_, u0, ctx_);
-    ff_on_ = false;
+    ff_on_ = started_ = false;
     recover_ = 0;
     gain_ = sign_;
     governor_.reset(y0);
@@ -123,10 +128,22 @@ class Mbc final : public Controller {
     return y;
   }
 
+  // The feedforward's bounds: the valve's, within the input range the model was identified on.
+  static model::Interval ffBounds(const ControllerConfig& c) {
+    const auto& r = c.model.range();
+    const model::Interval b{std::max(c.u_min, r.input.lo), std::min(c.u_max, r.input.hi)};
+    return r.known && b.lo <= b.hi ? b : model::Interval{c.u_min, c.u_max};
+  }
+
+  // Where the PI starts: the command in effect, brought into the model's input range.
+  double startCommand(double u0) const noexcept {
+    return cfg_.model.range().known && std::isfinite(u0) ? std::clamp(u0, ff_.lo, ff_.hi) : u0;
+  }
+
   // The command that, held after the feedforwards in flight, brings the reference model to `target` at
   // the horizon; NaN if the rollout is not finite.
   double feedforward(double target) noexcept {
-    double u = std::clamp(u_solved_, cfg_.u_min, cfg_.u_max);
+    double u = std::clamp(u_solved_, ff_.lo, ff_.hi);
     for (int step = 0; step < kInverseSteps; ++step) {
       const double yh = rollout(u);
       if (!std::isfinite(yh)) return NAN;
@@ -138,7 +155,7 @@ class Mbc final : public Controller {
       const double du = std::copysign(0.01 * (cfg_.u_max - cfg_.u_min), miss);
       const double g = (rollout(u + du) - yh) / du;
       if (std::isfinite(g) && g * sign_ > 1e-3) gain_ = g;
-      u = std::clamp(u + miss / gain_, cfg_.u_min, cfg_.u_max);
+      u = std::clamp(u + miss / gain_, ff_.lo, ff_.hi);
     }
     return u;
   }
@@ -167,17 +184,21 @@ class Mbc final : public Controller {
            (!std::isfinite(y) || r.output.contains(y));
   }
 
-  // Takes the feedforward in or out with the PI's integral moved by it, so the command does not jump.
+  // Takes the feedforward in or out with the PI's integral moved by it, so the command does not jump - but
+  // in the first cycle, where the command in effect is the one the loop started from (a vented muscle's
+  // safe value), the feedforward is taken as the whole command and the integral starts at 0 beside it.
   void switchFeedforward(bool use, double ff) noexcept {
-    if (use && !ff_on_) pi_.shift(-ff);
+    if (use && !ff_on_) pi_.shift(started_ ? -ff : -pi_.integral());
     if (!use && ff_on_) pi_.shift(u_ff_);
     ff_on_ = use;
+    started_ = true;
     if (use) u_ff_ = ff;
   }
 
   ControllerConfig cfg_;
   int horizon_;
   double sign_;  // the sign of the model's settled response to a command step (modelGainSign)
+  model::Interval ff_;  // the feedforward's bounds (ffBounds)
   detail::PiCore pi_;
   detail::LastGood y_;
   detail::CommandHistory hist_;
@@ -192,6 +213,7 @@ class Mbc final : public Controller {
   double u_solved_ = 0.0;  // the last finite solution of the inverse: the next cycle's start
   double gain_ = 1.0;      // the model's response at the horizon to a unit command change [mm/V]
   bool ff_on_ = false;     // the feedforward is in the command
+  bool started_ = false;   // past the first cycle since activate()
   double miss_ = 0.0;      // the modelling error: the UKF's posterior output - the reference model's, low-passed
   int recover_ = 0;        // cycles left with the feedforward off after an estimator restart
 };
