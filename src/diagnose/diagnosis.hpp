@@ -101,6 +101,7 @@ class Diagnosis {
   std::vector<CandidateResult> searchProbes(const Rung& fin, Placement where) const;
   void alternativesAtTheNoise(const Rung& fin);
   bool screenResolves(const Rung& fin);
+  double nullProbe(const Rung& fin) const;
   void recordProbes(const Rung& fin, const std::vector<CandidateResult>& fits);
   void fitTheLine(const Rung& fin, std::vector<CandidateResult>& fits) const;
   void probeDirections(const Rung& fin);
