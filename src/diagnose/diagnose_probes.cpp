@@ -79,7 +79,7 @@ void Diagnosis::probes() {
 // structure itself, fitted there as a probe is (its "null probe"), validates worse by more than the share a
 // probe must win (min_gain): a probe would first have to win back what the screening costs (the same record
 // with the final model trained to 0.064 mm: the null probe 0.13 against 0.096 mm validated, every probe
-// 0.115-0.28). They are not fitted, and the verdict says why (Diagnosis::probeText).
+// 0.115-0.48). They are not fitted, and the verdict says why (Diagnosis::probeText).
 bool Diagnosis::screenResolves(const Rung& fin) {
   if (step_ <= 1) return true;
   const auto full = simulate(fin.model, train_);
