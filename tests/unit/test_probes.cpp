@@ -336,7 +336,8 @@ TEST(Probes, AreNotFittedWhereTheScreeningRecordCannotResolveTheFinalModel) {
   const auto r = diagnose::diagnose(train, &val, s);
   std::printf("%s\n%s\n", r.verdict.c_str(), r.probes_unresolved.c_str());
   ASSERT_FALSE(r.ladder.empty());
-  ASSERT_TRUE(r.ladder.back().model.hasEffect("pneumatic_balance")) << "the premise: the ladder ends in the pressure's dynamics";
+  ASSERT_TRUE(r.ladder.back().model.hasEffect("pneumatic_balance"))
+      << "the premise: the ladder ends in the pressure's dynamics";
   EXPECT_NE(r.probes_unresolved.find("the final model itself"), std::string::npos) << r.probes_unresolved;
   EXPECT_TRUE(r.probes.empty());
 }
