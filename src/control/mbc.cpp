@@ -197,7 +197,7 @@ class Mbc final : public Controller {
 
   ControllerConfig cfg_;
   int horizon_;
-  double sign_;  // the sign of the model's settled response to a command step (modelGainSign)
+  double sign_;         // the sign of the model's settled response to a command step (modelGainSign)
   model::Interval ff_;  // the feedforward's bounds (ffBounds)
   detail::PiCore pi_;
   detail::LastGood y_;
