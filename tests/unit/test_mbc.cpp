@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 
+#include "../common/open_loop_record.hpp"
 #include "control/controller.hpp"
 #include "control/controller_parts.hpp"
 #include "control/trajectory.hpp"
@@ -23,15 +24,7 @@ using namespace pamc;
 namespace {
 
 io::Measurement openLoopRecord(const std::string& input, double seconds) {
-  plant::Plant p(sim::paperPlant());
-  const auto r = sim::runOpenLoopInput(p, control::Trajectory::parse(input), seconds);
-  io::Measurement d;
-  d.source = input;
-  d.t = r.t;
-  d.u = r.u;
-  d.y = r.y;
-  d.Ts = 1e-3;
-  return d;
+  return test::openLoopRecord(sim::paperPlant(), input, seconds);
 }
 
 // A model of `effects` fitted (Levenberg-Marquardt from spread starts) on a record over the whole stroke.

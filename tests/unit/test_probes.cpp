@@ -12,13 +12,12 @@
 #include <cstdio>
 #include <random>
 
+#include "../common/open_loop_record.hpp"
 #include "control/trajectory.hpp"
 #include "diagnose/diagnose.hpp"
 #include "io/model_file.hpp"
 #include "model/model.hpp"
 #include "model/probe.hpp"
-#include "plant/plant.hpp"
-#include "sim/lockstep.hpp"
 
 using namespace pamc;
 
@@ -307,23 +306,6 @@ TEST(Probes, AtTheNoiseAProbeInTheEffectsPlaceIsStillTried) {
       << r.verdict;
 }
 
-namespace {
-
-// The physics plant's own record (src/physics, rig mode: every effect of the muscle at once), open loop.
-io::Measurement physicsRecord(const std::string& input, double seconds) {
-  plant::Plant p(plant::PlantConfig::defaults());
-  const auto r = sim::runOpenLoopInput(p, control::Trajectory::parse(input), seconds);
-  io::Measurement d;
-  d.source = input;
-  d.t = r.t;
-  d.u = r.u;
-  d.y = r.y;
-  d.Ts = 1e-3;
-  return d;
-}
-
-}  // namespace
-
 // A record over the whole stroke of the physics plant (60 000 samples, screened at 250 Hz), where the
 // ladder ends in pneumatic_balance: the pressure's fast dynamics under the screening record's 4 ms hold of
 // the input. Fitted there, the final structure itself validates far worse than the final model (0.397
@@ -331,7 +313,9 @@ io::Measurement physicsRecord(const std::string& input, double seconds) {
 // (docs/MODELING.md, `probes_unresolved`). With the rule undone the probes are fitted and this test fails
 // (and takes 133 s instead of 86).
 TEST(Probes, AreNotFittedWhereTheScreeningRecordCannotResolveTheFinalModel) {
-  const auto train = physicsRecord("random:1:-3.5:4", 60.0), val = physicsRecord("random:2:-3.5:4", 30.0);
+  const auto physics = plant::PlantConfig::defaults();  // rig mode: every effect of the muscle at once
+  const auto train = test::openLoopRecord(physics, "random:1:-3.5:4", 60.0);
+  const auto val = test::openLoopRecord(physics, "random:2:-3.5:4", 30.0);
   diagnose::DiagnoseSettings s;
   const auto r = diagnose::diagnose(train, &val, s);
   std::printf("%s\n%s\n", r.verdict.c_str(), r.probes_unresolved.c_str());
