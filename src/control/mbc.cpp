@@ -185,8 +185,8 @@ class Mbc final : public Controller {
   }
 
   // Takes the feedforward in or out with the PI's integral moved by it, so the command does not jump - but
-  // in the first cycle, where the command in effect is the one the loop started from (a vented muscle's
-  // safe value), the feedforward is taken as the whole command and the integral starts at 0 beside it.
+  // in the first cycle after activate() (the loop's start from the safe value, or a restart, where the
+  // loop's slew limits the step) the feedforward is taken as the whole command, the integral 0 beside it.
   void switchFeedforward(bool use, double ff) noexcept {
     if (use && !ff_on_) pi_.shift(started_ ? -ff : -pi_.integral());
     if (!use && ff_on_) pi_.shift(u_ff_);

@@ -9,7 +9,6 @@
 #include <memory>
 #include <string>
 
-#include "../common/open_loop_record.hpp"
 #include "control/controller.hpp"
 #include "control/controller_parts.hpp"
 #include "control/trajectory.hpp"
@@ -18,18 +17,20 @@
 #include "plant/plant.hpp"
 #include "sim/experiments.hpp"
 #include "sim/lockstep.hpp"
+#include "emulator_data.hpp"
 
 using namespace pamc;
 
 namespace {
 
-io::Measurement openLoopRecord(const std::string& input, double seconds) {
-  return test::openLoopRecord(sim::paperPlant(), input, seconds);
+// Random ramps and holds over [lo, hi] V (`--input random:SEED:LO:HI`) on the calibrated physics plant.
+io::Measurement openLoopRecord(std::uint64_t seed, double seconds, double lo = -3.5, double hi = 4.0) {
+  return testdata::emulatorRecord(sim::paperPlant(), seed, seconds, false, lo, hi);
 }
 
 // A model of `effects` fitted (Levenberg-Marquardt from spread starts) on a record over the whole stroke.
 model::Model fitted(const std::vector<std::string>& effects) {
-  static const io::Measurement d = openLoopRecord("random:1:-3.5:4", 30.0);
+  static const io::Measurement d = openLoopRecord(1, 30.0);
   model::Model structure;
   for (const auto& e : effects) structure.addEffect(e);
   return ident::fit(structure, d, ident::FitSettings::forMethod(ident::FitMethod::MultiStart)).model;
@@ -102,7 +103,7 @@ class MbcOnTriangle {
 // not worse than 1.05x the PI's.
 TEST(Mbc, AModelThatValidatesBetterTracksBetterAndThePlainOneCostsNothing) {
   const auto run = triangle();
-  const io::Measurement val = openLoopRecord("random:2:-3.5:4", 15.0);
+  const io::Measurement val = openLoopRecord(2, 15.0);
   const double pi = rmseFrom(track(control::Kind::PI, fitted({}), run), 1.0);
   std::vector<std::pair<double, double>> rungs;  // (validated RMSE, MBC triangle RMSE)
   for (const auto& effects : std::vector<std::vector<std::string>>{{}, {"saturation"}, {"saturation", "force_loop"}}) {
@@ -165,7 +166,7 @@ TEST(Mbc, AModelUsedWhereItDoesNotHoldDoesNotCostTheRun) {
   auto p = wrong.params();
   p[0] *= 0.1;  // k: the output's gain
   wrong.setParams(p);
-  const model::Model narrow = ident::fit(model::Model{}, openLoopRecord("random:3:-0.5:0.5", 20.0),
+  const model::Model narrow = ident::fit(model::Model{}, openLoopRecord(3, 20.0, -0.5, 0.5),
                                          ident::FitSettings::forMethod(ident::FitMethod::MultiStart))
                                   .model;
   int n_model = 0;

@@ -12,12 +12,12 @@
 #include <cstdio>
 #include <random>
 
-#include "../common/open_loop_record.hpp"
 #include "control/trajectory.hpp"
 #include "diagnose/diagnose.hpp"
 #include "io/model_file.hpp"
 #include "model/model.hpp"
 #include "model/probe.hpp"
+#include "emulator_data.hpp"
 
 using namespace pamc;
 
@@ -314,8 +314,8 @@ TEST(Probes, AtTheNoiseAProbeInTheEffectsPlaceIsStillTried) {
 // (and takes 133 s instead of 86).
 TEST(Probes, AreNotFittedWhereTheScreeningRecordCannotResolveTheFinalModel) {
   const auto physics = plant::PlantConfig::defaults();  // rig mode: every effect of the muscle at once
-  const auto train = test::openLoopRecord(physics, "random:1:-3.5:4", 60.0);
-  const auto val = test::openLoopRecord(physics, "random:2:-3.5:4", 30.0);
+  const auto train = testdata::emulatorRecord(physics, 1, 60.0, false, -3.5, 4.0);  // random:1:-3.5:4
+  const auto val = testdata::emulatorRecord(physics, 2, 30.0, false, -3.5, 4.0);
   diagnose::DiagnoseSettings s;
   const auto r = diagnose::diagnose(train, &val, s);
   std::printf("%s\n%s\n", r.verdict.c_str(), r.probes_unresolved.c_str());
