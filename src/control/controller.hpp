@@ -23,6 +23,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -137,6 +138,10 @@ struct ControlOutput {
   // outlier for the AMC's UKF (ActiveModelSettings::gate_nis). The PI then works with the last usable
   // position and its integral is held; the estimators run on their models.
   bool measurement_rejected = false;
+  // The MBC's response monitor (detail::ResponseMonitor): its feedforward is off because its model does not
+  // move as the muscle does, by this ratio of the muscle's motion to the model's (NaN for the others).
+  bool model_distrusted = false;
+  double model_ratio = NAN;
 };
 
 class Controller {

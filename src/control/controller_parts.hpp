@@ -134,6 +134,65 @@ class PiCore {
   double before_ = 0, out_ = 0;  // the integral before this cycle's, the command finish() gave
 };
 
+// Whether a model moves as the muscle does (the MBC's feedforward, docs/CONTROL.md "A model that moves
+// otherwise than the muscle"). Each cycle takes the model's output driven by the commands in effect and the
+// measured position; their changes over `span` cycles are regressed, the muscle's on the model's, with
+// exponential forgetting of time constant tau: ratio = sum(dp dm) / sum(dm dm). A feedforward from the
+// model's inverse moves the muscle by ratio times what the model was asked for, so it leaves a part
+// |ratio - 1| of the setpoint's motion to the PI: it helps while that part is below 1, the whole motion the
+// PI faces alone. The model is distrusted where the part exceeds that break-even (kOff) and trusted again
+// below kOn (chosen; a first choice of 0.5 and 0.25 took the feedforward from models it helped); judged
+// from two windows after a start (the first is dropped) and while the model moves at least kMinSpeed rms.
+class ResponseMonitor {
+ public:
+  static constexpr double kOff = 1.0, kOn = 0.5;
+  static constexpr double kMinSpeed = 0.5;  // [output units / s] rms over the window (chosen)
+  void configure(double Ts, double tau_s, double span_s) noexcept {
+    span_ = std::clamp(static_cast<int>(std::lround(span_s / Ts)), 1, 1023);
+    a_ = std::min(1.0, Ts / tau_s);
+    warm_ = static_cast<long>(std::ceil(tau_s / Ts));
+    min_mm_ = kMinSpeed * kMinSpeed * span_ * Ts * span_ * Ts;
+  }
+  void reset() noexcept {
+    forget();
+    ratio_ = 1.0;
+    trusted_ = true;
+  }
+  // A cycle not to judge (the model outside the range it was identified on): the window starts again
+  // after it, the verdict stays.
+  void forget() noexcept {
+    model_.fill(NAN), meas_.fill(NAN);
+    smm_ = smp_ = 0.0;
+    seen_ = 0;
+  }
+  // One cycle. A non-finite value is not judged.
+  void step(double model_y, double y) noexcept {
+    model_.push(model_y), meas_.push(y);
+    const double dm = model_y - model_.get(span_), dp = y - meas_.get(span_);
+    if (!std::isfinite(dm) || !std::isfinite(dp)) return;
+    // The first window after a start is the start's: the model's state there is a guess (at rest at the
+    // command it started from), and a vented muscle fills in it. It is dropped.
+    if (++seen_ == warm_) smm_ = smp_ = 0.0;
+    smm_ += (dm * dm - smm_) * a_;
+    smp_ += (dp * dm - smp_) * a_;
+    if (seen_ < 2 * warm_ || smm_ < min_mm_) return;
+    ratio_ = smp_ / smm_;
+    const double part = std::fabs(ratio_ - 1.0);
+    if (trusted_ && part > kOff) trusted_ = false;
+    if (!trusted_ && part < kOn) trusted_ = true;
+  }
+  bool trusted() const noexcept { return trusted_; }
+  double ratio() const noexcept { return ratio_; }  // the last judged ratio (1 before any)
+
+ private:
+  History<1024> model_, meas_;
+  int span_ = 20;
+  double a_ = 1e-3, min_mm_ = 0.0;
+  long warm_ = 1, seen_ = 0;  // a window's worth of cycles; the cycles judged since the start
+  double smm_ = 0.0, smp_ = 0.0, ratio_ = 1.0;
+  bool trusted_ = true;
+};
+
 // The last usable (finite) measured position: a non-finite one is never used.
 class LastGood {
  public:

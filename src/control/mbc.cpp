@@ -27,6 +27,10 @@
 // So does a cycle whose estimator restarted or whose rollout was not finite, for kRecoverCycles after.
 // While the estimator has lost the plant (its posterior far from the measured position) its modelling
 // error is not followed: held where it was, the feedforward stays on (docs/CONTROL.md).
+// Nor is it used while the model does not move as the muscle does (detail::ResponseMonitor): the model
+// driven by the commands in effect beside the measured position, over the last second. A model with a
+// tenth of the plant's gain tracked the triangle at 3x the PI's error before (docs/CONTROL.md, "A model
+// that moves otherwise than the muscle").
 // The estimator's own restarts are not faults here: the PI keeps the loop meanwhile.
 #include <algorithm>
 #include <cmath>
@@ -48,6 +52,9 @@ constexpr int kInverseSteps = 3;
 // rms; with that plant's pneumatic_balance it has lost it, 4.5 mm rms. The default form, the modelling
 // error on the position, follows both.)
 constexpr double kLostBy = 1.0;
+// The response monitor's window [s] and the span of the changes it compares [s] (chosen).
+constexpr double kMonitorTau = 1.0;
+constexpr double kMonitorSpan = 0.02;
 
 class Mbc final : public Controller {
  public:
@@ -56,6 +63,7 @@ class Mbc final : public Controller {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
     governor_.configure(c.mbc.rate_mm_s, c.mbc.accel_mm_s2, c.Ts);
+    monitor_.configure(c.Ts, kMonitorTau, kMonitorSpan);
   }
   Kind kind() const override { return Kind::Mbc; }
   int lookahead() const override { return horizon_; }
@@ -71,6 +79,8 @@ class Mbc final : public Controller {
     ctx_.Ts = cfg_.Ts;
     cfg_.model.init(ref_, u0, ctx_);
     y_ref_ = cfg_.model.step(ref_, u0, ctx_);
+    cfg_.model.init(act_, u0, ctx_);
+    monitor_.reset();
     ff_on_ = started_ = false;
     recover_ = 0;
     gain_ = sign_;
@@ -89,10 +99,11 @@ class Mbc final : public Controller {
     if (est.status == estimation::UkfStatus::Reset) recover_ = kRecoverCycles;
     ctx_.load = load;
     if (!lost) followMiss(est);
+    watchResponse(y, o.measurement_rejected);
     const double r = governor_.step(yd_ahead);
     governed_.push(r);
     const double ff = feedforward(r - miss_);
-    const bool use = recover_ == 0 && std::isfinite(ff) && inRange(ff, r, yd_ahead, y_.get());
+    const bool use = recover_ == 0 && std::isfinite(ff) && inRange(ff, r, yd_ahead, y_.get()) && monitor_.trusted();
     if (recover_ > 0) --recover_;
     if (std::isfinite(ff))
       u_solved_ = ff;
@@ -105,6 +116,8 @@ class Mbc final : public Controller {
     const double r_now = governed_.get(horizon_);
     const double un = pi_.nominal((std::isfinite(r_now) ? r_now : yd) - y_.get(), !o.measurement_rejected);
     o.u_c = ff_on_ ? u_ff_ : 0.0;
+    o.model_distrusted = !monitor_.trusted();
+    o.model_ratio = monitor_.ratio();
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
     hist_.push(o.u);
     return o;
@@ -168,6 +181,18 @@ class Mbc final : public Controller {
     miss_ += (est.y_post - y_ref_ - miss_) * std::min(1.0, cfg_.Ts / cfg_.mbc.error_tau_s);
   }
 
+  // The response monitor's cycle: the model driven by the commands in effect beside the measured position,
+  // judged only where the model was identified (from a vented muscle both fill from outside its range).
+  void watchResponse(double y, bool rejected) noexcept {
+    const double u = hist_.get(cfg_.delay_cycles);
+    const double y_act = cfg_.model.step(act_, u, ctx_);
+    const auto& r = cfg_.model.range();
+    if (r.known && !(r.input.contains(u) && r.output.contains(y_act) && r.output.contains(y_.get())))
+      monitor_.forget();
+    else if (!rejected)
+      monitor_.step(y_act, y);
+  }
+
   // The reference model takes the feedforward that reaches its effect now (sent delay_cycles + 1 ago).
   void advanceReference(double ff) noexcept {
     ff_hist_.push(ff);
@@ -207,7 +232,9 @@ class Mbc final : public Controller {
   detail::SetpointGovernor governor_;
   detail::DelayLine governed_;  // the governed setpoint ahead, r(k), of the last cycles
   model::Model::State ref_;     // the reference model: the model driven by the feedforward alone
-  double y_ref_ = 0.0;          // its output now
+  model::Model::State act_;     // the model driven by the commands in effect (the monitor's)
+  detail::ResponseMonitor monitor_;
+  double y_ref_ = 0.0;  // its output now
   model::StepContext ctx_;
   double u_ff_ = 0.0;      // the feedforward in the command (the last one, while it is off)
   double u_solved_ = 0.0;  // the last finite solution of the inverse: the next cycle's start

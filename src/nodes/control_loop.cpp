@@ -76,6 +76,7 @@ bool ControlLoop::step(const PositionSample& s, Setpoint sp, double safe_u, Cycl
     last_u_ = o.u;
   }
   range_watch_.step(sp.t, last_u_, s.y);
+  range_watch_.stepResponse(sp.t, o.model_distrusted, o.model_ratio);
   return true;
 }
 

@@ -32,6 +32,10 @@ void FaultReporter::step(const ControllerNode& n) {
     range_said_ = true;
     if (out_) out_(n.rangeWatch().describe());
   }
+  if (!distrust_said_ && n.rangeWatch().distrusted()) {
+    distrust_said_ = true;
+    if (out_) out_(n.rangeWatch().describeDistrust());
+  }
   const Fault f = n.fault();
   if (f == last_) return;
   last_ = f;

@@ -14,8 +14,9 @@ namespace pamc::nodes {
 // One line for the node's present fault (None: the fault cleared), with what to look at.
 std::string describeFault(const ControllerNode& n, Fault f);
 
-// Prints a line whenever the node's fault changes, and once when the model runs outside its range. Reads only what the
-// node publishes for other threads, so it may run on a thread of its own.
+// Prints a line whenever the node's fault changes, once when the model runs outside its range, and once when the MBC
+// takes its feedforward off for a model that does not move as the muscle does. Reads only what the node publishes for
+// other threads, so it may run on a thread of its own.
 class FaultReporter {
  public:
   explicit FaultReporter(std::function<void(const std::string&)> out) : out_(std::move(out)) {}
@@ -24,7 +25,8 @@ class FaultReporter {
  private:
   std::function<void(const std::string&)> out_;
   Fault last_ = Fault::None;
-  bool range_said_ = false;  // the model's range is said once a run
+  bool range_said_ = false;     // the model's range is said once a run
+  bool distrust_said_ = false;  // so is the MBC's response monitor's verdict
 };
 
 // Why the run failed, for its end: it never had a position (the commands exit non-zero with it).

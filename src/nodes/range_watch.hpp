@@ -1,6 +1,8 @@
 // Whether the control loop runs its model outside the range it was identified on (model.json's
-// `range`): the cycle notes the first sample outside, with its numbers, and publishes it once; a thread
-// outside the cycle (the fault reporter) says it in one line. Nothing formatted or allocated in step().
+// `range`), or where the model does not move as the muscle does (the MBC's response monitor,
+// ControlOutput::model_distrusted): the cycle notes the first such sample, with its numbers, and publishes
+// it once; a thread outside the cycle (the fault reporter) says it in one line. Nothing formatted or
+// allocated in step().
 #pragma once
 
 #include <atomic>
@@ -16,6 +18,7 @@ class RangeWatch {
   // A new run with the model's range (unknown: nothing is watched).
   void configure(const model::OperatingRange& r, double Ts) noexcept {
     seen_.store(false, std::memory_order_release);  // first: no reader takes the new range for the old sample
+    distrust_seen_.store(false, std::memory_order_release);
     range_ = r;
     Ts_ = Ts;
     primed_ = false;
@@ -33,9 +36,29 @@ class RangeWatch {
     seen_.store(true, std::memory_order_release);
   }
 
+  // One cycle's verdict of the MBC's response monitor, at run time t [s].
+  void stepResponse(double t, bool distrusted, double ratio) noexcept {
+    if (!distrusted || distrust_seen_.load(std::memory_order_relaxed)) return;
+    distrust_ = {t, ratio};
+    distrust_seen_.store(true, std::memory_order_release);
+  }
+
   // Any thread: whether the model has run outside (the first sample is then fixed).
   bool outside() const noexcept { return seen_.load(std::memory_order_acquire); }
   bool watching() const noexcept { return range_.known; }
+
+  // Any thread: whether the MBC has taken its feedforward off for a model that moves otherwise.
+  bool distrusted() const noexcept { return distrust_seen_.load(std::memory_order_acquire); }
+  // The one line (call only when distrusted()).
+  std::string describeDistrust() const {
+    char b[320];
+    std::snprintf(b, sizeof b,
+                  "note: the model does not move as the muscle does from t = %.3f s: the muscle moved %.3g times what "
+                  "the model said over the last second (a feedforward from it helps between 0 and 2); the MBC's "
+                  "feedforward is off until that ratio is back within 0.5-1.5",
+                  distrust_.t, distrust_.ratio);
+    return b;
+  }
 
   // The one line (call only when outside()).
   std::string describe() const {
@@ -67,6 +90,10 @@ class RangeWatch {
   bool primed_ = false;
   Sample first_{};
   std::atomic<bool> seen_{false};
+  struct Distrust {
+    double t = 0.0, ratio = 0.0;
+  } distrust_{};
+  std::atomic<bool> distrust_seen_{false};
 };
 
 }  // namespace pamc::nodes

@@ -189,8 +189,51 @@ TEST(Mbc, AModelUsedWhereItDoesNotHoldDoesNotCostTheRun) {
       plant.step(o.u, 0.0);
     }
     std::printf("%s model: triangle RMSE %.4f mm (PI %.4f)\n", n_model == 0 ? "narrow" : "wrong", std::sqrt(s / n), pi);
-    if (n_model++ == 0) {
-      EXPECT_LE(std::sqrt(s / n), 1.05 * pi);
+    // Both within the 1.05x the PI's for a model that does not hold. The wrong one tracked at 0.90 mm
+    // (PI 0.31) before the response monitor took its feedforward off.
+    EXPECT_LE(std::sqrt(s / n), 1.05 * pi);
+    ++n_model;
+  }
+}
+
+// The response monitor (detail::ResponseMonitor) on the MBC's own cycle: with a model of a tenth of the
+// plant's gain it takes the feedforward off (u_c = 0) and says by how much more the muscle moves than the
+// model - beyond the break-even of 2; with the model diagnose found on the plant (the committed
+// pneumatic_balance) it never does. (The plain Bouc-Wen model fitted there loses it at its folds.)
+TEST(Mbc, AModelThatMovesOtherwiseThanTheMuscleLosesItsFeedforward) {
+  const auto run = triangle();
+  model::Model wrong = fitted({});
+  auto p = wrong.params();
+  p[0] *= 0.1;
+  wrong.setParams(p);
+  const std::vector<model::Model> models{
+      io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json"), wrong};
+  for (size_t i = 0; i < models.size(); ++i) {
+    control::ControllerConfig cfg;
+    cfg.model = models[i];
+    auto c = control::makeController(control::Kind::Mbc, cfg);
+    plant::Plant plant(sim::paperPlant());
+    plant.reset(0.0);
+    c->activate(0.0, plant.measure());
+    int distrusted = 0, first = -1;
+    double ratio = NAN;
+    for (int k = 0; k < 40000; ++k) {
+      const double y = plant.measure();
+      const auto o = c->update(run.reference.at(k * 1e-3), run.reference.at((k + c->lookahead()) * 1e-3), y);
+      if (o.model_distrusted) {
+        EXPECT_EQ(o.u_c, 0.0) << k;
+        if (first < 0) first = k, ratio = o.model_ratio;
+        ++distrusted;
+      }
+      plant.step(o.u, 0.0);
+    }
+    std::printf("%s model: distrusted in %d of 40000 cycles, from %d at a ratio of %.3g\n",
+                i == 0 ? "diagnosed" : "wrong", distrusted, first, ratio);
+    if (i == 0) {
+      EXPECT_EQ(distrusted, 0);
+    } else {
+      EXPECT_GT(distrusted, 30000);  // from its first verdict on, two windows (2 s) after the start at the earliest
+      EXPECT_GT(ratio, 2.0);
     }
   }
 }
@@ -267,8 +310,7 @@ TEST(Mbc, AtFiftyHertzTheFeedforwardComesInAndTracksBetterThanThePi) {
   cfg.Ts = kTs;
   cfg.u_min = pc.u_min;
   cfg.u_max = pc.u_max;
-  cfg.model =
-      io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json");
+  cfg.model = io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json");
   sim::ClosedLoopRun run = triangle();
   run.preroll_s = 1.0;
   double rmse[2] = {0.0, 0.0};
@@ -338,8 +380,7 @@ TEST(Mbc, AFeedforwardBeyondItsModelsInputRangeIsHeldAtTheRangesEdge) {
   control::ControllerConfig cfg;
   cfg.u_min = pc.u_min;
   cfg.u_max = pc.u_max;
-  cfg.model =
-      io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json");
+  cfg.model = io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json");
   const auto& range = cfg.model.range().input;
   sim::ClosedLoopRun run = triangle();
   run.preroll_s = 1.0;

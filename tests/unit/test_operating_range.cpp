@@ -143,6 +143,17 @@ TEST(OperatingRange, TheLoopSaysOnceWithTheFirstSampleOutside) {
   w.configure(model::OperatingRange{}, 1e-3);
   w.step(0.0, 99.0, 99.0);
   EXPECT_FALSE(w.outside());
+  // The MBC's response monitor: its first verdict against the model is kept, with its ratio, with a range or
+  // without.
+  w.stepResponse(0.5, false, 1.1);
+  EXPECT_FALSE(w.distrusted());
+  w.stepResponse(2.0, true, 9.87);
+  w.stepResponse(3.0, true, 1.5);
+  ASSERT_TRUE(w.distrusted());
+  EXPECT_NE(w.describeDistrust().find("from t = 2.000 s: the muscle moved 9.87 times"), std::string::npos)
+      << w.describeDistrust();
+  w.configure(r, 1e-3);
+  EXPECT_FALSE(w.distrusted());
 }
 
 namespace {
