@@ -181,6 +181,10 @@ def main():
         for b in (sim_bin, exp_bin):
             if not os.access(b, os.X_OK):
                 ap.error("no %s (build first: tools/build.sh)" % b)
+        # The oracle's experiments link the controllers' library of the build: linked before it, they run other code.
+        lib = os.path.join(os.path.dirname(a.pamc), "libpamc_control.a")
+        if os.path.exists(lib) and os.path.getmtime(exp_bin) < os.path.getmtime(lib):
+            ap.error("%s is older than %s: it runs other controllers (build it: tools/build.sh)" % (exp_bin, lib))
         log("records on the oracle's plant %s, in %s" % (a.oracle_plant, d))
         train, val = oracle_records(sim_bin, d, a.oracle_plant)
         runner = [exp_bin, "--cases", a.oracle_plant]
