@@ -53,6 +53,7 @@ py::dict lastOutput(const control::ControlOutput& o) {
   py::dict d;
   d["u"] = o.u, d["u_n"] = o.u_n, d["u_c"] = o.u_c, d["y_hat"] = o.y_hat, d["saturated"] = o.saturated;
   d["estimator_reset"] = o.estimator_reset, d["measurement_rejected"] = o.measurement_rejected;
+  d["model_distrusted"] = o.model_distrusted, d["model_ratio"] = o.model_ratio;
   return d;
 }
 

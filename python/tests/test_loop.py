@@ -1,5 +1,6 @@
 """A closed loop written in Python against the library's own lockstep loop."""
 import collections
+import os
 
 import numpy as np
 import pytest
@@ -7,6 +8,7 @@ import pytest
 import pamc
 
 TRIANGLE = "triangle:0.05:0.2:30"
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DURATION, PREROLL, U0 = 20.0, 1.0, 0.0
 
 
@@ -47,3 +49,22 @@ def test_trajectory_samples():
     t = np.linspace(0, 20, 11)
     np.testing.assert_array_equal(ref(t), [ref.at(x) for x in t])
     assert ref.at(10.0) == pytest.approx(30.0)
+
+
+def test_the_mbc_says_when_its_model_moves_otherwise_than_the_muscle():
+    """A model with a tenth of the gain: the MBC's response monitor takes its feedforward off (docs/CONTROL.md)."""
+    fitted = pamc.Model.load(os.path.join(ROOT, "tests", "data", "models", "calibrated_pneumatic_balance.json"))
+    d = fitted.to_dict()
+    d["core"]["k"] *= 0.1
+    model = pamc.Model.from_dict(d)
+    ctrl, plant, ref = pamc.Controller("mbc", model=model), pamc.Plant(), pamc.Trajectory(TRIANGLE)
+    plant.reset(0.0); ctrl.activate(0.0, plant.measure())
+    verdicts = []
+    for k in range(8000):
+        t = k * plant.Ts
+        plant.step(ctrl.update(ref.at(t), ref.at(t + ctrl.lookahead * plant.Ts), plant.measure()))
+        verdicts.append((ctrl.last["model_distrusted"], ctrl.last["model_ratio"], ctrl.last["u_c"]))
+    assert not verdicts[0][0]
+    off = [v for v in verdicts if v[0]]
+    assert off and all(u_c == 0.0 for _, _, u_c in off)
+    assert off[0][1] > 2.0
