@@ -159,15 +159,15 @@ class ResponseMonitor {
     trusted_ = true;
   }
   // A cycle not to judge (the model outside the range it was identified on): the window starts again
-  // after it, the verdict stays.
+  // after it, the verdict stays. Cheap: it runs in every such cycle.
   void forget() noexcept {
-    model_.fill(NAN), meas_.fill(NAN);
+    pushed_ = seen_ = 0;
     smm_ = smp_ = 0.0;
-    seen_ = 0;
   }
   // One cycle. A non-finite value is not judged.
   void step(double model_y, double y) noexcept {
     model_.push(model_y), meas_.push(y);
+    if (++pushed_ <= span_) return;  // a change over span_ cycles needs span_ + 1 values since forget()
     const double dm = model_y - model_.get(span_), dp = y - meas_.get(span_);
     if (!std::isfinite(dm) || !std::isfinite(dp)) return;
     // The first window after a start is the start's: the model's state there is a guess (at rest at the
@@ -189,6 +189,7 @@ class ResponseMonitor {
   int span_ = 20;
   double a_ = 1e-3, min_mm_ = 0.0;
   long warm_ = 1, seen_ = 0;  // a window's worth of cycles; the cycles judged since the start
+  long pushed_ = 0;           // values pushed since forget()
   double smm_ = 0.0, smp_ = 0.0, ratio_ = 1.0;
   bool trusted_ = true;
 };
