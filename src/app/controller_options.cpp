@@ -114,7 +114,8 @@ control::ControllerConfig ControllerOptions::paperConfig() const {
 void ControllerKindOption::add(CLI::App* a) {
   a->add_option("--controller", name,
                 "open, pi, pid (the same as pi: the paper's \"PID\" is a PI), eso, amc or mbc (model-based: the "
-                "model's inverse through the commands in flight, the PI on top; docs/CONTROL.md)")
+                "model's inverse through the commands in flight, the PI on top, the PI alone where the model was not "
+                "identified or does not move as the muscle does; docs/CONTROL.md)")
       ->capture_default_str()
       ->check(CLI::IsMember({"open", "pi", "pid", "eso", "amc", "mbc"}));
 }
