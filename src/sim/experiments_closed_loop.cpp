@@ -33,6 +33,23 @@ nlohmann::json table2Entry(const Record& r, const ClosedLoopRun& run) {
           {"whole_max", whole.max_abs}, {"whole_rmse", whole.rmse}, {"turn_max", turningPointError(r, kTurnWindowS)}};
 }
 
+// The MBC's share of scored cycles with its feedforward in the command (u_c != 0): the PI runs alone in the
+// rest, outside the model's range or where the model does not move as the muscle does (docs/CONTROL.md).
+double feedforwardShare(const Record& r, double from) {
+  size_t n = 0, on = 0;
+  for (size_t i = 0; i < r.t.size(); ++i)
+    if (r.t[i] >= from) ++n, on += r.u_c[i] != 0.0;
+  return n ? static_cast<double>(on) / static_cast<double>(n) : 0.0;
+}
+
+// One line under Table 2: where the MBC's feedforward was in the command.
+void feedforwardLine(Context& x, const nlohmann::json& t2) {
+  x.txt << "MBC's feedforward in the command, share of the scored cycles:";
+  for (const auto& [tag, row] : t2.items())
+    x.txt << " " << tag << " " << fmt("%.0f", 100.0 * row["mbc"]["feedforward_share"].get<double>()) << " %";
+  x.txt << " (the PI alone in the rest: outside its model's range, or its model not moving as the muscle does)\n";
+}
+
 void table2Header(Context& x) {
   x.txt << "Table 2. Tracking error max/RMSE (mm); paper's values in brackets.\n";
   if (x.cc.amc_inverse > 0.0)
@@ -56,6 +73,7 @@ nlohmann::json table2Row(Context& x, const TrackingCase& c, size_t prow) {
   for (size_t i = 0; i < kAllKinds.size(); ++i) {
     const Record r = x.run(kAllKinds[i], c.run, c.tag);
     row[control::toString(kAllKinds[i])] = table2Entry(r, c.run);
+    if (kAllKinds[i] == Kind::Mbc) row["mbc"]["feedforward_share"] = feedforwardShare(r, row["mbc"]["scored_from_s"]);
     const auto& e = row[control::toString(kAllKinds[i])];
     x.txt << "  " << fmt("%6.3f", e["max"].get<double>()) << "/" << fmt("%-6.4f", e["rmse"].get<double>());
     if (i < std::size(paper))
@@ -178,6 +196,7 @@ void runTable2(Context& x) {
   const auto cases = table2Cases(x.s.sine_start);
   for (size_t i = 0; i < cases.size(); ++i) t2[cases[i].tag] = table2Row(x, cases[i], i);
   wholeRunRows(x, t2, cases);
+  feedforwardLine(x, t2);
   x.txt << "\n";
   x.json["table2"] = t2;
   x.json["table2_other_start"] = otherStartRows(x);
@@ -188,6 +207,7 @@ void runTriangle(Context& x) {
   table2Header(x);
   const auto cases = table2Cases(x.s.sine_start);
   x.json["table2"][cases[0].tag] = table2Row(x, cases[0], 0);
+  feedforwardLine(x, x.json["table2"]);
   x.txt << "\n";
 }
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -480,4 +481,34 @@ TEST(Mbc, TheGovernorTakesTheOvershootOutOfASquareWave) {
   std::printf("square wave overshoot: governed %.2f %%, raw %.2f %%\n", governed, raw);
   EXPECT_LT(governed, 5.0);
   EXPECT_LT(governed, 0.5 * raw);
+}
+
+// `pamc experiments` says where the MBC's feedforward was in the command: summary.json's
+// table2/<row>/mbc/feedforward_share and a line under Table 2. With the committed pneumatic model all of the
+// triangle; with its gain cut to a tenth, only the cycles before the response monitor's verdict.
+TEST(Mbc, ExperimentsSayWhereTheFeedforwardWasInTheCommand) {
+  const std::string good = std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json";
+  model::Model wrong = io::readModelFile(good);
+  auto p = wrong.params();
+  p[0] *= 0.1;
+  wrong.setParams(p);
+  const auto dir = std::filesystem::temp_directory_path() / "pamc_test_mbc_share";
+  std::filesystem::create_directories(dir);
+  const std::string wrong_file = (dir / "wrong.json").string();
+  io::writeModelFile(wrong_file, wrong);
+  double share[2] = {0.0, 0.0};
+  for (int i = 0; i < 2; ++i) {
+    sim::ExperimentSettings s;
+    s.model_file = i == 0 ? good : wrong_file;
+    s.only = {"triangle"};
+    s.figures = false;
+    s.out_dir = (dir / (i == 0 ? "good" : "wrong")).string();
+    const auto r = sim::runExperiments(s);
+    share[i] = r.json["table2"]["triangle_0.05Hz"]["mbc"]["feedforward_share"].get<double>();
+    EXPECT_NE(r.text.find("MBC's feedforward in the command, share of the scored cycles: triangle_0.05Hz"),
+              std::string::npos);
+  }
+  std::printf("feedforward in the command: %.3f with the model, %.3f with a tenth of its gain\n", share[0], share[1]);
+  EXPECT_EQ(share[0], 1.0);
+  EXPECT_LT(share[1], 0.2);
 }
