@@ -34,7 +34,8 @@ nlohmann::json table2Entry(const Record& r, const ClosedLoopRun& run) {
 }
 
 // The MBC's share of scored cycles with its feedforward in the command (u_c != 0): the PI runs alone in the
-// rest, outside the model's range or where the model does not move as the muscle does (docs/CONTROL.md).
+// rest, outside the model's range, where the model does not move as the muscle does, or while its estimator
+// restarts (docs/CONTROL.md).
 double feedforwardShare(const Record& r, double from) {
   size_t n = 0, on = 0;
   for (size_t i = 0; i < r.t.size(); ++i)
@@ -47,7 +48,8 @@ void feedforwardLine(Context& x, const nlohmann::json& t2) {
   x.txt << "MBC's feedforward in the command, share of the scored cycles:";
   for (const auto& [tag, row] : t2.items())
     x.txt << " " << tag << " " << fmt("%.0f", 100.0 * row["mbc"]["feedforward_share"].get<double>()) << " %";
-  x.txt << " (the PI alone in the rest: outside its model's range, or its model not moving as the muscle does)\n";
+  x.txt << " (the PI alone in the rest: outside its model's range, its model not moving as the muscle does, or its "
+           "estimator restarting)\n";
 }
 
 void table2Header(Context& x) {
