@@ -37,6 +37,19 @@ model::Model fitted(const std::vector<std::string>& effects) {
   return ident::fit(structure, d, ident::FitSettings::forMethod(ident::FitMethod::MultiStart)).model;
 }
 
+// The pneumatic_balance model diagnose found on the calibrated physics plant (tools/mbc_table.py's final
+// model, committed in tests/data/models).
+const std::string kPneumaticFile =
+    std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json";
+
+// `m` with a tenth of its gain k: a model that runs inside its range and moves ten times too little.
+model::Model tenthOfTheGain(model::Model m) {
+  auto p = m.params();
+  p[0] *= 0.1;  // k: the output's gain
+  m.setParams(p);
+  return m;
+}
+
 sim::Record track(control::Kind kind, const model::Model& m, const sim::ClosedLoopRun& run,
                   const estimation::ActiveModelSettings& ukf = {}) {
   control::ControllerConfig cfg;
@@ -163,10 +176,7 @@ TEST(Mbc, OutsideTheModelsRangeThePiRunsAloneAndTheSwitchIsBumpless) {
 TEST(Mbc, AModelUsedWhereItDoesNotHoldDoesNotCostTheRun) {
   const auto run = triangle();
   const double pi = rmseFrom(track(control::Kind::PI, fitted({}), run), 1.0);
-  model::Model wrong = fitted({});
-  auto p = wrong.params();
-  p[0] *= 0.1;  // k: the output's gain
-  wrong.setParams(p);
+  const model::Model wrong = tenthOfTheGain(fitted({}));
   const model::Model narrow = ident::fit(model::Model{}, openLoopRecord(3, 20.0, -0.5, 0.5),
                                          ident::FitSettings::forMethod(ident::FitMethod::MultiStart))
                                   .model;
@@ -203,12 +213,7 @@ TEST(Mbc, AModelUsedWhereItDoesNotHoldDoesNotCostTheRun) {
 // pneumatic_balance) it never does. (The plain Bouc-Wen model fitted there loses it at its folds.)
 TEST(Mbc, AModelThatMovesOtherwiseThanTheMuscleLosesItsFeedforward) {
   const auto run = triangle();
-  model::Model wrong = fitted({});
-  auto p = wrong.params();
-  p[0] *= 0.1;
-  wrong.setParams(p);
-  const std::vector<model::Model> models{
-      io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json"), wrong};
+  const std::vector<model::Model> models{io::readModelFile(kPneumaticFile), tenthOfTheGain(fitted({}))};
   for (size_t i = 0; i < models.size(); ++i) {
     control::ControllerConfig cfg;
     cfg.model = models[i];
@@ -244,8 +249,7 @@ TEST(Mbc, AModelThatMovesOtherwiseThanTheMuscleLosesItsFeedforward) {
 // the estimator in each of its forms for such a model (ActiveModelSettings::Q_d).
 struct PneumaticOnTriangle {
   explicit PneumaticOnTriangle(double Q_d) {
-    const model::Model m =
-        io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json");
+    const model::Model m = io::readModelFile(kPneumaticFile);
     estimation::ActiveModelSettings s;
     s.Q_d = Q_d;
     const auto r = track(control::Kind::Mbc, m, triangle(), s);
@@ -311,7 +315,7 @@ TEST(Mbc, AtFiftyHertzTheFeedforwardComesInAndTracksBetterThanThePi) {
   cfg.Ts = kTs;
   cfg.u_min = pc.u_min;
   cfg.u_max = pc.u_max;
-  cfg.model = io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json");
+  cfg.model = io::readModelFile(kPneumaticFile);
   sim::ClosedLoopRun run = triangle();
   run.preroll_s = 1.0;
   double rmse[2] = {0.0, 0.0};
@@ -381,7 +385,7 @@ TEST(Mbc, AFeedforwardBeyondItsModelsInputRangeIsHeldAtTheRangesEdge) {
   control::ControllerConfig cfg;
   cfg.u_min = pc.u_min;
   cfg.u_max = pc.u_max;
-  cfg.model = io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json");
+  cfg.model = io::readModelFile(kPneumaticFile);
   const auto& range = cfg.model.range().input;
   sim::ClosedLoopRun run = triangle();
   run.preroll_s = 1.0;
@@ -487,11 +491,7 @@ TEST(Mbc, TheGovernorTakesTheOvershootOutOfASquareWave) {
 // table2/<row>/mbc/feedforward_share and a line under Table 2. With the committed pneumatic model all of the
 // triangle; with its gain cut to a tenth, only the cycles before the response monitor's verdict.
 TEST(Mbc, ExperimentsSayWhereTheFeedforwardWasInTheCommand) {
-  const std::string good = std::string(PAMC_SOURCE_DIR) + "/tests/data/models/calibrated_pneumatic_balance.json";
-  model::Model wrong = io::readModelFile(good);
-  auto p = wrong.params();
-  p[0] *= 0.1;
-  wrong.setParams(p);
+  const model::Model wrong = tenthOfTheGain(io::readModelFile(kPneumaticFile));
   const auto dir = std::filesystem::temp_directory_path() / "pamc_test_mbc_share";
   std::filesystem::create_directories(dir);
   const std::string wrong_file = (dir / "wrong.json").string();
@@ -499,7 +499,7 @@ TEST(Mbc, ExperimentsSayWhereTheFeedforwardWasInTheCommand) {
   double share[2] = {0.0, 0.0};
   for (int i = 0; i < 2; ++i) {
     sim::ExperimentSettings s;
-    s.model_file = i == 0 ? good : wrong_file;
+    s.model_file = i == 0 ? kPneumaticFile : wrong_file;
     s.only = {"triangle"};
     s.figures = false;
     s.out_dir = (dir / (i == 0 ? "good" : "wrong")).string();
