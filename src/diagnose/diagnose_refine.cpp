@@ -127,9 +127,24 @@ void Diagnosis::refineOne(const std::string& e) {
 // The richer form searched by the GA over its whole box as well (the core with it), longer than a round's
 // second opinion: it runs once, and its basins are narrow (the Bouc-Wen benchmark: the round's GA ended at
 // 0.019 mm or 0.010 by the seed, the paper's GA of `pamc fit` at 0.007). The better fit is kept.
-void Diagnosis::searchByGa(CandidateResult& c, const model::Model& base) const {
+void Diagnosis::searchByGa(CandidateResult& c, const model::Model& base) {
+  const GaSearch* done = nullptr;
+  for (const auto& g : ga_searches_)
+    if (g.effect == c.effect && g.base_effects == base.effectNames() && g.base_params == base.params()) done = &g;
+  if (done) {
+    log("  GA: " + c.effect + " searched from this model before: train " + fmt("%.5g", done->rmse_train) +
+        " validation " + fmt("%.5g", done->rmse_val));
+  } else {
+    done = &ga_searches_.emplace_back(searchAfresh(c.effect, base));
+  }
+  if (done->rmse_val < c.rmse_val)
+    c.model = done->model, c.rmse_val = done->rmse_val, c.rmse_train = ident::rmseFrom(done->model, train_);
+}
+
+// The GA's search of `effect` on top of `base` over its whole box, the core with it.
+Diagnosis::GaSearch Diagnosis::searchAfresh(const std::string& effect, const model::Model& base) const {
   model::Model st = base;
-  st.addEffect(c.effect);
+  st.addEffect(effect);
   ident::FitSettings fs = ident::FitSettings::forMethod(ident::FitMethod::Ga);
   fs.ga.population = kRicherPopulation;
   fs.ga.max_generations = kRicherGenerations;
@@ -139,10 +154,10 @@ void Diagnosis::searchByGa(CandidateResult& c, const model::Model& base) const {
   fs.refine_evals = 200;
   const auto t = std::chrono::steady_clock::now();
   const auto f = ident::fit(st, screen_, fs, {}, &base);
-  const double rv = v_.rmse(f.model);
-  log("  GA: " + c.effect + " train " + fmt("%.5g", f.rmse) + " validation " + fmt("%.5g", rv) + " (" +
+  GaSearch g{effect, base.effectNames(), base.params(), f.model, f.rmse, v_.rmse(f.model)};
+  log("  GA: " + effect + " train " + fmt("%.5g", g.rmse_train) + " validation " + fmt("%.5g", g.rmse_val) + " (" +
       fmt("%.1f", seconds(t)) + " s)");
-  if (rv < c.rmse_val) c.model = f.model, c.rmse_val = rv, c.rmse_train = ident::rmseFrom(f.model, train_);
+  return g;
 }
 
 namespace {
@@ -214,7 +229,8 @@ bool Diagnosis::searchAlong(CandidateResult& c, const std::string& richer) const
     if (!best || r.rmse_val < best->rmse_val) best = std::move(r);
   }
   if (!best) return false;
-  log("  along " + richer + ": best validation " + fmt("%.5g", best->rmse_val) + " (" + fmt("%.1f", seconds(t)) + " s)");
+  log("  along " + richer + ": best validation " + fmt("%.5g", best->rmse_val) + " (" + fmt("%.1f", seconds(t)) +
+      " s)");
   if (best->rmse_val < c.rmse_val) c = std::move(*best);
   return true;
 }

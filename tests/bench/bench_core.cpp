@@ -147,4 +147,24 @@ static void BM_SimulationSpeed(benchmark::State& state) {
 }
 BENCHMARK(BM_SimulationSpeed)->Unit(benchmark::kMillisecond);
 
+// A fit's inner loop: one simulation of a record (16 384 samples, two sines over the stroke) through the
+// paper's core and one of the payload's force balances at their defaults - the effects diagnose's fits of
+// a record over the whole stroke spend most of their time in. Counter: samples per second.
+static void BM_SimulateBalance(benchmark::State& state, const char* effect) {
+  model::Model m = paperLikeModel();
+  m.addEffect(effect);
+  const Excitation input(0.5, 2.5, 3, 0.8, 41);
+  std::vector<double> u(Excitation::kLength), y(u.size());
+  for (std::size_t k = 0; k < u.size(); ++k) u[k] = input[k];
+  for (auto _ : state) {
+    m.simulate(u.data(), nullptr, u.size(), 1e-3, y.data());
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.counters["samples_per_s"] =
+      benchmark::Counter(static_cast<double>(u.size() * state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK_CAPTURE(BM_SimulateBalance, force_loop, "force_loop")->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_SimulateBalance, muscle_balance, "muscle_balance")->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_SimulateBalance, pneumatic_balance, "pneumatic_balance")->Unit(benchmark::kMicrosecond);
+
 BENCHMARK_MAIN();

@@ -67,44 +67,54 @@ class ForceLoop final : public Effect {
   // step (below), an error that falls with the step's travel. In one step per sample it left a hidden
   // force_loop on an independent continuous-time simulation (tests/oracle) at 1.6x the noise.
   double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
-    for (int i = 0; i < kSubsteps; ++i) subStep(p, s, in);
-    return s[0];
+    const SubStep k(p, s);
+    double y = s[0], v = s[1], z = s[2];
+    for (int i = 0; i < kSubsteps; ++i) k(y, v, z, in);
+    s[0] = y;
+    s[1] = v;
+    s[2] = z;
+    return y;
   }
 
  private:
   static constexpr int kSubsteps = 4;
-  static void subStep(const double* p, double* s, double in) noexcept {
-    const double zmax = std::fabs(p[2]);
-    const double y = s[0], v = s[1];
-    double z = s[2];
-    // The payload under the force in - z of the sample's start.
-    double y1 = s[3] * y + s[4] * v + s[7] * (in - z);
-    if (zmax > 0.0 && y1 != y) {
-      // Over the sample the friction stiffens by a g (its slope dz/dy in the direction of motion),
-      // taken at the sample's end (implicit), so a stiff pre-sliding spring (small delta) cannot
-      // make the step unstable: y1 = y_free - B0 a g (y1 - y), y_free the payload's position
-      // without that change. The direction is that of y_free - y.
-      const double a = zmax / std::max(p[3], 1e-9);
-      const double dir = y1 > y ? 1.0 : -1.0;
-      const double g = std::max(0.0, 1.0 - dir * z / zmax);
-      const double b0 = std::max(s[7], 0.0);
-      const double y_free = y1;
-      y1 = y + (y_free - y) / (1.0 + b0 * a * g);
-      z += a * g * (y1 - y);
-      if (dir * z > zmax) {
-        // Sliding within the sample: the friction is at the Coulomb level, and the payload moves
-        // under that force (still in the same direction, as the slope took more than that).
-        const double z_end = dir * zmax;
-        y1 = y_free - b0 * (z_end - s[2]);
-        z = z_end;
+  // One sub-step, its parameters and map read once per sample into locals (a fit simulates a record
+  // sample by sample: through the pointers, the compiler could not keep them out of the loop).
+  struct SubStep {
+    double zmax, a, map[6], b0;
+    SubStep(const double* p, const double* s) noexcept
+        : zmax(std::fabs(p[2])),
+          a(zmax / std::max(p[3], 1e-9)),
+          map{s[3], s[4], s[5], s[6], s[7], s[8]},
+          b0(std::max(s[7], 0.0)) {}
+    void operator()(double& y, double& v, double& z, double in) const noexcept {
+      const double z0 = z;
+      // The payload under the force in - z of the sample's start.
+      double y1 = map[0] * y + map[1] * v + map[4] * (in - z);
+      if (zmax > 0.0 && y1 != y) {
+        // Over the sample the friction stiffens by a g (its slope dz/dy in the direction of motion),
+        // taken at the sample's end (implicit), so a stiff pre-sliding spring (small delta) cannot
+        // make the step unstable: y1 = y_free - B0 a g (y1 - y), y_free the payload's position
+        // without that change. The direction is that of y_free - y.
+        const double dir = y1 > y ? 1.0 : -1.0;
+        const double g = std::max(0.0, 1.0 - dir * z / zmax);
+        const double y_free = y1;
+        y1 = y + (y_free - y) / (1.0 + b0 * a * g);
+        z += a * g * (y1 - y);
+        if (dir * z > zmax) {
+          // Sliding within the sample: the friction is at the Coulomb level, and the payload moves
+          // under that force (still in the same direction, as the slope took more than that).
+          const double z_end = dir * zmax;
+          y1 = y_free - b0 * (z_end - z0);
+          z = z_end;
+        }
+      } else if (zmax == 0.0) {
+        z = 0.0;
       }
-    } else if (zmax == 0.0) {
-      z = 0.0;
+      v = map[2] * y + map[3] * v + map[5] * (in - z);
+      y = y1;
     }
-    s[1] = s[5] * y + s[6] * v + s[8] * (in - z);
-    s[0] = y1;
-    s[2] = z;
-  }
+  };
 };
 
 }  // namespace

@@ -59,11 +59,24 @@ class MuscleBalance : public Effect {
   double step(const double* p, double* s, double in, const StepContext&) const noexcept override {
     Travels d;  // their inverses
     travels(p, d);
-    for (int i = 0; i < kSubsteps; ++i) subStep(p, d, s, in);
+    // The sub-steps on local copies: through the pointers, the compiler could not keep the parameters in
+    // registers across a state's store (a fit simulates a record sample by sample).
+    Local<kNumParams> lp(p);
+    Local<kNumStates> ls(s);
+    for (int i = 0; i < kSubsteps; ++i) subStep(lp.v, d, ls.v, in);
+    ls.store(s);
     return s[kY];
   }
 
  protected:
+  // A copy of n values of an effect's parameters or states.
+  template <int n>
+  struct Local {
+    double v[n];
+    explicit Local(const double* from) noexcept { std::copy(from, from + n, v); }
+    void store(double* to) const noexcept { std::copy(v, v + n, to); }
+  };
+
   // The map's force over the nominal stiffness beyond the linear spring: (in + w) g(y) - w - in.
   static double mapExcess(const double* p, double in, double y) noexcept {
     return (in + p[kW]) * (p[kA1] * y + p[kA2] * y * y);

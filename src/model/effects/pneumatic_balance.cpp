@@ -140,11 +140,14 @@ class PneumaticBalance final : public MuscleBalance {
     travels(p, d);
     const double h = c.Ts / kSubsteps;
     const double follow = p[kLag] > 0.0 ? 1.0 - std::exp(-h / p[kLag]) : 1.0;
-    const Guide guide{std::fabs(p[kGuide]), 1.0 / std::max(std::fabs(p[kGuideTravel]), 1e-9), s + kGuideZ};
+    Local<kAllParams> lp(p);  // as MuscleBalance::step
+    Local<kAllStates> ls(s);
+    const Guide guide{std::fabs(p[kGuide]), 1.0 / std::max(std::fabs(p[kGuideTravel]), 1e-9), ls.v + kGuideZ};
     for (int i = 0; i < kSubsteps; ++i) {
-      s[kP] = pressureStep(p, s, in, h, follow);
-      subStep(p, d, s, s[kP], guide);
+      ls.v[kP] = pressureStep(lp.v, ls.v, in, h, follow);
+      subStep(lp.v, d, ls.v, ls.v[kP], guide);
     }
+    ls.store(s);
     return s[kY];
   }
 
