@@ -91,9 +91,7 @@ class Diagnosis {
   void refineOne(const std::string& effect);
   // The rung with `effect` in its richer form, when that lowers the validated RMSE by min_gain.
   std::optional<Rung> tryRefinement(const std::string& effect, const std::string& richer);
-  void searchByGa(CandidateResult& c, const model::Model& base);
-  struct GaSearch;
-  GaSearch searchAfresh(const std::string& effect, const model::Model& base) const;
+  void searchByGa(CandidateResult& c, const model::Model& base) const;
   bool searchAlong(CandidateResult& c, const std::string& richer) const;
   CandidateResult alongStep(const model::Model& start, const std::string& effect) const;
   void directions();
@@ -159,16 +157,6 @@ class Diagnosis {
   double noise_ = 0;                 // sensor noise of the records (rms)
   std::string stop_reason_ = "the catalogue is exhausted";
   DiagnoseResult res_;
-  // searchByGa's searches, by the effect and the model it was added to: a richer form that holds two
-  // effects of a rung (friction_hysteresis and force_loop as muscle_balance) is the same search from both.
-  struct GaSearch {
-    std::string effect;
-    std::vector<std::string> base_effects;
-    std::vector<double> base_params;
-    model::Model model;
-    double rmse_train = 0, rmse_val = 0;
-  };
-  std::vector<GaSearch> ga_searches_;
 };
 
 }  // namespace pamc::diagnose::detail

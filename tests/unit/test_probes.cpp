@@ -312,12 +312,19 @@ TEST(Probes, AtTheNoiseAProbeInTheEffectsPlaceIsStillTried) {
 // against 0.291 mm), so no probe fitted there could win the share a probe must win, and none is fitted
 // (docs/MODELING.md, `probes_unresolved`). With the rule undone the probes are fitted and this test fails
 // (and takes 133 s instead of 86).
+// The same run shows the refinement's rule for a form that absorbs others: muscle_balance, in force_loop's
+// place, goes from its quick search to the refit, not to the GA over its whole box (docs/MODELING.md, "The
+// GA's search of a richer form").
 TEST(Probes, AreNotFittedWhereTheScreeningRecordCannotResolveTheFinalModel) {
   const auto physics = plant::PlantConfig::defaults();  // rig mode: every effect of the muscle at once
   const auto train = testdata::emulatorRecord(physics, 1, 60.0, false, -3.5, 4.0);  // random:1:-3.5:4
   const auto val = testdata::emulatorRecord(physics, 2, 30.0, false, -3.5, 4.0);
   diagnose::DiagnoseSettings s;
+  std::string log;
+  s.log = [&log](const std::string& line) { log += line + "\n"; };
   const auto r = diagnose::diagnose(train, &val, s);
+  EXPECT_NE(log.find("force_loop as muscle_balance: validation"), std::string::npos) << log;
+  EXPECT_EQ(log.find("GA: muscle_balance"), std::string::npos) << log;
   std::printf("%s\n%s\n", r.verdict.c_str(), r.probes_unresolved.c_str());
   ASSERT_FALSE(r.ladder.empty());
   ASSERT_TRUE(r.ladder.back().model.hasEffect("pneumatic_balance"))
