@@ -511,4 +511,5 @@ TEST(Mbc, ExperimentsSayWhereTheFeedforwardWasInTheCommand) {
   std::printf("feedforward in the command: %.3f with the model, %.3f with a tenth of its gain\n", share[0], share[1]);
   EXPECT_EQ(share[0], 1.0);
   EXPECT_LT(share[1], 0.2);
+  std::filesystem::remove_all(dir);
 }
