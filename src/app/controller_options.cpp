@@ -85,12 +85,19 @@ void ControllerOptions::addStructure(CLI::App* a) {
        "MBC: time constant [s] of the filter on the UKF's modelling-error estimate the feedforward aims off by")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  a->add_option("--mbc-pace-share", cc.mbc.pace_share,
+                "MBC: the setpoint governor's rate and acceleration lowered to this share of the model's own pace (its "
+                "fastest speed and acceleration under a step across its input range) where that is below "
+                "--mbc-rate and --mbc-accel; 0: those alone")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   a->add_option("--mbc-rate", cc.mbc.rate_mm_s,
                 "MBC: the setpoint governor's rate [mm/s]: a setpoint step reaches the inverse and the PI at most this "
-                "fast (0: no governor)")
+                "fast (a slower model's pace lowers it: --mbc-pace-share; 0: no governor)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  a->add_option("--mbc-accel", cc.mbc.accel_mm_s2, "MBC: the setpoint governor's acceleration [mm/s^2]")
+  a->add_option("--mbc-accel", cc.mbc.accel_mm_s2,
+                "MBC: the setpoint governor's acceleration [mm/s^2] (a slower model's pace lowers it)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   a->add_option("--model", model_file, "identified model (JSON) for the AMC's and MBC's UKF and the open loop");

@@ -118,6 +118,12 @@ int modelResponseSamples(const model::Model& m, double Ts, double u_min, double 
   return StepResponse::kSteps;
 }
 
+double modelStepGain(const model::Model& m, double Ts, double u_min, double u_max, int samples) {
+  const StepResponse r = stepResponse(m, Ts, u_min, u_max);
+  const int i = std::clamp(samples, 1, StepResponse::kSteps) - 1;
+  return (r.y[static_cast<size_t>(i)] - r.y0) / (0.1 * (u_max - u_min));
+}
+
 double modelGainSign(const model::Model& m, double Ts, double u_min, double u_max) {
   const StepResponse r = stepResponse(m, Ts, u_min, u_max);
   return r.y.back() >= r.y0 ? 1.0 : -1.0;
@@ -130,6 +136,73 @@ double modelGainSign(const model::Model& m, double Ts, double u_min, double u_ma
 int responseHorizon(const ControllerConfig& c) {
   const int held = std::max(modelResponseSamples(c.model, c.Ts, c.u_min, c.u_max, 0.1), c.delay_cycles + 1);
   return std::min(2000, c.delay_cycles + held);
+}
+
+namespace {
+constexpr double kPaceTs = 1e-3;
+constexpr int kPaceSpan = 10;    // samples of each difference
+constexpr int kPaceInstant = 5;  // a model that makes 90 % of the step within this many samples has no pace
+constexpr int kPaceHold = 2000;  // samples each level is held
+
+// The fastest speed and acceleration along one step of the command (the model's state carried in st), in
+// the direction of the output's settled change; speed 0 where the output makes 90 % of it at once.
+ModelPace paceOfStep(const model::Model& m, model::Model::State& st, const model::StepContext& c, double u,
+                     double& y_now) {
+  // The output at rest before the step for two spans, so the speed's first rise counts too (a lag whose
+  // pressure slews at once reaches its speed within the first span).
+  constexpr int kRest = 2 * kPaceSpan;
+  const double y_before = y_now;
+  std::vector<double> y(kRest + kPaceHold, y_before);
+  for (int i = kRest; i < kRest + kPaceHold; ++i) y[static_cast<size_t>(i)] = m.step(st, u, c);
+  y_now = y.back();
+  const double span = y.back() - y_before, sign = span >= 0.0 ? 1.0 : -1.0;
+  ModelPace p;
+  int at90 = kPaceHold;
+  for (int i = 0; i < kPaceHold && at90 == kPaceHold; ++i)
+    if ((y[static_cast<size_t>(kRest + i)] - y_before) * sign >= 0.9 * std::fabs(span)) at90 = i;
+  if (!std::isfinite(span) || span == 0.0 || at90 < kPaceInstant) return p;
+  auto speed = [&](int i) {
+    return sign * (y[static_cast<size_t>(i)] - y[static_cast<size_t>(i - kPaceSpan)]) / (kPaceSpan * kPaceTs);
+  };
+  for (int i = kRest; i < kRest + kPaceHold; ++i) {
+    p.speed = std::max(p.speed, speed(i));
+    p.accel = std::max(p.accel, (speed(i) - speed(i - kPaceSpan)) / (kPaceSpan * kPaceTs));
+  }
+  return p;
+}
+}  // namespace
+
+ModelPace modelPace(const model::Model& m, double u_lo, double u_hi) {
+  model::Model::State st;
+  model::StepContext c;
+  c.Ts = kPaceTs;
+  m.init(st, u_lo, c);
+  double y = 0.0;
+  for (int i = 0; i < kPaceHold; ++i) y = m.step(st, u_lo, c);
+  const ModelPace up = paceOfStep(m, st, c, u_hi, y);
+  const ModelPace down = paceOfStep(m, st, c, u_lo, y);
+  ModelPace p;
+  if (up.speed > 0.0 && down.speed > 0.0 && std::isfinite(up.speed + down.speed + up.accel + down.accel))
+    p = {std::min(up.speed, down.speed), std::min(up.accel, down.accel)};
+  return p;
+}
+
+model::Interval mbcCommandRange(const ControllerConfig& c) {
+  const auto& r = c.model.range();
+  const model::Interval b{std::max(c.u_min, r.input.lo), std::min(c.u_max, r.input.hi)};
+  return r.known && b.lo <= b.hi ? b : model::Interval{c.u_min, c.u_max};
+}
+
+GovernorLimits mbcGovernor(const ControllerConfig& c) {
+  if (!(c.mbc.rate_mm_s > 0.0)) return {0.0, c.mbc.accel_mm_s2, false};
+  if (c.mbc.pace_share > 0.0) {
+    const model::Interval u = mbcCommandRange(c);
+    const ModelPace p = modelPace(c.model, u.lo, u.hi);
+    const double rate = c.mbc.pace_share * p.speed, accel = c.mbc.pace_share * p.accel;
+    if (p.speed > 0.0 && p.accel > 0.0 && (rate < c.mbc.rate_mm_s || accel < c.mbc.accel_mm_s2))
+      return {std::min(rate, c.mbc.rate_mm_s), std::min(accel, c.mbc.accel_mm_s2), true};
+  }
+  return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, false};
 }
 
 int amcHorizon(const ControllerConfig& c) {
@@ -156,6 +229,7 @@ void validate(const ControllerConfig& c) {
   if (!(c.mbc.error_tau_s > 0.0) || !std::isfinite(c.mbc.error_tau_s)) bad("mbc_error_tau_s must be positive");
   if (!(c.mbc.rate_mm_s >= 0.0) || !std::isfinite(c.mbc.rate_mm_s)) bad("mbc_rate_mm_s must be 0 (off) or positive");
   if (!(c.mbc.accel_mm_s2 > 0.0) || !std::isfinite(c.mbc.accel_mm_s2)) bad("mbc_accel_mm_s2 must be positive");
+  if (!(c.mbc.pace_share >= 0.0 && c.mbc.pace_share <= 1.0)) bad("mbc_pace_share must be in [0, 1]");
   if (c.mbc.horizon > 0 && c.mbc.horizon <= c.delay_cycles)
     bad("mbc_horizon must be above delay_cycles (the command must act within the horizon)");
   if (c.amc_bus_aware && (c.amc_inverse > 0.0 || c.amc_horizon > 1))

@@ -64,10 +64,17 @@ struct MbcSettings {
   // "Model-based control"): faster filters track better with the final model but worse with a middle rung.
   double error_tau_s = 10.0;
   // The setpoint governor. The inverse and the PI follow the setpoint ahead through a follower limited to
-  // this rate [mm/s] and acceleration [mm/s^2], braking so as to arrive without overshoot; a setpoint
-  // slope below the rate passes (Table 2's fastest is 9.4 mm/s). 0: no governor, the setpoint as it is.
-  // Chosen on the square wave of two plants (docs/CONTROL.md): without it a step is taken by a short-
-  // horizon inverse that overshoots a payload still moving.
+  // a rate [mm/s] and an acceleration [mm/s^2], braking so as to arrive without overshoot; a setpoint
+  // slope below the rate passes (Table 2's fastest is 9.4 mm/s). Without it a step is taken by a short-
+  // horizon inverse that overshoots a payload still moving (docs/CONTROL.md).
+  // The limits are the fixed ones below, lowered to this share of the model's own pace where that is
+  // slower (modelPace: its fastest speed and acceleration under a step across its input range): a quarter
+  // of the command's span to drive the speed, a quarter to change it, the rest left to the setpoint's level
+  // and the loop. The pace only lowers them: a model's step response is an extrapolation where its record
+  // held no steps, and one too fast overshot a square wave by 44 % (docs/CONTROL.md). 0: the fixed limits.
+  double pace_share = 0.25;
+  // The fixed limits: the most the governor asks of any muscle. rate_mm_s 0: no governor, the setpoint as it
+  // is. Chosen on the square wave of two plants (docs/CONTROL.md).
   double rate_mm_s = 60.0;
   double accel_mm_s2 = 600.0;
 };
@@ -173,9 +180,32 @@ class Controller {
 // mid-range (1 for the plain Bouc-Wen model, which responds at once; about 0.1 tau/Ts for 10 % with a
 // pressure lag of time constant tau).
 int modelResponseSamples(const model::Model& m, double Ts, double u_min, double u_max, double fraction);
+// The model's response to that step `samples` samples after it, over the step [output units/V].
+double modelStepGain(const model::Model& m, double Ts, double u_min, double u_max, int samples);
 // The sign of the model's response to that step once it has settled: +1 where a larger command gives a larger
 // output (the core's k alone does not say: a fitted k may be negative with rho, k rho > 0).
 double modelGainSign(const model::Model& m, double Ts, double u_min, double u_max);
+
+// The model's pace: the fastest speed [output units/s] and acceleration [output units/s^2] of its output
+// under a step across [u_lo, u_hi], up and then down, the slower direction's (each over 10 ms spans, at
+// 1 kHz whatever the loop's rate); 0 and 0 for a model that makes 90 % of the step within 5 ms (no
+// dynamics of its own: the Bouc-Wen core and static effects answer at once) or whose output is not finite.
+struct ModelPace {
+  double speed = 0.0, accel = 0.0;
+};
+ModelPace modelPace(const model::Model& m, double u_lo, double u_hi);
+
+// The MBC's setpoint governor in effect: rate 0 (off) where mbc.rate_mm_s is 0; else the fixed rate and
+// acceleration, each lowered to pace_share of the model's pace over its feedforward's range where that is
+// below it (from_model: one of them was).
+struct GovernorLimits {
+  double rate_mm_s = 0.0, accel_mm_s2 = 1.0;
+  bool from_model = false;
+};
+GovernorLimits mbcGovernor(const ControllerConfig& c);
+// The MBC's feedforward range: the valve's command range within the input range the model was
+// identified on (model.json's `range`; the valve's alone for a model without one).
+model::Interval mbcCommandRange(const ControllerConfig& c);
 
 // The automatic horizon of the predictive forms (AMC and MBC): the bus delay plus the samples the model
 // takes to make 10 % of its response to a command step, and at least one more than the bus delay.

@@ -59,10 +59,15 @@ constexpr double kMonitorSpan = 0.02;
 class Mbc final : public Controller {
  public:
   explicit Mbc(const ControllerConfig& c)
-      : cfg_(c), horizon_(mbcHorizon(c)), sign_(modelGainSign(c.model, c.Ts, c.u_min, c.u_max)), ff_(ffBounds(c)) {
+      : cfg_(c),
+        horizon_(mbcHorizon(c)),
+        sign_(modelGainSign(c.model, c.Ts, c.u_min, c.u_max)),
+        ff_(mbcCommandRange(c)),
+        slope_floor_(slopeFloor(c, horizon_)) {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
-    governor_.configure(c.mbc.rate_mm_s, c.mbc.accel_mm_s2, c.Ts);
+    const GovernorLimits g = mbcGovernor(c);
+    governor_.configure(g.rate_mm_s, g.accel_mm_s2, c.Ts);
     monitor_.configure(c.Ts, kMonitorTau, kMonitorSpan);
   }
   Kind kind() const override { return Kind::Mbc; }
@@ -141,11 +146,12 @@ class Mbc final : public Controller {
     return y;
   }
 
-  // The feedforward's bounds: the valve's, within the input range the model was identified on.
-  static model::Interval ffBounds(const ControllerConfig& c) {
-    const auto& r = c.model.range();
-    const model::Interval b{std::max(c.u_min, r.input.lo), std::min(c.u_max, r.input.hi)};
-    return r.known && b.lo <= b.hi ? b : model::Interval{c.u_min, c.u_max};
+  // The least slope a secant step follows: a tenth of the model's response at the horizon to a command step
+  // from mid-range (at least 1e-3). Along a slope near 0 a step flew from one edge of the input range to the
+  // other, cycle after cycle (docs/CONTROL.md, "The inverse's slope").
+  static double slopeFloor(const ControllerConfig& c, int horizon) {
+    const double g = modelStepGain(c.model, c.Ts, c.u_min, c.u_max, horizon - c.delay_cycles);
+    return std::isfinite(g) ? std::max(1e-3, 0.1 * std::fabs(g)) : 1e-3;
   }
 
   // Where the PI starts: the command in effect, brought into the model's input range.
@@ -167,7 +173,7 @@ class Mbc final : public Controller {
       // and a step along it ran the reference model from stop to stop (docs/CONTROL.md, "At 50 Hz").
       const double du = std::copysign(0.01 * (cfg_.u_max - cfg_.u_min), miss);
       const double g = (rollout(u + du) - yh) / du;
-      if (std::isfinite(g) && g * sign_ > 1e-3) gain_ = g;
+      if (std::isfinite(g) && g * sign_ > slope_floor_) gain_ = g;
       u = std::clamp(u + miss / gain_, ff_.lo, ff_.hi);
     }
     return u;
@@ -223,7 +229,8 @@ class Mbc final : public Controller {
   ControllerConfig cfg_;
   int horizon_;
   double sign_;         // the sign of the model's settled response to a command step (modelGainSign)
-  model::Interval ff_;  // the feedforward's bounds (ffBounds)
+  model::Interval ff_;  // the feedforward's bounds (mbcCommandRange)
+  double slope_floor_;  // the least slope a secant step follows (slopeFloor)
   detail::PiCore pi_;
   detail::LastGood y_;
   detail::CommandHistory hist_;

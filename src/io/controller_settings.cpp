@@ -14,8 +14,10 @@ struct Setting {
   const char* name;
   T& (*ref)(ControllerConfig&);
 };
-#define PAMC_SETTING(T, name, field) \
-  Setting<T> { name, [](ControllerConfig& c) -> T& { return c.field; } }
+#define PAMC_SETTING(T, name, field)                        \
+  Setting<T> {                                              \
+    name, [](ControllerConfig& c) -> T& { return c.field; } \
+  }
 constexpr Setting<double> kDoubles[] = {PAMC_SETTING(double, "Ts", Ts),
                                         PAMC_SETTING(double, "u_min", u_min),
                                         PAMC_SETTING(double, "u_max", u_max),
@@ -26,6 +28,7 @@ constexpr Setting<double> kDoubles[] = {PAMC_SETTING(double, "Ts", Ts),
                                         PAMC_SETTING(double, "mbc_error_tau_s", mbc.error_tau_s),
                                         PAMC_SETTING(double, "mbc_rate_mm_s", mbc.rate_mm_s),
                                         PAMC_SETTING(double, "mbc_accel_mm_s2", mbc.accel_mm_s2),
+                                        PAMC_SETTING(double, "mbc_pace_share", mbc.pace_share),
                                         PAMC_SETTING(double, "beta1", eso.beta1),
                                         PAMC_SETTING(double, "beta2", eso.beta2),
                                         PAMC_SETTING(double, "beta3", eso.beta3),
@@ -34,9 +37,9 @@ constexpr Setting<double> kDoubles[] = {PAMC_SETTING(double, "Ts", Ts),
                                         PAMC_SETTING(double, "eso_gain", eso.gain),
                                         PAMC_SETTING(double, "eso_tau", eso.tau),
                                         PAMC_SETTING(double, "eso_wo", eso.wo)};
-constexpr Setting<int> kInts[] = {PAMC_SETTING(int, "amc_horizon", amc_horizon), PAMC_SETTING(int, "mbc_horizon", mbc.horizon),
-                                  PAMC_SETTING(int, "eso_order", eso.order),
-                                  PAMC_SETTING(int, "delay_cycles", delay_cycles)};
+constexpr Setting<int> kInts[] = {
+    PAMC_SETTING(int, "amc_horizon", amc_horizon), PAMC_SETTING(int, "mbc_horizon", mbc.horizon),
+    PAMC_SETTING(int, "eso_order", eso.order), PAMC_SETTING(int, "delay_cycles", delay_cycles)};
 constexpr Setting<bool> kBools[] = {PAMC_SETTING(bool, "amc_as_printed", amc_as_printed),
                                     PAMC_SETTING(bool, "amc_bus_aware", amc_bus_aware),
                                     PAMC_SETTING(bool, "open_loop_linear", open_loop_linear)};

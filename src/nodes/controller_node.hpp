@@ -165,6 +165,7 @@ class ControllerNode {
   std::unique_ptr<ControllerParameters> params_;  // the dictionary's parameter set and its commit
   std::vector<Channel> channels_;
   std::vector<ChannelConfig> channel_cfg_;  // what each channel runs of its own
+  std::vector<std::string> governor_said_;  // the MBC governor's note each channel last gave (said once)
   bool fault_all_ = false;
   std::function<void(const std::string&)> log_;  // the slaves' boot reports
   std::uint64_t collisions_ = 0;                 // frames on this node's own identifiers

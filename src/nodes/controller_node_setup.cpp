@@ -10,6 +10,22 @@
 
 namespace pamc::nodes {
 
+namespace {
+// What the MBC's setpoint governor follows, said once at its start (docs/CONTROL.md, "The setpoint governor").
+std::string governorNote(control::ControllerConfig ctrl, const std::optional<model::Model>& own) {
+  if (own) ctrl.model = *own;
+  const control::GovernorLimits g = control::mbcGovernor(ctrl);
+  char line[256];
+  if (!(g.rate_mm_s > 0.0))
+    std::snprintf(line, sizeof line,
+                  "mbc: no setpoint governor (mbc_rate_mm_s 0): a step goes to the inverse as it is");
+  else
+    std::snprintf(line, sizeof line, "mbc: the setpoint governor: %.4g mm/s, %.4g mm/s^2 (%s)", g.rate_mm_s,
+                  g.accel_mm_s2, g.from_model ? "lowered to the model's pace" : "its fixed limits");
+  return line;
+}
+}  // namespace
+
 using canopen::NmtCommand;
 using canopen::NmtState;
 using canopen::SlaveEvent;
@@ -212,11 +228,14 @@ void ControllerNode::configureFromOd() {
   if (overrides_->trajectoryOverridden()) traj = cfg.trajectory;  // shapes the OD cannot hold
   std::vector<std::unique_ptr<control::Controller>> fresh;
   std::vector<model::OperatingRange> ranges;
+  std::vector<std::string> governors;
   for (std::size_t c = 0; c < channels_.size(); ++c) {
     fresh.push_back(buildFor(kind, p.ctrl, c));
     const ChannelConfig& cc = channel_cfg_[c];
     const bool model_based = control::usesModel(cc.kind >= 0 ? static_cast<control::Kind>(cc.kind) : kind);
     ranges.push_back(model_based ? (cc.model ? *cc.model : p.ctrl.model).range() : model::OperatingRange{});
+    const bool mbc = (cc.kind >= 0 ? static_cast<control::Kind>(cc.kind) : kind) == control::Kind::Mbc;
+    governors.push_back(mbc ? governorNote(p.ctrl, cc.model) : std::string());
   }
   params_->adopt(std::move(p), kind);
   for (std::size_t c = 0; c < channels_.size(); ++c) {
@@ -226,6 +245,9 @@ void ControllerNode::configureFromOd() {
       log_(
           "mbc: the model records no range it was identified on (model.json without 'range'): its feedforward is "
           "used everywhere, with no fallback to the PI");
+    governor_said_.resize(channels_.size());
+    if (k == control::Kind::Mbc && log_ && governors[c] != governor_said_[c]) log_(governors[c]);
+    governor_said_[c] = governors[c];
     const control::Trajectory own =
         (cc.trajectory ? *cc.trajectory : traj).mapped(cc.setpoint_scale, cc.setpoint_offset);
     channels_[c].loop->configure(std::move(fresh[c]), k, own, Ts, cfg.preroll_s, params_->safeCommand());

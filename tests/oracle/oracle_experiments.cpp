@@ -32,6 +32,8 @@ struct Options {
   bool no_figures = false;
   int mbc_horizon = 0;
   double mbc_rate = control::ControllerConfig{}.mbc.rate_mm_s;
+  double mbc_accel = control::ControllerConfig{}.mbc.accel_mm_s2;
+  double mbc_pace_share = control::ControllerConfig{}.mbc.pace_share;
 };
 
 int run(const Options& o) {
@@ -44,6 +46,8 @@ int run(const Options& o) {
   s.figures = !o.no_figures;
   s.ctrl.mbc.horizon = o.mbc_horizon;
   s.ctrl.mbc.rate_mm_s = o.mbc_rate;
+  s.ctrl.mbc.accel_mm_s2 = o.mbc_accel;
+  s.ctrl.mbc.pace_share = o.mbc_pace_share;
   s.only = o.only;
   s.log = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
   const auto rep = sim::runExperiments(s);
@@ -73,9 +77,16 @@ int main(int argc, char** argv) {
   app.add_option("--mbc-horizon", o.mbc_horizon, "MBC: samples ahead its inverse aims at; 0 = automatic (as pamc's)")
       ->capture_default_str()
       ->check(CLI::Range(0, 2000));
+  app.add_option("--mbc-pace-share", o.mbc_pace_share,
+                 "MBC: the setpoint governor's limits lowered to this share of a slower model's pace (as pamc's)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--mbc-rate", o.mbc_rate, "MBC: the setpoint governor's rate [mm/s]; 0: none (as pamc's)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--mbc-accel", o.mbc_accel, "MBC: the setpoint governor's acceleration [mm/s^2] (as pamc's)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
   try {
     return run(o);
