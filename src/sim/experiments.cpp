@@ -35,8 +35,8 @@ std::string esoText(const control::ControllerConfig& c) {
   if (c.eso.order == 1)
     return "ESO first-order (pamc's own) gain " + fmt("%g", c.eso.gain) + " mm/V tau " + fmt("%g", c.eso.tau) +
            " s wo " + fmt("%g", c.eso.wo) + " rad/s";
-  return "ESO eqs. 22-24 beta " + fmt("%g", c.eso.beta1) + "/" + fmt("%g", c.eso.beta2) + "/" + fmt("%g", c.eso.beta3) + " delta " +
-         fmt("%g", c.eso.delta) + " b0 " + fmt("%g", c.eso.b0);
+  return "ESO eqs. 22-24 beta " + fmt("%g", c.eso.beta1) + "/" + fmt("%g", c.eso.beta2) + "/" + fmt("%g", c.eso.beta3) +
+         " delta " + fmt("%g", c.eso.delta) + " b0 " + fmt("%g", c.eso.b0);
 }
 
 std::string gainsText(const control::ControllerConfig& c) {
@@ -164,16 +164,25 @@ void buildController(Context& x) {
   x.cc = controllerFor(x.s.ctrl, x.ref, x.s.plant);
   x.inv.build(x.ref, x.cc.u_min, x.cc.u_max, x.cc.Ts);
   const char* start = x.s.sine_start == SineStart::Trough ? "trough" : "centre";
+  const control::GovernorLimits gov = control::mbcGovernor(x.cc);
   x.json["readings"] = {{"ki", x.cc.ki},
                         {"kp", x.cc.kp},
                         {"kc", x.cc.kc},
                         {"eso_form", x.cc.eso.order == 2 ? "paper (eqs. 22-24)" : "first-order (pamc's own)"},
                         {"sine_start", start},
                         {"plant", plantText(x.s.plant)},
-                        {"calibrated_on", x.s.calibrated_on}};
+                        {"calibrated_on", x.s.calibrated_on},
+                        {"mbc_governor",
+                         {{"rate_mm_s", gov.rate_mm_s},
+                          {"accel_mm_s2", gov.accel_mm_s2},
+                          {"lowered_to_the_models_pace", gov.from_model}}}};
   x.readings_line = gainsText(x.cc) + "\nplant: " + plantText(x.s.plant) + "; sines start at the " + start;
   x.txt << "Readings: " << gainsText(x.cc) << "\n  plant: " << plantText(x.s.plant) << "\n  sines start at the "
-        << start << "\n  calibrated on: " << x.s.calibrated_on << "\n\n";
+        << start << "\n  calibrated on: " << x.s.calibrated_on << "\n  MBC's setpoint governor: "
+        << (gov.rate_mm_s > 0.0 ? fmt("%.4g mm/s, ", gov.rate_mm_s) + fmt("%.4g mm/s^2", gov.accel_mm_s2) +
+                                      (gov.from_model ? " (lowered to the model's pace)" : "")
+                                : std::string("off"))
+        << "\n\n";
 }
 
 namespace {

@@ -571,6 +571,12 @@ TEST(Mbc, ExperimentsSayWhereTheFeedforwardWasInTheCommand) {
     share[i] = r.json["table2"]["triangle_0.05Hz"]["mbc"]["feedforward_share"].get<double>();
     EXPECT_NE(r.text.find("MBC's feedforward in the command, share of the scored cycles: triangle_0.05Hz"),
               std::string::npos);
+    // The governor's limits in effect are in the readings: the model's pace (656 mm/s) is above the fixed
+    // limits; with a tenth of its gain the model moves slower, and a quarter of its pace is below them.
+    const auto& gov = r.json["readings"]["mbc_governor"];
+    EXPECT_EQ(gov["lowered_to_the_models_pace"].get<bool>(), i == 1);
+    if (i == 0) EXPECT_EQ(gov["rate_mm_s"].get<double>(), 60.0);
+    if (i == 1) EXPECT_LT(gov["rate_mm_s"].get<double>(), 60.0);
   }
   std::printf("feedforward in the command: %.3f with the model, %.3f with a tenth of its gain\n", share[0], share[1]);
   EXPECT_EQ(share[0], 1.0);
