@@ -39,13 +39,15 @@ using DelayLine = History<2048>;
 
 // A setpoint follower limited in rate and acceleration (a reference governor): each step moves towards the
 // target at the setpoint's own slope plus the speed from which it can still brake to it, within
-// +-rate_mm_s, the speed changing by at most accel_mm_s2 Ts per step. A ramp slower than the rate passes
-// (after a start of slope / accel) without lag; a jump, which is no slope, is taken at the rate and
-// arrived at without overshoot. rate 0: the target passes as it is.
+// +-rate_mm_s, the speed changing by at most accel_mm_s2 Ts per step. A ramp no steeper than ramp_mm_s
+// (the rate unless given) passes (after a start of slope / accel) without lag - one steeper than the rate
+// within its slope plus the rate; a jump, which is no slope, is taken at the rate and arrived at without
+// overshoot.
+// rate 0: the target passes as it is.
 class SetpointGovernor {
  public:
-  void configure(double rate_mm_s, double accel_mm_s2, double Ts) noexcept {
-    rate_ = rate_mm_s, accel_ = accel_mm_s2, Ts_ = Ts;
+  void configure(double rate_mm_s, double accel_mm_s2, double Ts, double ramp_mm_s = 0.0) noexcept {
+    rate_ = rate_mm_s, accel_ = accel_mm_s2, Ts_ = Ts, ramp_ = std::max(ramp_mm_s, rate_mm_s);
   }
   // At y at rest; a non-finite y starts it at the first target.
   void reset(double y) noexcept {
@@ -57,13 +59,15 @@ class SetpointGovernor {
     if (!(rate_ > 0.0) || !std::isfinite(r_)) return r_ = prev_ = target;
     double slope = (target - prev_) / Ts_;
     prev_ = target;
-    if (!(std::fabs(slope) <= rate_)) slope = 0.0;  // a jump
+    if (!(std::fabs(slope) <= ramp_)) slope = 0.0;  // a jump
     const double d = target - r_;
     // The speed from which braking at accel, a step of accel Ts at a time, stops on the target:
     // v^2 / (2 accel) + v Ts / 2 = |d|.
     const double half = 0.5 * accel_ * Ts_;
     const double brake = std::copysign(std::sqrt(half * half + 2.0 * accel_ * std::fabs(d)) - half, d);
-    const double v_want = std::clamp(slope + brake, -rate_, rate_);
+    // A ramp steeper than the rate (a governor lowered to a slow model's pace) passes, caught up with at the rate.
+    const double cap = std::fabs(slope) > rate_ ? std::fabs(slope) + rate_ : rate_;
+    const double v_want = std::clamp(slope + brake, -cap, cap);
     const double dv = accel_ * Ts_;
     v_ += std::clamp(v_want - v_, -dv, dv);
     r_ += v_ * Ts_;
@@ -71,7 +75,7 @@ class SetpointGovernor {
   }
 
  private:
-  double rate_ = 0.0, accel_ = 1.0, Ts_ = 1e-3;
+  double rate_ = 0.0, accel_ = 1.0, Ts_ = 1e-3, ramp_ = 0.0;
   double r_ = 0.0, v_ = 0.0, prev_ = 0.0;
 };
 

@@ -67,7 +67,7 @@ class Mbc final : public Controller {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
     const GovernorLimits g = mbcGovernor(c);
-    governor_.configure(g.rate_mm_s, g.accel_mm_s2, c.Ts);
+    governor_.configure(g.rate_mm_s, g.accel_mm_s2, c.Ts, c.mbc.rate_mm_s);  // lowered, it still passes ramps
     monitor_.configure(c.Ts, kMonitorTau, kMonitorSpan);
   }
   Kind kind() const override { return Kind::Mbc; }
