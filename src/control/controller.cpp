@@ -118,12 +118,6 @@ int modelResponseSamples(const model::Model& m, double Ts, double u_min, double 
   return StepResponse::kSteps;
 }
 
-double modelStepGain(const model::Model& m, double Ts, double u_min, double u_max, int samples) {
-  const StepResponse r = stepResponse(m, Ts, u_min, u_max);
-  const int i = std::clamp(samples, 1, StepResponse::kSteps) - 1;
-  return (r.y[static_cast<size_t>(i)] - r.y0) / (0.1 * (u_max - u_min));
-}
-
 double modelGainSign(const model::Model& m, double Ts, double u_min, double u_max) {
   const StepResponse r = stepResponse(m, Ts, u_min, u_max);
   return r.y.back() >= r.y0 ? 1.0 : -1.0;

@@ -180,8 +180,6 @@ class Controller {
 // mid-range (1 for the plain Bouc-Wen model, which responds at once; about 0.1 tau/Ts for 10 % with a
 // pressure lag of time constant tau).
 int modelResponseSamples(const model::Model& m, double Ts, double u_min, double u_max, double fraction);
-// The model's response to that step `samples` samples after it, over the step [output units/V].
-double modelStepGain(const model::Model& m, double Ts, double u_min, double u_max, int samples);
 // The sign of the model's response to that step once it has settled: +1 where a larger command gives a larger
 // output (the core's k alone does not say: a fitted k may be negative with rho, k rho > 0).
 double modelGainSign(const model::Model& m, double Ts, double u_min, double u_max);

@@ -56,14 +56,39 @@ constexpr double kLostBy = 1.0;
 constexpr double kMonitorTau = 1.0;
 constexpr double kMonitorSpan = 0.02;
 
+// Two commands of the inverse's steps whose misses lie on either side of the target, once found.
+struct Bracket {
+  double u_last = NAN, miss_last = NAN;  // the last command tried, before the target was bracketed
+  double u_a = NAN, miss_a = NAN, u_b = NAN, miss_b = NAN;
+  bool found = false;
+  // Takes a command and its miss; true once the target lies between two of them (the newer replaces the one
+  // on its side).
+  bool take(double u, double miss) noexcept {
+    if (!found && miss * miss_last < 0.0) {
+      found = true;
+      u_a = u_last, miss_a = miss_last;
+    }
+    if (!found) {
+      u_last = u, miss_last = miss;
+      return false;
+    }
+    if ((miss > 0.0) == (miss_a > 0.0))
+      u_a = u, miss_a = miss;
+    else
+      u_b = u, miss_b = miss;
+    return true;
+  }
+  // The secant through them: a command between the two.
+  double between() const noexcept { return u_b - miss_b * (u_b - u_a) / (miss_b - miss_a); }
+};
+
 class Mbc final : public Controller {
  public:
   explicit Mbc(const ControllerConfig& c)
       : cfg_(c),
         horizon_(mbcHorizon(c)),
         sign_(modelGainSign(c.model, c.Ts, c.u_min, c.u_max)),
-        ff_(mbcCommandRange(c)),
-        slope_floor_(slopeFloor(c, horizon_)) {
+        ff_(mbcCommandRange(c)) {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
     const GovernorLimits g = mbcGovernor(c);
@@ -146,14 +171,6 @@ class Mbc final : public Controller {
     return y;
   }
 
-  // The least slope a secant step follows: a tenth of the model's response at the horizon to a command step
-  // from mid-range (at least 1e-3). Along a slope near 0 a step flew from one edge of the input range to the
-  // other, cycle after cycle (docs/CONTROL.md, "The inverse's slope").
-  static double slopeFloor(const ControllerConfig& c, int horizon) {
-    const double g = modelStepGain(c.model, c.Ts, c.u_min, c.u_max, horizon - c.delay_cycles);
-    return std::isfinite(g) ? std::max(1e-3, 0.1 * std::fabs(g)) : 1e-3;
-  }
-
   // Where the PI starts: the command in effect, brought into the model's input range.
   double startCommand(double u0) const noexcept {
     return cfg_.model.range().known && std::isfinite(u0) ? std::clamp(u0, ff_.lo, ff_.hi) : u0;
@@ -163,17 +180,25 @@ class Mbc final : public Controller {
   // the horizon; NaN if the rollout is not finite.
   double feedforward(double target) noexcept {
     double u = std::clamp(u_solved_, ff_.lo, ff_.hi);
+    Bracket b;
     for (int step = 0; step < kInverseSteps; ++step) {
       const double yh = rollout(u);
       if (!std::isfinite(yh)) return NAN;
       const double miss = target - yh;
+      // Once two commands miss on either side of the target, the next lies between them: a step along a slope
+      // near 0 flew from one edge of the input range to the other, cycle after cycle (docs/CONTROL.md, "The
+      // inverse's bracket").
+      if (b.take(u, miss)) {
+        u = b.between();
+        continue;
+      }
       // The slope in the direction the command will move (the loop's branches differ). A slope of the other
       // sign than the model's settled gain is not taken (the last one is kept): through the commands in flight a
       // model can answer a rise of the command with a fall at the horizon (a vented pneumatic model at 50 Hz),
       // and a step along it ran the reference model from stop to stop (docs/CONTROL.md, "At 50 Hz").
       const double du = std::copysign(0.01 * (cfg_.u_max - cfg_.u_min), miss);
       const double g = (rollout(u + du) - yh) / du;
-      if (std::isfinite(g) && g * sign_ > slope_floor_) gain_ = g;
+      if (std::isfinite(g) && g * sign_ > 1e-3) gain_ = g;
       u = std::clamp(u + miss / gain_, ff_.lo, ff_.hi);
     }
     return u;
@@ -230,7 +255,6 @@ class Mbc final : public Controller {
   int horizon_;
   double sign_;         // the sign of the model's settled response to a command step (modelGainSign)
   model::Interval ff_;  // the feedforward's bounds (mbcCommandRange)
-  double slope_floor_;  // the least slope a secant step follows (slopeFloor)
   detail::PiCore pi_;
   detail::LastGood y_;
   detail::CommandHistory hist_;
