@@ -188,15 +188,16 @@ model::Interval mbcCommandRange(const ControllerConfig& c) {
 }
 
 GovernorLimits mbcGovernor(const ControllerConfig& c) {
-  if (!(c.mbc.rate_mm_s > 0.0)) return {0.0, c.mbc.accel_mm_s2, false};
+  if (!(c.mbc.rate_mm_s > 0.0)) return {0.0, c.mbc.accel_mm_s2, false, {}};
   if (c.mbc.pace_share > 0.0) {
     const model::Interval u = mbcCommandRange(c);
     const ModelPace p = modelPace(c.model, u.lo, u.hi);
     const double rate = c.mbc.pace_share * p.speed, accel = c.mbc.pace_share * p.accel;
     if (p.speed > 0.0 && p.accel > 0.0 && (rate < c.mbc.rate_mm_s || accel < c.mbc.accel_mm_s2))
-      return {std::min(rate, c.mbc.rate_mm_s), std::min(accel, c.mbc.accel_mm_s2), true};
+      return {std::min(rate, c.mbc.rate_mm_s), std::min(accel, c.mbc.accel_mm_s2), true, p};
+    return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, false, p};
   }
-  return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, false};
+  return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, false, {}};
 }
 
 int amcHorizon(const ControllerConfig& c) {

@@ -199,6 +199,7 @@ ModelPace modelPace(const model::Model& m, double u_lo, double u_hi);
 struct GovernorLimits {
   double rate_mm_s = 0.0, accel_mm_s2 = 1.0;
   bool from_model = false;
+  ModelPace pace;  // the model's (0 and 0 where it has none or pace_share is 0)
 };
 GovernorLimits mbcGovernor(const ControllerConfig& c);
 // The MBC's feedforward range: the valve's command range within the input range the model was

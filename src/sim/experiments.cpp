@@ -175,13 +175,16 @@ void buildController(Context& x) {
                         {"mbc_governor",
                          {{"rate_mm_s", gov.rate_mm_s},
                           {"accel_mm_s2", gov.accel_mm_s2},
-                          {"lowered_to_the_models_pace", gov.from_model}}}};
+                          {"lowered_to_the_models_pace", gov.from_model},
+                          {"models_pace", {{"speed_mm_s", gov.pace.speed}, {"accel_mm_s2", gov.pace.accel}}}}}};
   x.readings_line = gainsText(x.cc) + "\nplant: " + plantText(x.s.plant) + "; sines start at the " + start;
   x.txt << "Readings: " << gainsText(x.cc) << "\n  plant: " << plantText(x.s.plant) << "\n  sines start at the "
         << start << "\n  calibrated on: " << x.s.calibrated_on << "\n  MBC's setpoint governor: "
-        << (gov.rate_mm_s > 0.0 ? fmt("%.4g mm/s, ", gov.rate_mm_s) + fmt("%.4g mm/s^2", gov.accel_mm_s2) +
-                                      (gov.from_model ? " (lowered to the model's pace)" : "")
-                                : std::string("off"))
+        << (gov.rate_mm_s > 0.0
+                ? fmt("%.4g mm/s, ", gov.rate_mm_s) + fmt("%.4g mm/s^2", gov.accel_mm_s2) +
+                      (gov.from_model ? " (lowered to the model's pace)" : "") +
+                      fmt("; the model's pace %.4g mm/s, ", gov.pace.speed) + fmt("%.4g mm/s^2", gov.pace.accel)
+                : std::string("off"))
         << "\n\n";
 }
 

@@ -548,12 +548,11 @@ TEST(Mbc, TheGovernorTakesTheOvershootOutOfASquareWave) {
   const double governed = overshoot(control::ControllerConfig{}.mbc.rate_mm_s), raw = overshoot(0.0);
   control::ControllerConfig cfg;
   cfg.model = m;
-  const control::ModelPace pace = control::modelPace(m, m.range().input.lo, m.range().input.hi);
   const control::GovernorLimits g = control::mbcGovernor(cfg);
   std::printf(
       "square wave overshoot: governed %.2f %% (%.1f mm/s, %.0f mm/s^2; the model's pace %.0f mm/s, %.0f "
       "mm/s^2), raw %.2f %%\n",
-      governed, g.rate_mm_s, g.accel_mm_s2, pace.speed, pace.accel, raw);
+      governed, g.rate_mm_s, g.accel_mm_s2, g.pace.speed, g.pace.accel, raw);
   EXPECT_LT(governed, 5.0);
   EXPECT_LT(governed, 0.5 * raw);
 }
