@@ -2,6 +2,7 @@
 // the catalogue leaves the validated error above the noise, which kind of structure explains what is left.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "diagnose/diagnosis.hpp"
@@ -160,57 +161,96 @@ void Diagnosis::recordProbes(const Rung& fin, const std::vector<CandidateResult>
 // Every probe on top of the final model, and each probe that may stand for an effect of it
 // (ProbeEntry::stands_for) in that effect's place as well: an effect added before the probes run can absorb
 // the physics a probe stands for in a simpler form (a play taken for Dahl friction, orifice flow for a
-// first-order lag), and a probe on top of it then explains little. A probe says what kind of structure is
-// missing, it is not a model: all are searched quickly in one parallel batch (Levenberg-Marquardt from
-// starts spread over the probe's parameters around the final model, whatever the method), the best again
-// in full, and the better fit of it kept: it is fitted on top of whatever basin the catalogue's model ended
-// in, and only a full search can move the core out of it (a curved valve characteristic: the quick search
-// explained 50 % of what was left, the full one 97 %). In the place of an effect's direction-dependent
-// version the probe goes in its own (inThePlaceOf).
-std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin, Placement where) const {
-  std::vector<model::Model> structures;
-  std::vector<std::string> labels, replaces;
+// first-order lag), and a probe on top of it then explains little. In the place of an effect's
+// direction-dependent version the probe goes in its own (inThePlaceOf).
+Diagnosis::ProbeStructures Diagnosis::probeStructures(const Rung& fin, Placement where) const {
+  ProbeStructures ps;
   for (const auto& p : model::probes()) {
     if (where == Placement::OnTopAndInPlace) {
-      structures.push_back(fin.model);
-      structures.back().addEffect(p.name);
-      labels.emplace_back(p.name);
-      replaces.emplace_back();
+      ps.models.push_back(fin.model);
+      ps.models.back().addEffect(p.name);
+      ps.labels.emplace_back(p.name);
+      ps.replaces.emplace_back();
     }
     for (const auto& e : fin.effects)
       if (p.standsFor(e)) {
         try {
-          structures.push_back(withReplacement(fin, e, inThePlaceOf(p, e)));
+          ps.models.push_back(withReplacement(fin, e, inThePlaceOf(p, e)));
         } catch (const std::invalid_argument& err) {  // a structure a model refuses: not a candidate
           log(std::string("probe ") + p.name + " for " + e + ": not built (" + err.what() + ")");
           continue;
         }
-        labels.push_back(std::string(p.name) + " for " + e);
-        replaces.push_back(e);
+        ps.labels.push_back(std::string(p.name) + " for " + e);
+        ps.replaces.push_back(e);
       }
   }
-  if (structures.empty()) return {};
+  return ps;
+}
+
+// The probes, searched on the screening record. A probe says what kind of structure is missing, it is not a
+// model. On a final model with effects the probes on top are first ranked with those effects held, the
+// core and the probe free (one parallel batch, Levenberg-Marquardt from starts spread over the probe's
+// parameters: the effects' Jacobian columns are most of a fit's cost, and the core absorbs what it can of
+// a missing structure, so a probe must be free to take it back); the best few of that ranking
+// (kProbesSearched) and every probe in an effect's place - the ranking cannot fill the hole an effect taken
+// out leaves - are searched quickly with everything free, and the best of all once more in full: it is
+// fitted on top of whatever basin the catalogue's model ended in, and only a full search can move the core
+// out of it (a curved valve characteristic: the quick search explained 50 % of what was left, the full one
+// 97 %). Each probe keeps its best fit.
+std::vector<CandidateResult> Diagnosis::searchProbes(const Rung& fin, Placement where) const {
+  const ProbeStructures ps = probeStructures(fin, where);
+  if (ps.models.empty()) return {};
   if (where == Placement::InPlaceOnly)
     log("at the noise: does a probe fit better in the place of an effect of " + join(fin.effects) + "?");
-  const int round = s_.max_effects + 1;
-  const auto method = ident::FitMethod::MultiStart;
-  auto fits = fitEach(structures, fin.model, labels, round, res_.final_residual, "probe ", method, Search::Quick, 0);
+  std::vector<CandidateResult> fits(ps.models.size());
+  std::vector<size_t> on_top, quick;
   for (size_t i = 0; i < fits.size(); ++i) {
-    fits[i].effect = labels[i].substr(0, labels[i].find(' '));
-    fits[i].replaces = replaces[i];
+    fits[i].effect = ps.labels[i].substr(0, ps.labels[i].find(' '));
+    fits[i].replaces = ps.replaces[i];
+    fits[i].model = ps.models[i];
+    fits[i].rmse_train = fits[i].rmse_val = std::numeric_limits<double>::infinity();
+    (ps.replaces[i].empty() ? on_top : quick).push_back(i);
   }
-  const auto best = static_cast<size_t>(
-      std::min_element(fits.begin(), fits.end(),
-                       [](const CandidateResult& a, const CandidateResult& b) { return a.rmse_val < b.rmse_val; }) -
-      fits.begin());
-  auto full = fitEach({structures[best]}, fin.model, {labels[best]}, round, res_.final_residual, "full: probe ", method,
-                      Search::Full, 0);
-  if (full.front().rmse_val < fits[best].rmse_val) {
-    fits[best].model = full.front().model;
-    fits[best].rmse_train = full.front().rmse_train;
-    fits[best].rmse_val = full.front().rmse_val;
+  const bool rank_first = fin.model.numEffects() > 0 && on_top.size() > kProbesSearched;
+  if (rank_first) {
+    searchAgain(ps, fits, fin, on_top, Search::Own, "probe ");
+    on_top = bestProbes(fits, on_top, kProbesSearched);
   }
+  quick.insert(quick.end(), on_top.begin(), on_top.end());
+  searchAgain(ps, fits, fin, quick, Search::Quick, rank_first ? "quick: probe " : "probe ");
+  std::vector<size_t> all(fits.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = i;
+  searchAgain(ps, fits, fin, bestProbes(fits, all, 1), Search::Full, "full: probe ");
   return fits;
+}
+
+// Of the probes `among`, the indices of the `n` that validate best.
+std::vector<size_t> Diagnosis::bestProbes(const std::vector<CandidateResult>& fits, std::vector<size_t> among,
+                                          size_t n) {
+  std::stable_sort(among.begin(), among.end(), [&](size_t a, size_t b) { return fits[a].rmse_val < fits[b].rmse_val; });
+  among.resize(std::min(n, among.size()));
+  return among;
+}
+
+// The probes `which` searched (`search`, from the final model), each fit kept where it validates better.
+void Diagnosis::searchAgain(const ProbeStructures& ps, std::vector<CandidateResult>& fits, const Rung& fin,
+                            const std::vector<size_t>& which, Search search, const std::string& tag) const {
+  if (which.empty()) return;
+  std::vector<model::Model> models;
+  std::vector<std::string> labels;
+  for (const size_t i : which) {
+    models.push_back(ps.models[i]);
+    labels.push_back(ps.labels[i]);
+  }
+  const auto again = fitEach(models, fin.model, labels, s_.max_effects + 1, res_.final_residual, tag,
+                             ident::FitMethod::MultiStart, search, 0);
+  for (size_t k = 0; k < which.size(); ++k) {
+    CandidateResult& c = fits[which[k]];
+    if (!(again[k].rmse_val < c.rmse_val)) continue;
+    c.model = again[k].model;
+    c.rmse_train = again[k].rmse_train;
+    c.rmse_val = again[k].rmse_val;
+  }
 }
 
 // A line of the residual's spectrum that is not coherent with the input names a sinusoid from elsewhere:

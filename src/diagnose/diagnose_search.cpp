@@ -109,9 +109,10 @@ std::vector<CandidateResult> Diagnosis::fitEach(const std::vector<model::Model>&
     // (asymmetry) can mirror the core's, and the core fitted without it may sit in the wrong basin for the
     // pair (hidden asymmetry on the oracle and the model plant: 0.15 mm from the warm starts, the noise
     // from the spread ones).
-    if (method == ident::FitMethod::MultiStart && search == Search::Quick) fs.lm_spread_starts = 0;
+    if (method == ident::FitMethod::MultiStart && search != Search::Full) fs.lm_spread_starts = 0;
     if (method == ident::FitMethod::Ga) fs.refine_evals = 200;
-    if (search == Search::Quick) {
+    if (search != Search::Full) {
+      fs.hold_effects = search == Search::Own;
       const int n_new = std::max(1, structure.numParams() - base_model.numParams());
       fs.lm_warm_starts = std::max(kQuickStarts, quick_cover / n_new);
       fs.lm_iterations = kQuickIterations;

@@ -26,8 +26,10 @@ namespace pamc::diagnose::detail {
 // kQuickStarts starts spread over the new structure's parameters, no Nelder-Mead polish - enough to
 // rank. Full: the fit's own number of starts and the polish. Every candidate and probe is searched
 // quickly; the best of them are searched in full (kFullSearches candidates - the ladder is built from
-// them - and the best probe), and the better fit is kept.
-enum class Search { Quick, Full };
+// them - and the best probe), and the better fit is kept. Own: as Quick, with the effects the model has
+// held where they are and only the core and the new structure's parameters fitted - the probes are
+// ranked so first, and only the best few searched quickly (Diagnosis::searchProbes).
+enum class Search { Own, Quick, Full };
 // ... but a new structure with few parameters gets kQuickCover / (their number) starts: the cost of a
 // threshold, a knee or a delay is flat away from the right value, and LM finds that only from a start
 // near it (one dead band's threshold: eight starts, one per eighth of its range). Not for the probes:
@@ -40,6 +42,8 @@ constexpr double kAtNoise = 1.5;
 // Probes whose validated RMSE is within this factor of the best's explain about as much: the one with
 // the fewest parameters names the kind (Diagnosis::preferSimplestProbe).
 constexpr double kProbeTie = 1.25;
+// The probes searched quickly after their ranking by their own parameters: this many best.
+constexpr size_t kProbesSearched = 4;
 
 inline double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -99,6 +103,15 @@ class Diagnosis {
   // diagnose_probes.cpp: the probes on top of the final model and in the place of its effects.
   enum class Placement { OnTopAndInPlace, InPlaceOnly };
   std::vector<CandidateResult> searchProbes(const Rung& fin, Placement where) const;
+  // The probes' structures on the final model, each with its label and the effect it replaces ("" on top).
+  struct ProbeStructures {
+    std::vector<model::Model> models;
+    std::vector<std::string> labels, replaces;
+  };
+  ProbeStructures probeStructures(const Rung& fin, Placement where) const;
+  static std::vector<size_t> bestProbes(const std::vector<CandidateResult>& fits, std::vector<size_t> among, size_t n);
+  void searchAgain(const ProbeStructures& ps, std::vector<CandidateResult>& fits, const Rung& fin,
+                   const std::vector<size_t>& which, Search search, const std::string& tag) const;
   void alternativesAtTheNoise(const Rung& fin);
   bool screenResolves(const Rung& fin);
   double nullProbe(const Rung& fin) const;

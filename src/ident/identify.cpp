@@ -240,12 +240,21 @@ bool boundedCore(const std::vector<double>& p) {
   return model::boucWenBounded(model::BoucWenParams{p[0], p[1], p[2], p[3], p[4], p[5]});
 }
 
+namespace {
+// The effects' parameters that are not explored held at the start's values: a box of zero width there
+// (every search keeps a parameter with lo == hi where its first point has it). The core stays free.
+void holdEffects(const std::vector<double>& start, const std::vector<bool>& explore, Bounds& b) {
+  for (size_t i = model::kBoucWenParams; i < start.size(); ++i)
+    if (!explore[i]) b.lo[i] = b.hi[i] = std::clamp(start[i], b.lo[i], b.hi[i]);
+}
+}  // namespace
+
 FitResult fit(const model::Model& structure, const io::Measurement& d, const FitSettings& s,
               const std::function<void(const char*, int, double)>& progress, const model::Model* start) {
   const auto t0 = std::chrono::steady_clock::now();
   if (structure.needsLoad() && !d.has("load"))
     throw std::invalid_argument(d.source + ": the model has the 'load' effect but the data has no 'load' column");
-  const Bounds b = dataBounds(structure, d);
+  Bounds b = dataBounds(structure, d);
   const int threads = s.ga.threads > 0 ? s.ga.threads : defaultThreads();
   const auto* load = d.column("load");
   // Per-thread model and output buffer: the cost runs allocation-free.
@@ -290,6 +299,7 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
       const std::string eff = specs[i].name.substr(0, specs[i].name.find('.'));
       gs.explore[i] = !start->hasEffect(eff);
     }
+    if (s.hold_effects) holdEffects(gs.start, gs.explore, b);
   }
   FitResult out;
   OptResult r;

@@ -46,6 +46,9 @@ struct FitSettings {
   int lm_warm_starts = 4;
   // Of each group of starts, the short runs of this many (the best) go on to the end.
   int lm_keep = 2;
+  // With a start model: the parameters of the effects it has are held at its values; the core and the
+  // effects it lacks are fitted (a probe on a model of many effects, to rank many probes quickly).
+  bool hold_effects = false;
 
   // The defaults of a method: the GA's as above; the multi-start method with fewer spread starts
   // (6), more starts around a start model (8) and a shorter Nelder-Mead polish (100, none for the plain core), which on

@@ -155,15 +155,45 @@ TEST(Identification, AStopIsSearchedOnlyWhereTheRecordRestsOnIt) {
   for (int i = 0; i < 20000; ++i) {
     const double phase = std::fmod(i * 1e-3, 10.0) / 10.0;  // a triangle between -20 and 20, period 10 s
     const double s = 80.0 * std::fabs(phase - 0.5) - 20.0;
-    lies_low.push_back(std::max(s, 0.0));          // on a stop at 0 half the time, turns at 20
-    lies_high.push_back(std::min(s, 15.0) + 20.0); // turns at 0, on a stop at 35 a third of the time
+    lies_low.push_back(std::max(s, 0.0));           // on a stop at 0 half the time, turns at 20
+    lies_high.push_back(std::min(s, 15.0) + 20.0);  // turns at 0, on a stop at 35 a third of the time
   }
   for (const char* p : {"muscle_balance.lo", "muscle_balance.hi"}) {
     const auto low = boxOf(m, lies_low, p);
-    EXPECT_DOUBLE_EQ(low.first, 0.0) << p;   // the stop the record rests on: its lowest output
-    EXPECT_DOUBLE_EQ(low.second, 40.0) << p; // none at the top: a range beyond
+    EXPECT_DOUBLE_EQ(low.first, 0.0) << p;    // the stop the record rests on: its lowest output
+    EXPECT_DOUBLE_EQ(low.second, 40.0) << p;  // none at the top: a range beyond
     const auto high = boxOf(m, lies_high, p);
     EXPECT_DOUBLE_EQ(high.first, -35.0) << p;
     EXPECT_DOUBLE_EQ(high.second, 35.0) << p;
   }
+}
+
+// With hold_effects (a probe ranked on a model of many effects, docs/MODELING.md, "diagnose" step 7) the
+// effects the start model has keep its values to the last digit; the core and the effect it lacks are
+// fitted, and the fit ends below the start.
+TEST(Identification, HeldEffectsKeepTheStartsValuesAndTheRestIsFitted) {
+  model::Model truth({5.0, 1.1, 10.0, 1.0, 0.3, 0.2});
+  truth.addEffect("saturation");
+  truth.addEffect("pressure_lag");
+  const auto d = synthetic(truth, 10.0, 0.3, 2.5);
+  model::Model start({4.0, 1.0, 8.0, 1.0, 0.3, 0.2});  // the core off, saturation at its defaults
+  start.addEffect("saturation");
+  model::Model structure = start;
+  structure.addEffect("pressure_lag");
+  auto s = ident::FitSettings::forMethod(ident::FitMethod::MultiStart);
+  s.hold_effects = true;
+  const auto r = ident::fit(structure, d, s, {}, &start);
+  auto index = [](const model::Model& m, const std::string& name) {
+    for (int i = 0; i < m.numEffects(); ++i)
+      if (m.effect(i).name() == name) return i;
+    return -1;
+  };
+  const int sat = index(r.model, "saturation"), sat0 = index(start, "saturation");
+  ASSERT_GE(sat, 0);
+  for (size_t q = 0; q < r.model.effect(sat).params().size(); ++q)
+    EXPECT_EQ(r.model.effectParams(sat)[q], start.effectParams(sat0)[q]) << r.model.effect(sat).params()[q].name;
+  EXPECT_NE(r.model.core().k * r.model.core().rho, start.core().k * start.core().rho);
+  model::Model start_with_lag = structure;
+  start_with_lag.core() = start.core();
+  EXPECT_LT(r.rmse, std::sqrt(ident::mse(start_with_lag, d)));
 }
