@@ -16,8 +16,8 @@ line, names which kind):
     fall 5x however right the structure.
 
 Prints a Markdown table and the count; exits 0 whatever the count (the count is the result), 2 on a
-usage error.
-  tools/unseen_table.py [--only a,b] [--out-dir DIR] [--pamc BIN] [--oracle BIN]
+usage error - with --require-named, 1 unless every case run is named.
+  tools/unseen_table.py [--only a,b] [--out-dir DIR] [--pamc BIN] [--oracle BIN] [--cases FILE] [--require-named]
 """
 import argparse
 import json
@@ -93,6 +93,8 @@ def main():
     ap.add_argument("--pamc", default=os.path.join(ROOT, "build", "src", "pamc"))
     ap.add_argument("--oracle", default=os.path.join(ROOT, "build", "tests", "oracle", "pamc_oracle_sim"))
     ap.add_argument("--cases", default=os.path.join(ROOT, "tests", "oracle", "unseen.json"))
+    ap.add_argument("--require-named", action="store_true",
+                    help="exit 1 unless every case run is named (a regression test of the cases given with --only)")
     args = ap.parse_args()
     for b in (args.pamc, args.oracle):
         if not os.path.exists(b):
@@ -129,6 +131,9 @@ def main():
               "yes (%s)" % j["by"] if j["named"] else "no", after, fall, above))
     print("\nnamed: %d of %d; the validated error falls %.0fx or more with the named probe: %d of %d" %
           (named, len(rows), FALL, fell, len(rows)))
+    if args.require_named and named < len(rows):
+        print("unseen_table: %d of %d cases not named" % (len(rows) - named, len(rows)), file=sys.stderr)
+        return 1
     return 0
 
 
