@@ -42,7 +42,7 @@ constexpr double kAtNoise = 1.5;
 // Probes whose validated RMSE is within this factor of the best's explain about as much: the one with
 // the fewest parameters names the kind (Diagnosis::preferSimplestProbe).
 constexpr double kProbeTie = 1.25;
-// The probes searched quickly after their ranking by their own parameters: this many best.
+// The probes on top searched quickly after their ranking with the final model's effects held: this many best.
 constexpr size_t kProbesSearched = 4;
 
 inline double seconds(std::chrono::steady_clock::time_point t0) {

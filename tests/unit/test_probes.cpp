@@ -151,7 +151,7 @@ TEST(Probes, JsonContractAndNames) {
   }
   // The ladder marks the probe's rung; the model holds physical effects only.
   const auto& last_rung = j["ladder"].back();
-  EXPECT_TRUE(last_rung["probe"].get<bool>()) << table(r);
+  ASSERT_TRUE(last_rung["probe"].get<bool>()) << table(r);  // the next line reads the probe's rung
   EXPECT_EQ(last_rung["effects"].back(), j["probes"][0]["probe"]);
   for (const auto& e : j["model"]["effects"]) EXPECT_EQ(model::findProbe(e["name"].get<std::string>()), nullptr);
 }
