@@ -4,7 +4,8 @@
 records, before any search (docs/MODELING.md, "The pressure's own dynamics").
 
   tools/pneumatic_truth.py [--pamc BIN] [--plant FILE] [--effect pneumatic_balance|muscle_balance]
-                           [--coulomb-in-friction | --coulomb-as-guide] [--valve-lag] --out MODEL.json
+                           [--coulomb-in-friction | --coulomb-as-guide [--guide-speed [VC]]] [--valve-lag]
+                           --out MODEL.json
 
 The balance is divided by the plant's linear stiffness (rubber + load spring); the Tondu-Lopez map gives
 a1, a2; the braid's Dahl friction zmax, zp and delta; the regulator's gauge pressure, atmosphere and supply
@@ -13,7 +14,10 @@ volume at zero contraction its rate; the braid's volume growth at zero contracti
 swell. The plant's payload Coulomb friction (tanh of the velocity) has no exact place in the balance:
 --coulomb-in-friction adds its level to zmax, --coulomb-as-guide puts it on pneumatic_balance's guide
 element (zc, with a pre-sliding travel dc of 0.01 mm, a choice: the tanh has a velocity width, not a
-travel). --valve-lag gives pneumatic_balance the regulator's valve-opening time constant.
+travel); with --guide-speed the guide's friction builds up with the sliding speed as the tanh does (vc, the
+speed of half its level: VC mm/s, or without VC the tanh's velocity width, where the two laws' slopes at
+rest agree) from a pre-sliding travel of 0.001 mm, the box's least. --valve-lag gives pneumatic_balance the regulator's valve-opening time
+constant.
 """
 import argparse
 import json
@@ -50,7 +54,7 @@ def balance_of(pc, coulomb_in_friction):
     return balance, core, per_bar, area * (a - b)
 
 
-def pressure_of(pc, per_bar, dvol_dy, coulomb_as_guide, valve_lag):
+def pressure_of(pc, per_bar, dvol_dy, coulomb_as_guide, valve_lag, guide_speed):
     g, m = pc["regulator"], pc["muscle"]
     vol0 = math.pi * (0.5e-3 * m["diameter_mm"]) ** 2 * m["length_mm"] * 1e-3 + g["dead_volume_cm3"] * 1e-6
     p_sup = (g["supply_bar"] + g["atmosphere_bar"]) * 1e5
@@ -60,7 +64,9 @@ def pressure_of(pc, per_bar, dvol_dy, coulomb_as_guide, valve_lag):
             "span": g["atmosphere_bar"] * per_bar, "supply": g["supply_bar"] * per_bar, "b": g["critical_ratio"],
             "swell": dvol_dy * 1e-3 / vol0, "n": g["polytropic_index"],
             "lag": g["tau_s"] if valve_lag else 0.0,
-            "zc": pc["payload"]["coulomb_N"] / kn_of(pc) if coulomb_as_guide else 0.0, "dc": 0.01}
+            "zc": pc["payload"]["coulomb_N"] / kn_of(pc) if coulomb_as_guide else 0.0,
+            "dc": 0.001 if guide_speed is not None else 0.01,
+            "vc": 0.0 if guide_speed is None else guide_speed or pc["payload"]["coulomb_velocity_mm_per_s"]}
 
 
 def kn_of(pc):
@@ -75,16 +81,19 @@ def main():
     how = ap.add_mutually_exclusive_group()
     how.add_argument("--coulomb-in-friction", action="store_true")
     how.add_argument("--coulomb-as-guide", action="store_true")
+    ap.add_argument("--guide-speed", nargs="?", type=float, const=0.0, default=None, metavar="VC")
     ap.add_argument("--valve-lag", action="store_true")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
+    if a.guide_speed is not None and not a.coulomb_as_guide:
+        sys.exit("pneumatic_truth: --guide-speed needs --coulomb-as-guide")
     pc = plant_config(a.pamc, a.plant)
     if pc.get("mode") != "rig":
         sys.exit("pneumatic_truth: the plant is not in rig mode")
     balance, core, per_bar, dvol_dy = balance_of(pc, a.coulomb_in_friction)
     params = dict(balance)
     if a.effect == "pneumatic_balance":
-        params.update(pressure_of(pc, per_bar, dvol_dy, a.coulomb_as_guide, a.valve_lag))
+        params.update(pressure_of(pc, per_bar, dvol_dy, a.coulomb_as_guide, a.valve_lag, a.guide_speed))
     model = {"format": "pamc-model/1", "core": core, "output_form": "aligned",
              "effects": [{"name": a.effect, "params": params}]}
     with open(a.out, "w") as f:

@@ -107,10 +107,17 @@ class MuscleBalance : public Effect {
   }
 
   // A friction element of its own level, not pressed by the pressure (pneumatic_balance's guide): its
-  // level, the inverse of its pre-sliding travel, its state. None at level 0.
+  // level, the inverse of its pre-sliding travel, its state, and the sliding speed at which it reaches half
+  // its level (0: its whole level at any speed, Dahl's rate-independent element). None at level 0.
   struct Guide {
     double level = 0.0, inv_travel = 0.0;
     double* z = nullptr;
+    double half_speed = 0.0;
+    // Its level at the speed v: a lubricated guide's friction builds up with the sliding speed.
+    double levelAt(double v) const noexcept {
+      const double s = std::fabs(v);
+      return half_speed > 0.0 ? level * s / (s + half_speed) : level;
+    }
   };
 
   // One sub-step of the balance under the static displacement `in` of the pressure's force.
@@ -133,9 +140,10 @@ class MuscleBalance : public Effect {
     slope_neg *= scale;
     const bool guided = guide.level > 0.0 && guide.z != nullptr;
     if (guided) {
-      z += guide.level * *guide.z;
-      slope_pos += guide.level * (1.0 - *guide.z) * guide.inv_travel;
-      slope_neg += guide.level * (1.0 + *guide.z) * guide.inv_travel;
+      const double g = guide.levelAt(v);  // at the sub-step's start; its change with the speed: below
+      z += g * *guide.z;
+      slope_pos += g * (1.0 - *guide.z) * guide.inv_travel;
+      slope_neg += g * (1.0 + *guide.z) * guide.inv_travel;
     }
     // The payload under the force of the sub-step's start.
     const double force = in + mapExcess(p, in, y) - z;
@@ -150,11 +158,26 @@ class MuscleBalance : public Effect {
       y1 = y + (y1 - y) * shrink;
       v1 -= b1 * dz;
     }
+    if (guided) guideDamping(guide, v, s[kMap + 4], s[kMap + 5], y1, v1);
     advanceFriction(d, s, y1 - y);
     if (guided) advanceElement(*guide.z, y1 - y, guide.inv_travel);
     endStops(p, y1, v1);
     s[kY] = y1;
     s[kV] = v1;
+  }
+
+  // The guide's friction grows with the speed by the slope D = level |z| vc / (|v| + vc)^2 where it opposes
+  // the motion: a damper, taken implicitly (linearised at the sub-step's start speed v), for near rest D
+  // reaches level / vc - at a small vc far beyond what an explicit sub-step can carry. Against the motion
+  // (pre-sliding after a reversal) it is left explicit: there it is bounded by the level.
+  static void guideDamping(const Guide& guide, double v, double b0, double b1, double& y1, double& v1) noexcept {
+    if (!(guide.half_speed > 0.0) || *guide.z * v < 0.0) return;
+    const double s = std::fabs(v) + guide.half_speed;
+    const double damp = guide.level * std::fabs(*guide.z) * guide.half_speed / (s * s);
+    const double k = std::max(b1, 0.0) * damp;
+    const double v_new = (v1 + k * v) / (1.0 + k);
+    y1 -= std::max(b0, 0.0) * damp * (v_new - v);
+    v1 = v_new;
   }
 
   // Each Dahl element exactly along the travel dy: z -> sgn + (z - sgn) exp(-|dy| / delta_i).

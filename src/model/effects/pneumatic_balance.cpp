@@ -34,7 +34,10 @@
 // Two refinements a rig needs, both off by default: the regulator's opening follows its error with a
 // first-order lag (`lag`, its spool), and a friction element of its own level that the pressure does not
 // press (`zc`, `dc`: the payload's guide, a Coulomb friction with a short pre-sliding travel) beside the
-// balance's braid friction.
+// balance's braid friction. The guide's friction may build up with the sliding speed (`vc`, the speed at
+// which it reaches half its level, zc |v| / (|v| + vc): a lubricated guide, whose friction at a crawl is
+// viscous rather than a break-away); at vc 0 it has its whole level at any speed. The rational law has a
+// slope in vc at 0, so a fit can move it from there.
 //
 // Integration: the balance's sub-steps, each with the pressure advanced first (explicit, not past the
 // setpoint by a flow towards it).
@@ -63,6 +66,7 @@ enum : int {
   kLag,
   kGuide,
   kGuideTravel,
+  kGuideSpeed,
   kAllParams
 };
 enum : int { kP = kNumStates, kOpening, kGuideZ, kAllStates };
@@ -105,6 +109,7 @@ class PneumaticBalance final : public MuscleBalance {
       v.push_back({"lag", 0.0, 0.05, 0.0, "s"});              // the regulator's opening: its time constant
       v.push_back({"zc", 0.0, 10.0, 0.0, "y-unit"});          // the guide's friction, not pressed by the pressure
       v.push_back({"dc", 0.001, 2.0, 0.05, "y-unit"});        // ... its pre-sliding travel
+      v.push_back({"vc", 0.0, 100.0, 0.0, "y-unit/s"});       // ... the sliding speed of half its level
       return v;
     }();
     return p;
@@ -142,7 +147,8 @@ class PneumaticBalance final : public MuscleBalance {
     const double follow = p[kLag] > 0.0 ? 1.0 - std::exp(-h / p[kLag]) : 1.0;
     Local<kAllParams> lp(p);  // as MuscleBalance::step
     Local<kAllStates> ls(s);
-    const Guide guide{std::fabs(p[kGuide]), 1.0 / std::max(std::fabs(p[kGuideTravel]), 1e-9), ls.v + kGuideZ};
+    const Guide guide{std::fabs(p[kGuide]), 1.0 / std::max(std::fabs(p[kGuideTravel]), 1e-9), ls.v + kGuideZ,
+                      std::fabs(p[kGuideSpeed])};
     for (int i = 0; i < kSubsteps; ++i) {
       ls.v[kP] = pressureStep(lp.v, ls.v, in, h, follow);
       subStep(lp.v, d, ls.v, ls.v[kP], guide);
