@@ -24,7 +24,7 @@ namespace {
 std::vector<ParamInfo> balanceParams() {
   return {{"fn", 0.2, 100.0, 10.0}, {"zeta", 0.01, 3.0, 0.5}, {"w", -100.0, 100.0, 0.0},    {"L", 5.0, 1e4, 1e4},
           {"f0", 0.0, 10.0, 0.0},   {"fp", 0.0, 0.2, 0.0},    {"k_slip", 0.01, 100.0, 1.0}, {"spread", 1.0, 100.0, 1.0},
-          {"lo", -1e9, 1e9, -1e9},  {"hi", -1e9, 1e9, 1e9}};
+          {"lo", -1e9, 1e9, -1e9},  {"hi", -1e9, 1e9, 1e9},   {"fg", 0.0, 10.0, 0.0},       {"vg", 0.01, 100.0, 1.0}};
 }
 std::vector<ParamInfo> withBalance(const std::vector<ParamInfo>& more) {
   auto p = balanceParams();
@@ -336,11 +336,14 @@ double sgn(double x) { return x > 0.0 ? 1.0 : x < 0.0 ? -1.0 : 0.0; }
 //   q_i = clamp(q_i, x - E_i, x + E_i)           from x to its anchor q_i, which slips when the spring's force
 //                                                reaches the break-away k_i E_i (a play operator of x)
 //   k_i = k_slip spread^(-i / 3),  E_i = N(s) / (4 k_i),  N(s) = f0 + fp max(s + w, 0)
+//   F_g = fg (1 - exp(-|x'| / vg)) sgn(x')        the payload's guide: a friction of its own level fg, not
+//                                                pressed by the pressure, building up with the sliding speed
+//                                                over vg (none at fg 0)
 //   at a stop (x = lo or hi) with the net force into it the payload rests: x' = x'' = 0
 // The anchors are algebraic: within a step they are clamped from the step's start, and the step is cut
 // where the payload turns round or meets a stop, so x is monotone over every step and the clamp exact.
 struct Balance {
-  double w = 0, L = 1e4, f0 = 0, fp = 0, k_slip = 1, spread = 1, lo = -1e9, hi = 1e9;
+  double w = 0, L = 1e4, f0 = 0, fp = 0, k_slip = 1, spread = 1, lo = -1e9, hi = 1e9, fg = 0, vg = 1;
   static constexpr double kStopTol = 1e-9;  // [mm] how close to a stop a contact is made
   static constexpr double kTurnTol = 1e-6;  // [mm/s] how small the velocity past a turn may be
 
@@ -375,9 +378,13 @@ struct Balance {
     return f;
   }
 
+  // The guide's friction at the velocity v.
+  double guide(double v) const { return fg > 0.0 ? fg * (1.0 - std::exp(-std::fabs(v) / vg)) * sgn(v) : 0.0; }
+
   // The payload's rates for stage input s into d (the anchors' are 0); returns the position.
   double rates(Vec& x, double s, double wn, double zeta, Vec& d) const {
-    const double a = wn * wn * (muscle(s, x[kX]) - x[kX] - friction(x, s)) - 2.0 * zeta * wn * x[kXd];
+    const double a =
+        wn * wn * (muscle(s, x[kX]) - x[kX] - friction(x, s) - guide(x[kXd])) - 2.0 * zeta * wn * x[kXd];
     const bool held = (x[kX] <= lo && x[kXd] <= 0.0 && a <= 0.0) || (x[kX] >= hi && x[kXd] >= 0.0 && a >= 0.0);
     d[kX] = held ? 0.0 : x[kXd];
     d[kXd] = held ? 0.0 : a;
@@ -562,6 +569,7 @@ Balance balanceOf(const EffectSpec& e) {
   Balance b;
   b.w = param(e, "w"), b.L = param(e, "L"), b.f0 = param(e, "f0"), b.fp = param(e, "fp");
   b.k_slip = param(e, "k_slip"), b.spread = param(e, "spread"), b.lo = param(e, "lo"), b.hi = param(e, "hi");
+  b.fg = param(e, "fg"), b.vg = param(e, "vg");
   return b;
 }
 
