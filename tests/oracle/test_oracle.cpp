@@ -198,6 +198,23 @@ TEST(OracleBalance, FrictionLoopWidensWithThePressure) {
   EXPECT_NEAR(width[1] / width[0], expected[1] / expected[0], 0.03 * expected[1] / expected[0]);
 }
 
+TEST(OracleBalance, TheGuidesFrictionBuildsUpWithTheSlidingSpeed) {
+  // A slow triangle over 2 V slides at 6.5 x 0.08 = 0.52 mm/s (a map of 10 m: nearly linear); the guide
+  // widens the loop by 2 fg (1 - exp(-v / vg)) at the crossing, beside the payload's own lag (taken out).
+  const auto u = makeSignal("triangle:f=0.02,lo=-1,hi=1", 100.0, Ts, 1);
+  auto width = [&](const std::string& guide) {
+    const auto y = yClean(linearCore(), {parseEffect("muscle_balance:fn=8,zeta=0.7,w=10,L=10000" + guide)}, u);
+    return atCrossing(u, y, 25000, 0.0, -1) - atCrossing(u, y, 50000, 0.0, +1);
+  };
+  const double lag = width(""), v = 0.52 / (1.0 + 30.0 / 10000.0);
+  for (double vg : {0.52, 0.052}) {
+    const double expected = 2.0 * 0.3 * (1.0 - std::exp(-v / vg));
+    const double got = width(",fg=0.3,vg=" + std::to_string(vg)) - lag;
+    std::printf("guide, vg %.3f mm/s: %.4f mm, expected %.4f\n", vg, got, expected);
+    EXPECT_NEAR(got, expected, 0.03 * expected) << vg;
+  }
+}
+
 TEST(OracleBalance, IntegrationConverges) {
   // Over a wide range, with friction and both stops met: 1e-11 against 1e-13, and steps of at most 10 us.
   const auto u =
