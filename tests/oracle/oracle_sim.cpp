@@ -383,8 +383,7 @@ struct Balance {
 
   // The payload's rates for stage input s into d (the anchors' are 0); returns the position.
   double rates(Vec& x, double s, double wn, double zeta, Vec& d) const {
-    const double a =
-        wn * wn * (muscle(s, x[kX]) - x[kX] - friction(x, s) - guide(x[kXd])) - 2.0 * zeta * wn * x[kXd];
+    const double a = wn * wn * (muscle(s, x[kX]) - x[kX] - friction(x, s) - guide(x[kXd])) - 2.0 * zeta * wn * x[kXd];
     const bool held = (x[kX] <= lo && x[kXd] <= 0.0 && a <= 0.0) || (x[kX] >= hi && x[kXd] >= 0.0 && a >= 0.0);
     d[kX] = held ? 0.0 : x[kXd];
     d[kXd] = held ? 0.0 : a;
