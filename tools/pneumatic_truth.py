@@ -16,14 +16,16 @@ swell. The plant's payload Coulomb friction (tanh of the velocity) has no exact 
 element (zc, with a pre-sliding travel dc of 0.01 mm, a choice: the tanh has a velocity width, not a
 travel); with --guide-speed the guide's friction builds up with the sliding speed as the tanh does (vc, the
 speed of half its level: VC mm/s, or without VC the tanh's velocity width, where the two laws' slopes at
-rest agree) from a pre-sliding travel of 0.001 mm, the box's least. --valve-lag gives pneumatic_balance the regulator's valve-opening time
-constant.
+rest agree) from a pre-sliding travel of 0.001 mm, the box's least. --valve-lag gives pneumatic_balance
+the regulator's valve-opening time constant.
 """
 import argparse
 import json
 import math
 import subprocess
 import sys
+
+TANH_WIDTH = -1.0  # --guide-speed without a value: the plant's tanh width
 
 
 def plant_config(pamc, path):
@@ -66,7 +68,8 @@ def pressure_of(pc, per_bar, dvol_dy, coulomb_as_guide, valve_lag, guide_speed):
             "lag": g["tau_s"] if valve_lag else 0.0,
             "zc": pc["payload"]["coulomb_N"] / kn_of(pc) if coulomb_as_guide else 0.0,
             "dc": 0.001 if guide_speed is not None else 0.01,
-            "vc": 0.0 if guide_speed is None else guide_speed or pc["payload"]["coulomb_velocity_mm_per_s"]}
+            "vc": 0.0 if guide_speed is None else
+                  pc["payload"]["coulomb_velocity_mm_per_s"] if guide_speed == TANH_WIDTH else guide_speed}
 
 
 def kn_of(pc):
@@ -81,12 +84,14 @@ def main():
     how = ap.add_mutually_exclusive_group()
     how.add_argument("--coulomb-in-friction", action="store_true")
     how.add_argument("--coulomb-as-guide", action="store_true")
-    ap.add_argument("--guide-speed", nargs="?", type=float, const=0.0, default=None, metavar="VC")
+    ap.add_argument("--guide-speed", nargs="?", type=float, const=TANH_WIDTH, default=None, metavar="VC")
     ap.add_argument("--valve-lag", action="store_true")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     if a.guide_speed is not None and not a.coulomb_as_guide:
         sys.exit("pneumatic_truth: --guide-speed needs --coulomb-as-guide")
+    if a.guide_speed is not None and a.guide_speed != TANH_WIDTH and not a.guide_speed >= 0.0:
+        sys.exit("pneumatic_truth: --guide-speed VC must be a speed >= 0 [mm/s]")
     pc = plant_config(a.pamc, a.plant)
     if pc.get("mode") != "rig":
         sys.exit("pneumatic_truth: the plant is not in rig mode")
