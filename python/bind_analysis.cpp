@@ -31,6 +31,7 @@ py::tuple fit(const io::Measurement& d, const std::vector<std::string>& effects,
   ident::FitSettings fs = ident::FitSettings::forMethod(methodOf(method, structure));
   fs.ga.seed = seed;
   fs.ga.threads = threads;
+  fs.box_holds_start = true;
   ident::FitResult r;
   {
     py::gil_scoped_release free;

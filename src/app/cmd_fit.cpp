@@ -22,9 +22,10 @@ class FitCommand final : public Command {
     cmd_->add_option("data", data_, "measurement CSV with header t,u,y")->required();
     cmd_->add_option("--out", out_, "model file (JSON) to write");
     cmd_->add_option("--effects", effects_, "comma list of effects to add to the Bouc-Wen core (see `pamc effects`)");
-    cmd_->add_option("--start", start_,
-                     "model file (JSON) to start from: its effects join the structure, its parameters start the "
-                     "search (refit a model on a new record, or add --effects to it)")
+    cmd_->add_option(
+            "--start", start_,
+            "model file (JSON) to start from: its effects join the structure, its parameters start the "
+            "search, the search's box widened to hold them (refit a model on a new record, or add --effects to it)")
         ->check(CLI::ExistingFile);
     cmd_->add_option("--method", method_,
                      "lm: Levenberg-Marquardt from spread starts (fast); ga: the paper's genetic algorithm first; "
@@ -66,6 +67,7 @@ class FitCommand final : public Command {
     ident::FitSettings fs = ident::FitSettings::forMethod(method_ == "auto" ? ident::autoFitMethod(structure)
                                                                             : ident::fitMethodFromString(method_));
     fs.ga = fs_.ga;
+    fs.box_holds_start = true;
     if (!quiet)
       std::fprintf(stderr, "fitting %s (%d parameters) to %zu samples of %s, Ts = %g s\n", structure.describe().c_str(),
                    structure.numParams() - 1, m.size(), data.c_str(), m.Ts);

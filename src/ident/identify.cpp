@@ -247,6 +247,15 @@ void holdEffects(const std::vector<double>& start, const std::vector<bool>& expl
   for (size_t i = model::kBoucWenParams; i < start.size(); ++i)
     if (!explore[i]) b.lo[i] = b.hi[i] = std::clamp(start[i], b.lo[i], b.hi[i]);
 }
+
+// The box widened to hold a start where it does not; a fixed parameter (lo == hi) stays fixed.
+void widenToHold(const std::vector<double>& start, Bounds& b) {
+  for (size_t i = 0; i < start.size(); ++i) {
+    if (!(b.hi[i] > b.lo[i])) continue;
+    b.lo[i] = std::min(b.lo[i], start[i]);
+    b.hi[i] = std::max(b.hi[i], start[i]);
+  }
+}
 }  // namespace
 
 FitResult fit(const model::Model& structure, const io::Measurement& d, const FitSettings& s,
@@ -299,6 +308,7 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
       const std::string eff = specs[i].name.substr(0, specs[i].name.find('.'));
       gs.explore[i] = !start->hasEffect(eff);
     }
+    if (s.box_holds_start) widenToHold(gs.start, b);
     if (s.hold_effects) holdEffects(gs.start, gs.explore, b);
   }
   FitResult out;

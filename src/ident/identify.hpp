@@ -49,6 +49,10 @@ struct FitSettings {
   // With a start model: the parameters of the effects it has are held at its values; the core and the
   // effects it lacks are fitted (a probe on a model of many effects, to rank many probes quickly).
   bool hold_effects = false;
+  // With a start model: the search box widened to hold its values where the record's own box does not.
+  // The box scales with the record's range, so a model refitted on a record that covers less of the
+  // stroke than the one it came from would start clamped (`pamc fit --start`).
+  bool box_holds_start = false;
 
   // The defaults of a method: the GA's as above; the multi-start method with fewer spread starts
   // (6), more starts around a start model (8) and a shorter Nelder-Mead polish (100, none for the plain core), which on

@@ -197,3 +197,27 @@ TEST(Identification, HeldEffectsKeepTheStartsValuesAndTheRestIsFitted) {
   start_with_lag.core() = start.core();
   EXPECT_LT(r.rmse, std::sqrt(ident::mse(start_with_lag, d)));
 }
+
+// `pamc fit --start` (box_holds_start): a start the record's own box would clamp - a braid friction's
+// pre-sliding travel of 3 mm, where a record over 20 mm of the stroke boxes the travel at 1 mm - is
+// refitted from where it is, and the fit ends no worse than its start. Clamped, it started 1 mm off.
+TEST(Identification, AStartOutsideTheRecordsBoxIsRefittedFromWhereItIs) {
+  model::Model truth({1.0, 1.0, 0.0, 1.0, 0.35, 0.25});
+  truth.addEffect("muscle_balance");
+  truth.setEffectParam("muscle_balance", "fn", 4.0);
+  truth.setEffectParam("muscle_balance", "zmax", 1.5);
+  truth.setEffectParam("muscle_balance", "delta", 3.0);
+  const auto d = synthetic(truth, 10.0, 0.2, 10.0);  // y over about 20 mm
+  const auto box = boxOf(truth, d.y, "muscle_balance.delta");
+  ASSERT_LT(box.second, 3.0);  // the case: the record's box does not hold the start
+  auto s = ident::FitSettings::forMethod(ident::FitMethod::MultiStart);
+  s.box_holds_start = true;
+  const double at_start = std::sqrt(ident::mse(truth, d));
+  const auto r = ident::fit(truth, d, s, {}, &truth);
+  EXPECT_LE(r.rmse, at_start + 1e-9);
+  EXPECT_NEAR(r.model.effectParams(0)[3], 3.0, 0.03);  // delta
+  EXPECT_DOUBLE_EQ(r.model.core().alpha, 1.0);         // a fixed parameter stays fixed
+  s.box_holds_start = false;
+  const auto clamped = ident::fit(truth, d, s, {}, &truth);
+  EXPECT_GT(clamped.rmse, 10.0 * (r.rmse + 1e-4));
+}
