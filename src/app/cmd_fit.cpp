@@ -84,6 +84,8 @@ class FitCommand final : public Command {
           }
         },
         start ? &*start : nullptr);
+    for (const auto& w : r.widened)
+      std::fprintf(stderr, "note: the start's %s: the search's box was widened to hold it\n", w.c_str());
     const auto specs = r.model.paramSpecs();
     const auto p = r.model.params();
     std::printf("model: %s\n", r.model.describe().c_str());

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "io/text.hpp"
 #include "model/staged_simulation.hpp"
 
 namespace pamc::ident {
@@ -143,15 +144,17 @@ FitMethod autoFitMethod(const model::Model& structure) {
 
 nlohmann::json fitReport(const FitResult& r, const FitSettings& s, const io::Measurement& data,
                          const std::string& source) {
-  return {{"data", source},
-          {"samples", data.size()},
-          {"Ts", data.Ts},
-          {"rmse", r.rmse},
-          {"generations", r.generations},
-          {"evaluations", r.evaluations},
-          {"seconds", r.seconds},
-          {"seed", s.ga.seed},
-          {"method", toString(s.method)}};
+  nlohmann::json j = {{"data", source},
+                      {"samples", data.size()},
+                      {"Ts", data.Ts},
+                      {"rmse", r.rmse},
+                      {"generations", r.generations},
+                      {"evaluations", r.evaluations},
+                      {"seconds", r.seconds},
+                      {"seed", s.ga.seed},
+                      {"method", toString(s.method)}};
+  if (!r.widened.empty()) j["box_widened"] = r.widened;
+  return j;
 }
 
 namespace {
@@ -248,13 +251,25 @@ void holdEffects(const std::vector<double>& start, const std::vector<bool>& expl
     if (!explore[i]) b.lo[i] = b.hi[i] = std::clamp(start[i], b.lo[i], b.hi[i]);
 }
 
-// The box widened to hold a start where it does not; a fixed parameter (lo == hi) stays fixed.
-void widenToHold(const std::vector<double>& start, Bounds& b) {
+// The box widened to hold a start where it does not; a fixed parameter (lo == hi) stays fixed. Returns
+// each parameter widened, with the record's own box (the search's first two: the gains of u and h), but
+// not one at the catalogue's default (a stop at "none", a lag of 0: the start did not choose it).
+std::vector<std::string> widenToHold(const model::Model& structure, const std::vector<double>& start, Bounds& b) {
+  const auto specs = structure.paramSpecs();
+  model::Model catalogue;  // the structure at the catalogue's defaults
+  for (int i = 0; i < structure.numEffects(); ++i) catalogue.addEffect(structure.effect(i).name());
+  const auto defaults = modelToSearch(catalogue.params());
+  std::vector<std::string> out;
   for (size_t i = 0; i < start.size(); ++i) {
-    if (!(b.hi[i] > b.lo[i])) continue;
+    if (!(b.hi[i] > b.lo[i]) || (start[i] >= b.lo[i] && start[i] <= b.hi[i])) continue;
+    const std::string name = i == 0 ? "k rho" : i == 1 ? "k (1 - rho)" : specs[i].name;
+    if (start[i] != defaults[i])
+      out.push_back(name + " " + io::fmt("%.6g", start[i]) + " lies outside this record's box (" +
+                    io::fmt("%.6g", b.lo[i]) + " to " + io::fmt("%.6g", b.hi[i]) + ")");
     b.lo[i] = std::min(b.lo[i], start[i]);
     b.hi[i] = std::max(b.hi[i], start[i]);
   }
+  return out;
 }
 }  // namespace
 
@@ -291,6 +306,7 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
   };
   GaSettings gs = s.ga;
   gs.threads = threads;
+  std::vector<std::string> widened;
   if (start) {
     // Seed: the start model's values where it has them, the structure's defaults elsewhere.
     model::Model seeded = structure;
@@ -308,10 +324,11 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
       const std::string eff = specs[i].name.substr(0, specs[i].name.find('.'));
       gs.explore[i] = !start->hasEffect(eff);
     }
-    if (s.box_holds_start) widenToHold(gs.start, b);
+    if (s.box_holds_start) widened = widenToHold(structure, gs.start, b);
     if (s.hold_effects) holdEffects(gs.start, gs.explore, b);
   }
   FitResult out;
+  out.widened = std::move(widened);
   OptResult r;
   const bool use_ga = s.method == FitMethod::Ga;
   if (use_ga) {

@@ -76,6 +76,9 @@ struct FitResult {
   int generations = 0;
   int evaluations = 0;
   double seconds = 0.0;
+  // With box_holds_start: each parameter of the start that lay outside the record's own box, with that
+  // box ("pneumatic_balance.delta 3 lies outside this record's box (0.00604 to 1.21)").
+  std::vector<std::string> widened;
 };
 
 struct Bounds {

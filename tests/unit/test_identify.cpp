@@ -217,6 +217,8 @@ TEST(Identification, AStartOutsideTheRecordsBoxIsRefittedFromWhereItIs) {
   EXPECT_LE(r.rmse, at_start + 1e-9);
   EXPECT_NEAR(r.model.effectParams(0)[3], 3.0, 0.03);  // delta
   EXPECT_DOUBLE_EQ(r.model.core().alpha, 1.0);         // a fixed parameter stays fixed
+  ASSERT_EQ(r.widened.size(), 1u);                     // and the fit says which one it widened
+  EXPECT_EQ(r.widened[0].rfind("muscle_balance.delta 3 lies outside", 0), 0u) << r.widened[0];
   s.box_holds_start = false;
   const auto clamped = ident::fit(truth, d, s, {}, &truth);
   EXPECT_GT(clamped.rmse, 10.0 * (r.rmse + 1e-4));
