@@ -97,6 +97,9 @@ class Diagnosis {
   std::optional<Rung> tryRefinement(const std::string& effect, const std::string& richer);
   void searchByGa(CandidateResult& c, const model::Model& base) const;
   bool searchAlong(CandidateResult& c, const std::string& richer) const;
+  bool seedAtRest(model::Model& refined, const model::Model& rung, const std::string& richer) const;
+  void searchFromRest(CandidateResult& c, const model::Model& refined, const Rung& cur, const std::string& richer,
+                      const ResidualReport& rr) const;
   CandidateResult alongStep(const model::Model& start, const std::string& effect) const;
   void directions();
   void probes();

@@ -89,6 +89,12 @@ class Effect {
   // record; false when the effect has no such direction or it is not defined at p. Diagnose's refinement
   // searches the richer form from points along it (Diagnosis::searchAlong).
   virtual bool scaleAlong(double /*s*/, double /*lo*/, double /*hi*/, double* /*p*/) const { return false; }
+  // A static map the effect's parameters can put its rest on: rewrites p so that the stage inputs xs rest
+  // at the outputs ys (a balance's force-length map seeded from the saturation it absorbs); false when the
+  // effect has no such map or ys does not determine it. Diagnose's refinement starts the richer form there.
+  virtual bool seedRest(const std::vector<double>& /*xs*/, const std::vector<double>& /*ys*/, double* /*p*/) const {
+    return false;
+  }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }
   // Whether the effect has a direction-dependent version ("<name>_updown": separate parameters for a

@@ -140,3 +140,33 @@ TEST(MuscleBalance, InOneEffectsPlaceItTakesTheOthersItStandsFor) {
 TEST(MuscleBalance, ARicherFormTakesWhatItsOwnRefinementsStandFor) {
   expectAloneInTheirPlace({"pressure_lag", "force_loop", "saturation"}, "pressure_lag", "pneumatic_balance");
 }
+
+// Effect::seedRest: a refinement that absorbs saturation starts its map where the rung's rest is. A rest
+// curve of the balance's own law comes back to within 0.1 % of its span; a saturation's curve gets the
+// nearest convex map (a2 >= 0, as a muscle's is), nearer than the straight spring it started as. An
+// effect without a map has nothing to seed.
+TEST(MuscleBalance, ItsMapIsSeededFromARestCurve) {
+  std::vector<double> xs, own, sat;
+  for (int k = 0; k <= 40; ++k) {
+    xs.push_back(k);
+    own.push_back(staticPosition(k, 30.0, -0.015, 8e-5));
+    sat.push_back(35.0 * std::tanh(k / 35.0));
+  }
+  const auto m = alone("muscle_balance", {{"fn", 5.0}});
+  const auto seeded = [&](const std::vector<double>& ys) {
+    std::vector<double> p(m.effectParams(0), m.effectParams(0) + m.effect(0).params().size());
+    EXPECT_TRUE(m.effect(0).seedRest(xs, ys, p.data()));
+    EXPECT_GE(p[6], 0.0) << "a2";
+    double worst = 0.0;
+    for (size_t i = 0; i < xs.size(); ++i)
+      worst = std::max(worst, std::fabs(staticPosition(xs[i], p[4], p[5], p[6]) - ys[i]));
+    return worst;
+  };
+  EXPECT_LT(seeded(own), 1e-3 * (own.back() - own.front()));
+  double straight = 0.0;
+  for (size_t i = 0; i < xs.size(); ++i) straight = std::max(straight, std::fabs(xs[i] - sat[i]));
+  EXPECT_LT(seeded(sat), 0.5 * straight);
+  const auto f = alone("force_loop", {{"fn", 5.0}});
+  std::vector<double> p(f.effectParams(0), f.effectParams(0) + f.effect(0).params().size());
+  EXPECT_FALSE(f.effect(0).seedRest(xs, sat, p.data()));
+}

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "model/bouc_wen.hpp"
 #include "model/effect.hpp"
@@ -48,6 +49,22 @@ class MuscleBalance : public Effect {
     };
     return p;
   }
+  // The map a muscle can have that rests the stage inputs xs nearest ys: convex (a2 >= 0, as Tondu-Lopez's
+  // and the exponential laws are, whichever way the output counts) and the pressure's force positive over
+  // the record (x + w > 0), by least squares on (x + w) (a1 y + a2 y^2) = y - x over a logarithmic grid of
+  // weights. False where no such map stays stiff at every point.
+  bool seedRest(const std::vector<double>& xs, const std::vector<double>& ys, double* p) const override {
+    const auto [lo, hi] = std::minmax_element(xs.begin(), xs.end());
+    const double span = std::max(*hi - *lo, 1e-9);
+    constexpr int kWeights = 25;
+    double best = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < kWeights; ++k) {
+      const double w = -*lo + span * 0.05 * std::pow(200.0, static_cast<double>(k) / (kWeights - 1));
+      const Map m = convexMap(xs, ys, w);
+      if (m.cost < best) best = m.cost, p[kW] = w, p[kA1] = m.a1, p[kA2] = m.a2;
+    }
+    return std::isfinite(best);
+  }
   int numStates() const override { return kNumStates; }
   int numFilterStates() const override { return 2; }  // y, v: the core reaches y through them
   void init(const double* p, double* s, double in0, const StepContext& c) const noexcept override {
@@ -76,6 +93,31 @@ class MuscleBalance : public Effect {
     explicit Local(const double* from) noexcept { std::copy(from, from + n, v); }
     void store(double* to) const noexcept { std::copy(v, v + n, to); }
   };
+
+  // seedRest's least squares at the weight w, with a2 >= 0 (the map convex): the unconstrained solution,
+  // else the one with a2 = 0; cost infinite where the balance would lose its stiffness at a point.
+  struct Map {
+    double a1 = 0.0, a2 = 0.0, cost = std::numeric_limits<double>::infinity();
+  };
+  static Map convexMap(const std::vector<double>& xs, const std::vector<double>& ys, double w) noexcept {
+    double s11 = 0, s12 = 0, s22 = 0, r1 = 0, r2 = 0, rr = 0;
+    for (size_t i = 0; i < xs.size() && i < ys.size(); ++i) {
+      const double f1 = (xs[i] + w) * ys[i], f2 = f1 * ys[i], r = ys[i] - xs[i];
+      s11 += f1 * f1, s12 += f1 * f2, s22 += f2 * f2, r1 += f1 * r, r2 += f2 * r, rr += r * r;
+    }
+    const auto cost = [&](double a1, double a2) {
+      for (size_t i = 0; i < xs.size() && i < ys.size(); ++i)
+        if (!((xs[i] + w) * (a1 + 2.0 * a2 * ys[i]) < 1.0)) return std::numeric_limits<double>::infinity();
+      return rr - 2.0 * (a1 * r1 + a2 * r2) + a1 * a1 * s11 + 2.0 * a1 * a2 * s12 + a2 * a2 * s22;
+    };
+    const double det = s11 * s22 - s12 * s12;
+    if (det > 1e-12 * s11 * s22) {
+      const double a1 = (r1 * s22 - r2 * s12) / det, a2 = (s11 * r2 - s12 * r1) / det;
+      if (a2 >= 0.0) return {a1, a2, cost(a1, a2)};
+    }
+    const double a1 = s11 > 0.0 ? r1 / s11 : 0.0;
+    return {a1, 0.0, cost(a1, 0.0)};
+  }
 
   // The map's force over the nominal stiffness beyond the linear spring: (in + w) g(y) - w - in.
   static double mapExcess(const double* p, double in, double y) noexcept {
