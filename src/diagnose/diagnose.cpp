@@ -96,6 +96,7 @@ DiagnoseResult Diagnosis::run() {
   prune();
   refinements();
   directions();
+  polish();
   probes();
   verdict();
   recordRange();

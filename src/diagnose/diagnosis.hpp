@@ -102,6 +102,7 @@ class Diagnosis {
                       const ResidualReport& rr) const;
   CandidateResult alongStep(const model::Model& start, const std::string& effect) const;
   void directions();
+  void polish();
   void probes();
   // diagnose_probes.cpp: the probes on top of the final model and in the place of its effects.
   enum class Placement { OnTopAndInPlace, InPlaceOnly };

@@ -397,12 +397,14 @@ FitResult fit(const model::Model& structure, const io::Measurement& d, const Fit
       std::atomic<size_t> next{0};
       auto work = [&](int w) {
         for (size_t k = next++; k < xs.size(); k = next++)
-          runs[k] = levenbergMarquardt(resid, d.size(), xs[k], b.lo, b.hi, iterations, 1, w, s.lm_tolerance);
+          runs[k] = levenbergMarquardt(resid, d.size(), xs[k], b.lo, b.hi, iterations, 1, w, s.lm_tolerance,
+                                       s.lm_undamped_check);
       };
       const int nt = std::min<int>(threads, static_cast<int>(xs.size()));
       if (xs.size() == 1) {
         // A single run: its Jacobian's columns go to the workers instead.
-        runs[0] = levenbergMarquardt(resid, d.size(), xs[0], b.lo, b.hi, iterations, threads, 0, s.lm_tolerance);
+        runs[0] = levenbergMarquardt(resid, d.size(), xs[0], b.lo, b.hi, iterations, threads, 0, s.lm_tolerance,
+                                     s.lm_undamped_check);
       } else if (nt <= 1) {
         work(0);
       } else {

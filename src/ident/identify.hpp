@@ -37,6 +37,9 @@ struct FitSettings {
   int lm_iterations = 40;  // Levenberg-Marquardt iterations after the GA (0: none)
   // A Levenberg-Marquardt run ends when a step lowers the cost by less than this fraction of it.
   double lm_tolerance = 1e-10;
+  // Levenberg-Marquardt's undamped check (levenbergMarquardt): a failed damped step is retried at the start's
+  // damping, and a small gain at a grown damping is not convergence until that damping gained little too.
+  bool lm_undamped_check = false;
   int lm_starts = 3;  // LM also from this many distinct runners-up of the GA (short runs)
   // ... and from this many points spread over the search box (Latin hypercube, seeded): a
   // multimodal fit (a hysteretic effect that can mirror the core's loop) is not left to the GA alone.

@@ -50,9 +50,12 @@ using ResidualFn = std::function<void(const std::vector<double>& x, std::vector<
 // columns computed on `threads` workers (0..threads-1). With threads = 1 every call of f is made as
 // `worker`, so that several runs can go on at once, each on its own worker's scratch space. Fixed
 // parameters (lo == hi) stay put. It stops when a step lowers the cost by less than rel_tol of it.
+// With undamped_check, a damped step that fails is tried once more at the start's damping before the
+// damping grows, and a small gain at a grown damping is convergence only once the start's damping has
+// been tried from there too (a cost rough at the scale of short steps: friction, stops).
 OptResult levenbergMarquardt(const ResidualFn& f, size_t n_residuals, const std::vector<double>& x0,
                              const std::vector<double>& lo, const std::vector<double>& hi, int max_iterations,
-                             int threads = 1, int worker = 0, double rel_tol = 1e-10);
+                             int threads = 1, int worker = 0, double rel_tol = 1e-10, bool undamped_check = false);
 
 int defaultThreads();
 

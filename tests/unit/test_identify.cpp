@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "ident/identify.hpp"
+#include "ident/optimize.hpp"
 
 using namespace pamc;
 
@@ -124,6 +125,25 @@ TEST(Optimize, NelderMeadFindsRosenbrockMinimum) {
   const auto r = ident::nelderMead(f, {-1.0, 2.0}, {-3, -3}, {3, 3}, 5000);
   EXPECT_NEAR(r.x[0], 1.0, 1e-3);
   EXPECT_NEAR(r.x[1], 1.0, 2e-3);
+}
+
+// Levenberg-Marquardt on a cost rough at a short scale - Rosenbrock's valley as residuals, each with a
+// ripple of 0.01 at a period of 0.01, as a friction's or a stop's kinks make a fit's cost: the damped steps
+// fail at the ripples, the damping grows, and a run without the undamped check stops where its last damped
+// step gained little. With it, the run goes on along the valley to its bottom.
+TEST(Optimize, LevenbergMarquardtGoesOnPastAGrownDampingWithTheUndampedCheck) {
+  ident::ResidualFn f = [](const std::vector<double>& x, std::vector<double>& r, int) {
+    constexpr double kRipple = 0.01, kPeriod = 0.01;
+    r[0] = 10.0 * (x[1] - x[0] * x[0]) + kRipple * std::sin(x[0] / kPeriod);
+    r[1] = 1.0 - x[0] + kRipple * std::cos(x[1] / kPeriod);
+  };
+  const auto run = [&](bool check) {
+    return ident::levenbergMarquardt(f, 2, {-1.2, 1.0}, {-2.0, -2.0}, {2.0, 2.0}, 200, 1, 0, 1e-7, check);
+  };
+  const auto checked = run(true), plain = run(false);
+  EXPECT_LT(checked.cost, 1e-3);
+  EXPECT_NEAR(checked.x[0], 1.0, 0.05);
+  EXPECT_GT(plain.cost, 1e-2);  // the case: without the check the run stops short of the bottom
 }
 
 namespace {
