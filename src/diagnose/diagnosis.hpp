@@ -93,8 +93,10 @@ class Diagnosis {
   // diagnose_refine.cpp: the final model in richer forms and direction-dependent versions.
   void refinements();
   void refineOne(const std::string& effect);
-  // The rung with `effect` in its richer form, when that lowers the validated RMSE by min_gain.
   std::optional<Rung> tryRefinement(const std::string& effect, const std::string& richer);
+  bool lookAhead(Rung r);
+  // Whether `now` is lower than `was` by min_gain.
+  bool gains(double now, double was) const { return 1.0 - now / was >= s_.min_gain; }
   void searchByGa(CandidateResult& c, const model::Model& base) const;
   bool searchAlong(CandidateResult& c, const std::string& richer) const;
   bool seedAtRest(model::Model& refined, const model::Model& rung, const std::string& richer) const;

@@ -23,18 +23,29 @@ double range(const std::vector<double>& v) {
 // Whether the record rests at its lowest (highest) output: at least kRestShare of its samples within
 // kRestBand of the range from that extreme (chosen: records of the physics plant that lie on a stop hold
 // 3.8-4.4 % of their samples there, those that only turn at their extreme 0.02-0.04 %; the oracle's
-// whole-stroke case touches its top stop with 0.6 %, and a first choice of 1 % lost that stop).
+// whole-stroke case touches its top stop with 0.6 %, and a first choice of 1 % lost that stop), while
+// the input moves on over at least kRestInput of its range: a stop holds the output whatever the input
+// does past it, a slow sine's turn holds it only while the input turns too (chosen: the physics plant's
+// and the oracle's records on a stop move the input over 5.7-91 % of its range there, the paper's u0 and
+// u1 over 0.6-2.0 % at their turns - which hold 0.2-2.1 % of their samples, a share like a stop's).
 constexpr double kRestShare = 0.002;
 constexpr double kRestBand = 0.002;
-std::pair<bool, bool> restsAtExtremes(const std::vector<double>& y, double ymin, double ymax) {
+constexpr double kRestInput = 0.035;
+struct Rest {
+  size_t n = 0;
+  double ulo = std::numeric_limits<double>::infinity(), uhi = -std::numeric_limits<double>::infinity();
+  void add(double u) { ++n, ulo = std::min(ulo, u), uhi = std::max(uhi, u); }
+  bool on(size_t need, double ru) const { return n > 0 && n >= need && uhi - ulo >= kRestInput * ru; }
+};
+std::pair<bool, bool> restsAtExtremes(const io::Measurement& d, double ymin, double ymax, double ru) {
   const double band = kRestBand * (ymax - ymin);
-  size_t low = 0, high = 0;
-  for (double v : y) {
-    low += v <= ymin + band;
-    high += v >= ymax - band;
+  Rest low, high;
+  for (size_t i = 0; i < d.y.size(); ++i) {
+    if (d.y[i] <= ymin + band) low.add(d.u[i]);
+    if (d.y[i] >= ymax - band) high.add(d.u[i]);
   }
-  const double need = kRestShare * static_cast<double>(y.size());
-  return {static_cast<double>(low) >= need, static_cast<double>(high) >= need};
+  const auto need = static_cast<size_t>(std::ceil(kRestShare * static_cast<double>(d.y.size())));
+  return {low.on(need, ru), high.on(need, ru)};
 }
 }  // namespace
 
@@ -70,7 +81,7 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   // Effect parameters: the catalogue's bounds are written for a 40 mm / 10 V rig at 1 kHz; scale
   // them to this data by their unit so any units and sample rate work.
   const double duration = d.Ts * static_cast<double>(d.size());
-  const auto rests = restsAtExtremes(d.y, *ymin, *ymax);
+  const auto rests = restsAtExtremes(d, *ymin, *ymax, ru);
   const auto [umin, umax_] = std::minmax_element(d.u.begin(), d.u.end());
   const auto* load = d.column("load");
   const double rl = load ? std::max(range(*load), 1e-12) : 1.0;
@@ -248,7 +259,7 @@ namespace {
 // (every search keeps a parameter with lo == hi where its first point has it). The core stays free.
 void holdEffects(const std::vector<double>& start, const std::vector<bool>& explore, Bounds& b) {
   for (size_t i = model::kBoucWenParams; i < start.size(); ++i)
-    if (!explore[i]) b.lo[i] = b.hi[i] = std::clamp(start[i], b.lo[i], b.hi[i]);
+    if (!explore[i]) b.lo[i] = b.hi[i] = start[i];  // held, not searched: the record's box does not apply
 }
 
 // The box widened to hold a start where it does not; a fixed parameter (lo == hi) stays fixed. Returns

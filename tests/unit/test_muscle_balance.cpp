@@ -134,6 +134,31 @@ TEST(MuscleBalance, InOneEffectsPlaceItTakesTheOthersItStandsFor) {
   expectAloneInTheirPlace({"saturation", "friction_hysteresis", "force_loop"}, "friction_hysteresis", "muscle_balance");
 }
 
+// In friction_hysteresis's place the balance starts from the fits of all it stands for: the friction's
+// level and travel from friction_hysteresis, the payload's frequency and damping - which
+// friction_hysteresis lacks - from force_loop's fit, not the catalogue's defaults.
+TEST(MuscleBalance, InOneEffectsPlaceItTakesWhatThatOneLacksFromTheOthersFits) {
+  diagnose::Rung rung;
+  rung.effects = {"saturation", "friction_hysteresis", "force_loop"};
+  for (const auto& e : rung.effects) rung.model.addEffect(e);
+  const std::map<std::pair<std::string, std::string>, double> fitted = {
+      {{"friction_hysteresis", "zmax"}, 3.0}, {{"friction_hysteresis", "delta"}, 2.5}, {{"force_loop", "fn"}, 4.0},
+      {{"force_loop", "zeta"}, 0.7},          {{"force_loop", "zmax"}, 0.1},           {{"force_loop", "delta"}, 0.02}};
+  for (const auto& [which, v] : fitted) rung.model.setEffectParam(which.first, which.second, v);
+  const auto m = diagnose::detail::withReplacement(rung, "friction_hysteresis", "muscle_balance");
+  const auto value = [&](const std::string& name) {
+    const auto& specs = m.effect(0).params();
+    for (size_t q = 0; q < specs.size(); ++q)
+      if (specs[q].name == name) return m.effectParams(0)[q];
+    return std::nan("");
+  };
+  ASSERT_EQ(m.numEffects(), 1);
+  EXPECT_EQ(value("zmax"), 3.0);  // the replaced effect's own, where both have it
+  EXPECT_EQ(value("delta"), 2.5);
+  EXPECT_EQ(value("fn"), 4.0);  // force_loop's, where friction_hysteresis has none
+  EXPECT_EQ(value("zeta"), 0.7);
+}
+
 // Down the chain as well: pneumatic_balance in pressure_lag's place (a rung the oracle's closed-loop plant
 // gave: pressure_lag + force_loop + saturation) takes force_loop, which muscle_balance refines, and
 // saturation, which it absorbs - with force_loop kept the model would carry four estimator states.

@@ -308,10 +308,12 @@ TEST(Probes, AtTheNoiseAProbeInTheEffectsPlaceIsStillTried) {
 
 // A record over the whole stroke of the physics plant (60 000 samples, screened at 250 Hz), where the
 // ladder ends in pneumatic_balance: the pressure's fast dynamics under the screening record's 4 ms hold of
-// the input. Fitted there, the final structure itself validates far worse than the final model (0.397
-// against 0.291 mm), so no probe fitted there could win the share a probe must win, and none is fitted
-// (docs/MODELING.md, `probes_unresolved`). With the rule undone the probes are fitted and this test fails
-// (and takes 133 s instead of 86).
+// the input. No probe fitted there could win the share a probe must win, and none is fitted
+// (docs/MODELING.md, `probes_unresolved`), for one of the rule's two reasons - which one moves with where
+// the search lands: at 0.291 mm validated the final structure itself, fitted there, validated far worse
+// (0.397 mm); at 0.0744 mm (since the balance's box holds friction_hysteresis's) the final model's own
+// output moves more on the screening record (0.0555 mm rms) than what is left of the training record
+// (0.0538). With the rule undone the probes are fitted and this test fails (and takes 133 s instead of 86).
 // The same run shows the refinement's rule for a form that absorbs others: muscle_balance, in force_loop's
 // place, goes from its quick search to the refit, not to the GA over its whole box (docs/MODELING.md, "The
 // GA's search of a richer form").
@@ -329,6 +331,8 @@ TEST(Probes, AreNotFittedWhereTheScreeningRecordCannotResolveTheFinalModel) {
   ASSERT_FALSE(r.ladder.empty());
   ASSERT_TRUE(r.ladder.back().model.hasEffect("pneumatic_balance"))
       << "the premise: the ladder ends in the pressure's dynamics";
-  EXPECT_NE(r.probes_unresolved.find("the final model itself"), std::string::npos) << r.probes_unresolved;
+  const bool null_probe = r.probes_unresolved.find("the final model itself") != std::string::npos;
+  const bool moves = r.probes_unresolved.find("the final model's own output moves") != std::string::npos;
+  EXPECT_TRUE(null_probe || moves) << r.probes_unresolved;
   EXPECT_TRUE(r.probes.empty());
 }

@@ -38,7 +38,7 @@ class MuscleBalance : public Effect {
         {"fn", 0.2, 100.0, 10.0, "Hz"},  // payload against the nominal stiffness
         {"zeta", 0.01, 1.0, 0.5, "-"},
         {"zmax", 0.0, 10.0, 0.5, "y-unit"},        // friction's level at no pressure, over the stiffness
-        {"delta", 0.01, 2.0, 0.5, "y-unit"},       // shortest pre-sliding travel
+        {"delta", 0.01, 20.0, 0.5, "y-unit"},      // shortest pre-sliding travel
         {"w", -100.0, 100.0, 0.0, "y-unit"},       // weight and preload over the stiffness
         {"a1", -0.1, 0.1, 0.0, "1/y-unit"},        // force-length map: slope ...
         {"a2", -0.005, 0.005, 0.0, "1/y-unit^2"},  // ... and curvature
