@@ -79,8 +79,10 @@ struct ControllerNodeConfig {
   control::Trajectory trajectory;
   double preroll_s = 5.0;  // hold the first setpoint this long before the trajectory starts
   bool produce_sync = true;
-  unsigned period_us = 0;    // SYNC period override (0: 0x1006 of the EDS)
-  int recover_cycles = 500;  // a fault must be gone this long before control resumes
+  unsigned period_us = 0;  // SYNC period override (0: 0x1006 of the EDS)
+  // A fault's causes must be gone this long before control resumes: 500 cycles at the design's 1 kHz,
+  // 50 at 100 Hz (whole cycles of 0x1006, at least one).
+  double recover_s = 0.5;
   double ramp_mm_per_s =
       10.0;                   // after recovery or a commit the setpoint returns at most this fast (V/s for Kind::Input)
   double ramp_slew_v = 0.02;  // ... and the command changes at most this much per cycle [V]

@@ -15,7 +15,7 @@
 //
 // Faults (docs/CANOPEN.md, "Safe state"): every cause is polled or reported by a hook, sends its EMCY
 // once per episode, and - except the warnings - puts the valve at its safe value until the causes
-// have been gone for recover_cycles; then estimator and integrator restart from the safe value and
+// have been gone for recover_s (0.5 s); then estimator and integrator restart from the safe value and
 // the setpoint ramps from the measured position back to the trajectory (no output jump).
 //
 // The node composes (docs/ARCHITECTURE.md): a SensorDriver and a ValveDriver (each slave's boot steps,

@@ -3,6 +3,7 @@
 #include "nodes/controller_node.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "canopen/eds_dictionary.hpp"
@@ -24,6 +25,11 @@ std::string governorNote(control::ControllerConfig ctrl, const std::optional<mod
                   g.accel_mm_s2, g.from_model ? "lowered to the model's pace" : "its fixed limits");
   return line;
 }
+// Whole cycles of period_us in seconds s, at least one.
+int recoverCycles(double s, std::uint32_t period_us) {
+  return std::max(1, static_cast<int>(std::lround(s * 1e6 / period_us)));
+}
+
 }  // namespace
 
 using canopen::NmtCommand;
@@ -69,7 +75,7 @@ void ControllerNode::addChannel(const ControllerNodeConfig& cfg, std::size_t c) 
   if (lay.position_step_from_device) ch.sensor->readStepAtBoot();
   ch.valve->errorValueAtBoot([this] { return params_->safeCommand(); });
   const auto number = static_cast<std::uint8_t>(cfg.channels.size() > 1 ? c + 1 : 0);
-  ch.faults = std::make_unique<FaultSupervisor>(*node_, cfg.recover_cycles, number, c == 0);
+  ch.faults = std::make_unique<FaultSupervisor>(*node_, recoverCycles(cfg.recover_s, 1000), number, c == 0);
   ch.loop = std::make_unique<ControlLoop>(cfg.ramp_mm_per_s, cfg.ramp_slew_v);
   ch.partner = cc.partner;
   ch.offset_v = cc.command_offset_v;
@@ -238,6 +244,7 @@ void ControllerNode::configureFromOd() {
     governors.push_back(mbc ? governorNote(p.ctrl, cc.model) : std::string());
   }
   params_->adopt(std::move(p), kind);
+  for (auto& c : channels_) c.faults->setRecoverCycles(recoverCycles(cfg.recover_s, period_us));
   for (std::size_t c = 0; c < channels_.size(); ++c) {
     const ChannelConfig& cc = channel_cfg_[c];
     const auto k = cc.kind >= 0 ? static_cast<control::Kind>(cc.kind) : kind;

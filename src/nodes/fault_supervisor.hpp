@@ -31,6 +31,11 @@ class FaultSupervisor {
         channel_(channel),
         reports_bus_(reports_bus) {}
 
+  // The cycles a fault's causes must be gone (the node's recovery time over its SYNC period).
+  void setRecoverCycles(int n) noexcept {
+    if (own_clear_cycles_ >= recover_cycles_) own_clear_cycles_ = n;
+    recover_cycles_ = n;
+  }
   void raise(Fault f, std::uint8_t detail = 0) noexcept;
   // Sends the EMCY of every cause not yet reported in this episode; true when a safety cause has just
   // begun an episode (the caller puts the valve at its safe value).

@@ -53,12 +53,13 @@ rig_run() {
   # shellcheck disable=SC2086
   "$PAMC" emulator --iface vcan0 --od "$OD" --period-us "$P" $emu_args > "$W/${name}_emulator.txt" 2>&1 &
   em=$!
-  # Nothing goes to the slaves before both have booted (their boot-ups, 7xx#00, in the log; at most 10 s):
+  # Nothing goes to the slaves before all BOOTS (default 2) have booted (their boot-ups, 7xx#00, in the
+  # log; at most 10 s):
   # under software emulation starting the emulator can take longer than any fixed sleep, and a start
   # sent before its boot-up is lost (the keep-alive case then found its slaves Pre-operational).
   local i
   for ((i = 0; i < 40; i++)); do
-    [ "$(grep -c ' 7[0-7][0-9A-F]#00$' "$W/${name}_bus.log" 2>/dev/null)" -ge 2 ] && break
+    [ "$(grep -c ' 7[0-7][0-9A-F]#00$' "$W/${name}_bus.log" 2>/dev/null)" -ge "${BOOTS:-2}" ] && break
     sleep 0.25
   done
   for f in "$@"; do cansend vcan0 "$f"; sleep 0.05; done
@@ -86,9 +87,10 @@ sed -e "s|^eds = \.\./|eds = $OD/|" -e 's|^mandatory = yes.*|&\nkeep_alive = yes
 rig_run keepalive "--rig $W/keep_alive.ini --iface vcan0" "" 000#0100
 # Four muscles on one bus (od/rigs/four_muscles.ini): the emulator plays four encoders and the valve
 # module; another master started them and left them scrambled - encoder 5's position PDO off, encoder
-# 6's moved to 0x190, the module's setpoint PDO off - before the controller comes.
+# 6's moved to 0x190, the module's setpoint PDO off - before the controller comes. Its five devices
+# boot before the writes go out.
 sed -e "s|^eds = \.\./|eds = $OD/|" "$OD/rigs/four_muscles.ini" > "$W/four.ini"
-rig_run four "--rig $W/four.ini --iface vcan0" "--rig $W/four.ini" 000#0100 \
+BOOTS=5 rig_run four "--rig $W/four.ini --iface vcan0" "--rig $W/four.ini" 000#0100 \
   605#2300180185010080 606#2300180186010080 606#2300180190010000 603#2300140103020080
 
 # Kernel-level faults (the in-process rig covers the rest, `pamc rig faults`): a full transmit
@@ -96,7 +98,7 @@ rig_run four "--rig $W/four.ini --iface vcan0" "--rig $W/four.ini" 000#0100 \
 # fail with ENOBUFS - and error frames (bus off, then restarted) as a CAN driver sends them.
 # The timeline follows the controller, not the clock: the VM runs under software emulation, where
 # starting a process (tc, cangen, cansend) can take most of a second, and a fault clears only after
-# 500 quiet cycles (5 s at 100 Hz). So each fault is injected once the controller has been in
+# 0.5 s without a cause (50 cycles at 100 Hz). So each fault is injected once the controller has been in
 # control for 1 s, and the run ends once it has been in control again for 1 s after the last one
 # (SIGTERM). Every wait is bounded: a fault that does not clear fails the checks on the host.
 # fault_t_*.txt: wall-clock times of the steps; fault_waits.txt: what each wait saw.

@@ -167,7 +167,7 @@ emcy_busoff=$(first_on_bus '^081#4081' "${t_restarted:-9e99}")
 reset_busoff=$(first_on_bus '^081#0000' "${emcy_busoff:-9e99}")
 t_qdisc_del=$(ft qdisc_del)
 [ -n "$reset_flood" ] && [ -n "$t_qdisc_del" ] && awk -v a="$t_qdisc_del" -v b="$reset_flood" -v hz="$HZ" \
-  'BEGIN { printf "flood: EMCY reset on the bus %.2f s after the rate limit was removed (recovery needs 500 quiet cycles, %.1f s)\n", b - a, 500 / hz }'
+  'BEGIN { printf "flood: EMCY reset on the bus %.2f s after the rate limit was removed (recovery needs 0.5 s without a cause, %d cycles)\n", b - a, 0.5 * hz }'
 [ -n "$reset_busoff" ] && [ -n "$t_restarted" ] && awk -v a="$t_restarted" -v b="$reset_busoff" \
   'BEGIN { printf "bus off: EMCY reset on the bus %.2f s after the restart\n", b - a }'
 check "the controller ran through the faults (exit 0)" test "$(cat "$W/fault_rc.txt" 2>/dev/null)" = 0
