@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "diagnose/diagnosis.hpp"
+#include "diagnose/search_rules.hpp"
 #include "io/text.hpp"
 #include "model/probe.hpp"
 
@@ -97,17 +98,20 @@ bool Diagnosis::screenResolves(const Rung& fin) {
   const double moved = std::sqrt(sum / static_cast<double>(std::max<size_t>(screened.size(), 1)));
   const std::string head = "The probes were not fitted: on the screening record they are searched on (every " +
                            std::to_string(step_) + "th sample) ";
-  if (moved > fin.rmse_train) {
-    res_.probes_unresolved = head + "the final model's own output moves by " + fmt("%.3g", moved) +
-                             " rms, more than what is left of the training record (" + fmt("%.3g", fin.rmse_train) +
-                             "); a probe fitted there would answer the decimation.";
-  } else {
-    if (!(moved > s_.min_gain * fin.rmse_train)) return true;  // the screening hardly moves it
-    const double null_val = nullProbe(fin);
-    if (!(null_val > (1.0 + s_.min_gain) * fin.rmse_val)) return true;
-    res_.probes_unresolved = head + "the final model itself, fitted there as a probe is, validates at " +
-                             fmt("%.3g", null_val) + " against its own " + fmt("%.3g", fin.rmse_val) +
-                             "; a probe would first have to win back what the screening costs.";
+  double null_val = 0.0;
+  const auto null_probe = [&] { return null_val = nullProbe(fin); };
+  switch (screenVerdict(moved, fin.rmse_train, fin.rmse_val, s_.min_gain, null_probe)) {
+    case ScreenVerdict::None: return true;
+    case ScreenVerdict::Moves:
+      res_.probes_unresolved = head + "the final model's own output moves by " + fmt("%.3g", moved) +
+                               " rms, more than what is left of the training record (" + fmt("%.3g", fin.rmse_train) +
+                               "); a probe fitted there would answer the decimation.";
+      break;
+    case ScreenVerdict::NullProbe:
+      res_.probes_unresolved = head + "the final model itself, fitted there as a probe is, validates at " +
+                               fmt("%.3g", null_val) + " against its own " + fmt("%.3g", fin.rmse_val) +
+                               "; a probe would first have to win back what the screening costs.";
+      break;
   }
   log("probes: " + res_.probes_unresolved);
   return false;

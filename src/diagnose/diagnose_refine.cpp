@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "diagnose/diagnosis.hpp"
+#include "diagnose/search_rules.hpp"
 #include "io/text.hpp"
 
 namespace pamc::diagnose::detail {
@@ -131,10 +132,12 @@ void Diagnosis::refineOne(const std::string& e) {
     if (!refines(richer, e)) continue;
     auto r = tryRefinement(e, richer);
     if (!r) continue;
-    if (gains(r->rmse_val, cur.rmse_val)) {
-      if (!best || r->rmse_val < best->rmse_val) best = std::move(r);
-    } else if (gains(r->rmse_train, cur.rmse_train)) {
-      trains_better.push_back(std::move(*r));
+    switch (judgeRefinement(r->rmse_train, r->rmse_val, cur.rmse_train, cur.rmse_val, s_.min_gain)) {
+      case Refinement::Taken:
+        if (!best || r->rmse_val < best->rmse_val) best = std::move(r);
+        break;
+      case Refinement::LookPast: trains_better.push_back(std::move(*r)); break;
+      case Refinement::Dropped: break;
     }
   }
   if (best) {
@@ -193,16 +196,10 @@ void Diagnosis::searchByGa(CandidateResult& c, const model::Model& base) const {
 
 namespace {
 
-// searchAlong's path: steps of the pressure's force by this factor, each from the fit before, up to 4 times
-// the quick fit's (chosen: the physics plant's own lies 1.8x from muscle_balance's fit).
-constexpr double kAlongStep = 1.26;
-constexpr int kAlongSteps = 6;
-// Levenberg-Marquardt iterations of each start along the direction, on all the training samples; the best
-// start is refitted to convergence.
+// searchAlong's path: its steps (AlongPath, search_rules.hpp; kStep chosen: the physics plant's own
+// force lies 1.8x from muscle_balance's fit). Levenberg-Marquardt iterations of each start along the
+// direction, on all the training samples; the best start is refitted to convergence.
 constexpr int kAlongIterations = 15;
-// A step whose run ends above this multiple of the training RMSE of the point it started from has lost
-// the basin: the next step starts from that point, moved one step further along.
-constexpr double kAlongLost = 2.0;
 
 // The range of the core's output on a record: the stage input of an output effect next to the core.
 std::pair<double, double> coreRange(const model::Model& m, const io::Measurement& d) {
@@ -239,7 +236,7 @@ std::optional<model::Model> scaledAlong(const model::Model& m, const std::string
 // along it instead of by the GA over its whole box: the quick fit from the simpler form's stays where that
 // form put the direction, and the GA over 27 parameters ends far worse (pneumatic_balance on the physics
 // plant's whole stroke: 2.5 mm validated by the GA, 0.044 along the direction; on the oracle's whole-stroke
-// case 1.1 and 0.037). The path has kAlongSteps steps, each a short Levenberg-Marquardt run from the fit
+// case 1.1 and 0.037). The path has AlongPath::kSteps steps, each a short Levenberg-Marquardt run from the fit
 // before it moved one step along the direction. A start moved far from the quick fit at once is a
 // millimetre off and its run ends anywhere; going on from the best point so far instead of the last ended
 // at 0.15 mm on the physics plant's record at seed 1 (0.044 from the last), the same at seeds 2 and 3.
@@ -251,20 +248,16 @@ bool Diagnosis::searchAlong(CandidateResult& c, const std::string& richer) const
   const auto t = std::chrono::steady_clock::now();
   std::optional<CandidateResult> best;
   model::Model at = c.model;
-  double at_train = c.rmse_train, scale = 1.0, ahead = kAlongStep;
-  for (int i = 0; i < kAlongSteps; ++i) {
-    const auto start = scaledAlong(at, richer, ahead, coreRange(at, train_));
+  AlongPath path(c.rmse_train);
+  for (int i = 0; i < AlongPath::kSteps; ++i) {
+    const auto start = scaledAlong(at, richer, path.ahead(), coreRange(at, train_));
     if (!start) break;
-    scale *= kAlongStep;
+    path.begin();
     CandidateResult r = alongStep(*start, c.effect);
-    const bool lost = r.rmse_train > kAlongLost * at_train;
-    log("  along " + richer + ": force x" + fmt("%.3g", scale) + " train " + fmt("%-10.5g", r.rmse_train) +
-        " validation " + fmt("%.5g", r.rmse_val) + (lost ? " (lost: the next step from the point before)" : ""));
-    if (lost) {
-      ahead *= kAlongStep;
-    } else {
-      at = r.model, at_train = r.rmse_train, ahead = kAlongStep;
-    }
+    const bool kept = path.end(r.rmse_train);
+    log("  along " + richer + ": force x" + fmt("%.3g", path.scale()) + " train " + fmt("%-10.5g", r.rmse_train) +
+        " validation " + fmt("%.5g", r.rmse_val) + (kept ? "" : " (lost: the next step from the point before)"));
+    if (kept) at = r.model;
     if (!best || r.rmse_val < best->rmse_val) best = std::move(r);
   }
   if (!best) return false;

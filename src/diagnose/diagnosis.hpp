@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "diagnose/diagnose.hpp"
+#include "diagnose/search_rules.hpp"
 
 namespace pamc::diagnose::detail {
 
@@ -96,7 +97,7 @@ class Diagnosis {
   std::optional<Rung> tryRefinement(const std::string& effect, const std::string& richer);
   bool lookAhead(Rung r);
   // Whether `now` is lower than `was` by min_gain.
-  bool gains(double now, double was) const { return 1.0 - now / was >= s_.min_gain; }
+  bool gains(double now, double was) const { return gainsBy(now, was, s_.min_gain); }
   void searchByGa(CandidateResult& c, const model::Model& base) const;
   bool searchAlong(CandidateResult& c, const std::string& richer) const;
   bool seedAtRest(model::Model& refined, const model::Model& rung, const std::string& richer) const;
