@@ -242,14 +242,30 @@ std::optional<model::Model> scaledAlong(const model::Model& m, const std::string
 // at 0.15 mm on the physics plant's record at seed 1 (0.044 from the last), the same at seeds 2 and 3.
 // Each run is on all the training samples: the screening record's 4 ms hold of the input moves the
 // pressure's fast dynamics (the plant's own parameters: 0.035 mm validated at 1 kHz, 0.094 at 250 Hz).
-// The best point of the path, by validated RMSE, is kept when better (tryRefinement refits it to
-// convergence). False when the form has no such direction.
+// Nothing says on which side of the quick fit the record's force lies: where the walk up finds no basin
+// (AlongPath::foundBasin), the force is walked down as well (seed 2 of the physics plant's whole stroke:
+// 37x -> 17x the noise; every other ladder of docs/MODELING.md the same). The best point of both walks,
+// by validated RMSE, is kept when better (tryRefinement refits it to convergence). False when the form has
+// no such direction.
 bool Diagnosis::searchAlong(CandidateResult& c, const std::string& richer) const {
   const auto t = std::chrono::steady_clock::now();
   std::optional<CandidateResult> best;
+  const AlongPath up = walkAlong(c, richer, AlongPath::kStep, AlongPath::kSteps, best);
+  if (!up.foundBasin()) walkAlong(c, richer, 1.0 / AlongPath::kStep, AlongPath::kStepsDown, best);
+  if (!best) return false;
+  log("  along " + richer + ": best validation " + fmt("%.5g", best->rmse_val) + " (" + fmt("%.1f", seconds(t)) +
+      " s)");
+  if (best->rmse_val < c.rmse_val) c = std::move(*best);
+  return true;
+}
+
+// One walk of searchAlong from the quick fit c, `steps` steps of `step`; each point better validated than
+// best is kept there.
+AlongPath Diagnosis::walkAlong(const CandidateResult& c, const std::string& richer, double step, int steps,
+                               std::optional<CandidateResult>& best) const {
   model::Model at = c.model;
-  AlongPath path(c.rmse_train);
-  for (int i = 0; i < AlongPath::kSteps; ++i) {
+  AlongPath path(c.rmse_train, step);
+  for (int i = 0; i < steps; ++i) {
     const auto start = scaledAlong(at, richer, path.ahead(), coreRange(at, train_));
     if (!start) break;
     path.begin();
@@ -260,11 +276,7 @@ bool Diagnosis::searchAlong(CandidateResult& c, const std::string& richer) const
     if (kept) at = r.model;
     if (!best || r.rmse_val < best->rmse_val) best = std::move(r);
   }
-  if (!best) return false;
-  log("  along " + richer + ": best validation " + fmt("%.5g", best->rmse_val) + " (" + fmt("%.1f", seconds(t)) +
-      " s)");
-  if (best->rmse_val < c.rmse_val) c = std::move(*best);
-  return true;
+  return path;
 }
 
 // One point of searchAlong's path: a short Levenberg-Marquardt run on all the training samples, with the

@@ -100,6 +100,8 @@ class Diagnosis {
   bool gains(double now, double was) const { return gainsBy(now, was, s_.min_gain); }
   void searchByGa(CandidateResult& c, const model::Model& base) const;
   bool searchAlong(CandidateResult& c, const std::string& richer) const;
+  AlongPath walkAlong(const CandidateResult& c, const std::string& richer, double step, int steps,
+                      std::optional<CandidateResult>& best) const;
   bool seedAtRest(model::Model& refined, const model::Model& rung, const std::string& richer) const;
   void searchFromRest(CandidateResult& c, const model::Model& refined, const Rung& cur, const std::string& richer,
                       const ResidualReport& rr) const;

@@ -5,38 +5,45 @@
 
 namespace pamc::diagnose {
 
-// searchAlong's walk: steps of the pressure's force by kStep, each started from the last point that kept
-// the basin. A step whose run ends above kLost times the training RMSE of the point it started from has
-// lost it: the point stays, and the next start is one step further along from it.
+// searchAlong's walk: steps of the pressure's force by `step` (kStep up, 1 / kStep down), each started
+// from the last point that kept the basin. A step whose run ends above kLost times the training RMSE of
+// the point it started from has lost it: the point stays, and the next start is one step further along
+// from it. The walk found a basin when a point it kept trains at 1 / kLost of the quick fit's error or
+// below.
 class AlongPath {
  public:
   static constexpr double kStep = 1.26;
-  static constexpr int kSteps = 6;  // up to 4 times the quick fit's force
+  static constexpr int kSteps = 6;      // up: to 4 times the quick fit's force
+  static constexpr int kStepsDown = 3;  // down: to half of it
   static constexpr double kLost = 2.0;
 
-  explicit AlongPath(double start_train) : at_train_(start_train) {}
+  explicit AlongPath(double start_train, double step = kStep)
+      : start_train_(start_train), at_train_(start_train), best_train_(start_train), step_(step), ahead_(step) {}
 
   // How far along from the current point the next step starts.
   double ahead() const noexcept { return ahead_; }
   // The force of the step about to run (or just run), over the quick fit's.
   double scale() const noexcept { return scale_; }
   // A step is about to run (ahead() from the current point).
-  void begin() noexcept { scale_ *= kStep; }
+  void begin() noexcept { scale_ *= step_; }
   // The step's run ended at this training RMSE: false when it lost the basin (the point stays).
   bool end(double train) noexcept {
     if (train > kLost * at_train_) {
-      ahead_ *= kStep;
+      ahead_ *= step_;
       return false;
     }
     at_train_ = train;
-    ahead_ = kStep;
+    best_train_ = train < best_train_ ? train : best_train_;
+    ahead_ = step_;
     return true;
   }
+  bool foundBasin() const noexcept { return kLost * best_train_ <= start_train_; }
 
  private:
-  double at_train_;
+  double start_train_, at_train_, best_train_;
+  double step_;
   double scale_ = 1.0;
-  double ahead_ = kStep;
+  double ahead_;
 };
 
 // What becomes of a richer form's fit against the rung it would replace (Diagnosis::refineOne): taken

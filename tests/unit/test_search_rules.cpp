@@ -103,3 +103,38 @@ TEST(Refinement, AFormTakenMustLowerTheValidatedRmseByMinGain) {
   EXPECT_EQ(judgeRefinement(0.115, 0.129, 0.124, 0.1426, 0.1), Refinement::Dropped);
   EXPECT_EQ(judgeRefinement(0.115, 0.2, 0.124, 0.1426, 0.1), Refinement::Dropped);
 }
+
+// The physics plant's whole stroke (docs/MODELING.md): at seed 1 the walk up from the quick fit (0.1155
+// mm trained) keeps every step and reaches 0.0159 at x3.18 - a basin; at seed 2 (0.135) it keeps only
+// x1.26 at 0.128 and loses every step after it - none, so the walk down is tried as well.
+TEST(AlongPath, AWalkThatKeepsNoPointAtHalfTheQuickFitsErrorFoundNoBasin) {
+  AlongPath seed1(0.1155);
+  for (const double t : {0.058, 0.079, 0.083, 0.046, 0.0159}) {
+    seed1.begin();
+    EXPECT_TRUE(seed1.end(t));
+  }
+  seed1.begin();
+  EXPECT_FALSE(seed1.end(0.0446));
+  EXPECT_TRUE(seed1.foundBasin());
+
+  AlongPath seed2(0.135);
+  seed2.begin();
+  EXPECT_TRUE(seed2.end(0.128));
+  for (const double t : {0.58, 0.89, 3.2, 6.7, 10.2}) {
+    seed2.begin();
+    EXPECT_FALSE(seed2.end(t));
+  }
+  EXPECT_FALSE(seed2.foundBasin());
+}
+
+TEST(AlongPath, TheWalkDownStepsTheForceDown) {
+  AlongPath down(0.135, 1.0 / AlongPath::kStep);
+  EXPECT_NEAR(down.ahead(), 1.0 / AlongPath::kStep, 1e-12);
+  down.begin();
+  EXPECT_NEAR(down.scale(), 0.794, 1e-3);
+  EXPECT_TRUE(down.end(0.0688));
+  EXPECT_FALSE(down.foundBasin()) << "0.0688 is above half of 0.135";
+  down.begin();
+  EXPECT_FALSE(down.end(0.19));
+  EXPECT_NEAR(down.ahead(), 1.0 / (AlongPath::kStep * AlongPath::kStep), 1e-12);
+}
