@@ -1,5 +1,6 @@
-// Two of diagnose's search rules, kept apart from the fits they steer so that each is read and tested
-// on its own: the walk along a richer form's direction (Diagnosis::searchAlong) and whether the
+// Three of diagnose's search rules, kept apart from the fits they steer so that each is read and tested
+// on its own (tests/unit/test_search_rules.cpp): the walk along a richer form's direction
+// (Diagnosis::searchAlong), what becomes of a richer form's fit (Diagnosis::refineOne) and whether the
 // screening record can resolve the final model for the probes (Diagnosis::screenResolves).
 #pragma once
 
