@@ -75,6 +75,8 @@ void ControllerNode::addChannel(const ControllerNodeConfig& cfg, std::size_t c) 
   if (lay.position_step_from_device) ch.sensor->readStepAtBoot();
   ch.valve->errorValueAtBoot([this] { return params_->safeCommand(); });
   const auto number = static_cast<std::uint8_t>(cfg.channels.size() > 1 ? c + 1 : 0);
+  // Its recovery in cycles of the design's 1 ms until configureFromOd, later in the constructor, sets it
+  // from 0x1006 as the overrides leave it.
   ch.faults = std::make_unique<FaultSupervisor>(*node_, recoverCycles(cfg.recover_s, 1000), number, c == 0);
   ch.loop = std::make_unique<ControlLoop>(cfg.ramp_mm_per_s, cfg.ramp_slew_v);
   ch.partner = cc.partner;
