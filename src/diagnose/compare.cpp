@@ -52,6 +52,7 @@ Comparison compare(const model::Model& m, const io::Measurement& d) {
   m.simulate(d.u.data(), load ? load->data() : nullptr, d.size(), d.Ts, c.y_model.data());
   c.report = analyze(d, c.y_model);
   c.outside = rangeShare(m.range(), d);
+  c.rests = ident::recordRests(d);
   std::vector<double> e(d.size());
   for (size_t i = 0; i < d.size(); ++i) e[i] = d.y[i] - c.y_model[i];
   c.spectrum = residualSpectrum(e, d.u, d.Ts, c.report.noise_floor);
@@ -62,6 +63,9 @@ namespace {
 nlohmann::json rangeJson(const RangeShare& s) {
   if (!s.known) return nullptr;
   return {{"any", s.any}, {"input", s.input}, {"output", s.output}, {"input_rate", s.rate}};
+}
+nlohmann::json restJson(const ident::ExtremeRest& r) {
+  return {{"share", r.share}, {"input_moved", r.input_moved}, {"on_stop", r.on_stop}};
 }
 }  // namespace
 
@@ -83,7 +87,8 @@ nlohmann::json toJson(const Comparison& c) {
           {"conf", r.conf},
           {"lag_step_s", r.lag_step_s},
           {"spectrum", toJson(c.spectrum)},
-          {"outside_range", rangeJson(c.outside)}};
+          {"outside_range", rangeJson(c.outside)},
+          {"end_stops", {{"low", restJson(c.rests.low)}, {"high", restJson(c.rests.high)}}}};
 }
 
 void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir,

@@ -7,6 +7,7 @@
 
 #include "diagnose/residual.hpp"
 #include "diagnose/spectrum.hpp"
+#include "ident/identify.hpp"
 #include "io/measurement.hpp"
 #include "model/model.hpp"
 
@@ -24,6 +25,7 @@ std::string describeRangeShare(const RangeShare& s, const model::OperatingRange&
 struct Comparison {
   std::vector<double> y_model;
   RangeShare outside;
+  ident::RecordRests rests;  // whether the record rests on its end stops, as a fit reads it
   ResidualReport report;
   ResidualSpectrum spectrum;  // of the residual, with its coherence with the input
 };

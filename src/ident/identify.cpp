@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -20,14 +21,14 @@ double range(const std::vector<double>& v) {
   return *b - *a;
 }
 
-// Whether the record rests at its lowest (highest) output: at least kRestShare of its samples within
-// kRestBand of the range from that extreme (chosen: records of the physics plant that lie on a stop hold
-// 3.8-4.4 % of their samples there, those that only turn at their extreme 0.02-0.04 %; the oracle's
-// whole-stroke case touches its top stop with 0.6 %, and a first choice of 1 % lost that stop), while
-// the input moves on over at least kRestInput of its range: a stop holds the output whatever the input
-// does past it, a slow sine's turn holds it only while the input turns too (chosen: the physics plant's
-// and the oracle's records on a stop move the input over 5.7-91 % of its range there, the paper's u0 and
-// u1 over 0.6-2.0 % at their turns - which hold 0.2-2.1 % of their samples, a share like a stop's).
+// A record rests on a stop at an extreme of its output (recordRests) where at least kRestShare of its
+// samples lie within kRestBand of the range from that extreme (chosen: records of the physics plant that
+// lie on a stop hold 3.8-4.4 % of their samples there, those that only turn at their extreme 0.02-0.04 %;
+// the oracle's whole-stroke case touches its top stop with 0.6 %, and a first choice of 1 % lost that
+// stop), while the input moves on over at least kRestInput of its range: a stop holds the output whatever
+// the input does past it, a slow sine's turn holds it only while the input turns too (chosen: the physics
+// plant's and the oracle's records on a stop move the input over 5.7-91 % of its range there, the paper's
+// u0 and u1 over 0.6-2.0 % at their turns - which hold 0.2-2.1 % of their samples, a share like a stop's).
 constexpr double kRestShare = 0.002;
 constexpr double kRestBand = 0.002;
 constexpr double kRestInput = 0.035;
@@ -35,19 +36,48 @@ struct Rest {
   size_t n = 0;
   double ulo = std::numeric_limits<double>::infinity(), uhi = -std::numeric_limits<double>::infinity();
   void add(double u) { ++n, ulo = std::min(ulo, u), uhi = std::max(uhi, u); }
-  bool on(size_t need, double ru) const { return n > 0 && n >= need && uhi - ulo >= kRestInput * ru; }
-};
-std::pair<bool, bool> restsAtExtremes(const io::Measurement& d, double ymin, double ymax, double ru) {
-  const double band = kRestBand * (ymax - ymin);
-  Rest low, high;
-  for (size_t i = 0; i < d.y.size(); ++i) {
-    if (d.y[i] <= ymin + band) low.add(d.u[i]);
-    if (d.y[i] >= ymax - band) high.add(d.u[i]);
+  ExtremeRest judge(size_t samples, double ru) const {
+    ExtremeRest r;
+    r.share = samples > 0 ? static_cast<double>(n) / static_cast<double>(samples) : 0.0;
+    r.input_moved = n > 0 ? (uhi - ulo) / ru : 0.0;
+    const auto need = static_cast<size_t>(std::ceil(kRestShare * static_cast<double>(samples)));
+    r.on_stop = n > 0 && n >= need && uhi - ulo >= kRestInput * ru;
+    return r;
   }
-  const auto need = static_cast<size_t>(std::ceil(kRestShare * static_cast<double>(d.y.size())));
-  return {low.on(need, ru), high.on(need, ru)};
+};
+std::string percent(double x) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f %%", 100.0 * x);
+  return b;
+}
+std::string describeRest(const char* which, const ExtremeRest& r) {
+  return std::string("at its ") + which + " output " + (r.on_stop ? "it rests on a stop" : "it does not rest") + " (" +
+         percent(r.share) + " of the samples within " + percent(kRestBand) +
+         " of the output's range, the input moving over " + percent(r.input_moved) + " of its range there)";
 }
 }  // namespace
+
+RecordRests recordRests(const io::Measurement& d) {
+  RecordRests out;
+  if (d.y.empty() || d.u.empty()) return out;
+  const auto [ymin, ymax] = std::minmax_element(d.y.begin(), d.y.end());
+  const double band = kRestBand * (*ymax - *ymin);
+  const double ru = std::max(range(d.u), 1e-12);
+  Rest low, high;
+  for (size_t i = 0; i < d.y.size(); ++i) {
+    if (d.y[i] <= *ymin + band) low.add(d.u[i]);
+    if (d.y[i] >= *ymax - band) high.add(d.u[i]);
+  }
+  out.low = low.judge(d.y.size(), ru);
+  out.high = high.judge(d.y.size(), ru);
+  return out;
+}
+
+std::string describeRests(const RecordRests& r) {
+  return "end stops (a fit searches a stop within the record only where it rests on one: at least " +
+         percent(kRestShare) + " of the samples, the input moving over at least " + percent(kRestInput) +
+         " of its range): " + describeRest("lowest", r.low) + "; " + describeRest("highest", r.high);
+}
 
 Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   const auto specs = m.paramSpecs();
@@ -81,7 +111,7 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   // Effect parameters: the catalogue's bounds are written for a 40 mm / 10 V rig at 1 kHz; scale
   // them to this data by their unit so any units and sample rate work.
   const double duration = d.Ts * static_cast<double>(d.size());
-  const auto rests = restsAtExtremes(d, *ymin, *ymax, ru);
+  const auto rests = recordRests(d);
   const auto [umin, umax_] = std::minmax_element(d.u.begin(), d.u.end());
   const auto* load = d.column("load");
   const double rl = load ? std::max(range(*load), 1e-12) : 1.0;
@@ -107,8 +137,8 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
       // the record never reaches is none; kept within the data it clipped the model at the record's
       // extreme (the calibrated physics plant's whole-stroke record turns at 33.1 mm, its validation
       // record goes on to 35.05: muscle_balance validated 0.65 mm with its stop there, 0.22 mm without).
-      lo = rests.first ? *ymin : *ymin - ry;
-      hi = rests.second ? *ymax : *ymax + ry;
+      lo = rests.low.on_stop ? *ymin : *ymin - ry;
+      hi = rests.high.on_stop ? *ymax : *ymax + ry;
     } else if (u == "u-unit") {
       lo *= ru / 10.0;
       hi *= ru / 10.0;

@@ -17,6 +17,21 @@
 
 namespace pamc::ident {
 
+// Whether a record rests on an end stop at the lowest and at the highest of its output, as the search's
+// box for a stop reads it (dataBounds boxes a stop within the record only there; identify.cpp says how it
+// is judged and why). `pamc compare` prints it.
+struct ExtremeRest {
+  double share = 0.0;        // of the record's samples near the extreme
+  double input_moved = 0.0;  // the input's travel over those samples, over the input's range
+  bool on_stop = false;
+};
+struct RecordRests {
+  ExtremeRest low, high;
+};
+RecordRests recordRests(const io::Measurement& d);
+// One line: the rule and both extremes' figures.
+std::string describeRests(const RecordRests& r);
+
 enum class FitMethod {
   Ga,          // the paper's genetic algorithm, then LM from its best points and spread starts
   MultiStart,  // LM from the start model (or the defaults) and spread starts, no GA: much faster

@@ -211,6 +211,38 @@ TEST(Identification, AStopIsNotSearchedWhereTheRecordOnlyTurns) {
   }
 }
 
+// The figures the search's box for a stop is judged by (identify.cpp), as `pamc compare` prints them: a
+// sine lagging its input lingers at its extremes but its input turns there too; the same sine clamped at
+// the bottom by a stop holds the output there while the input moves on.
+TEST(Identification, RecordRestsGivesTheFiguresAStopIsJudgedBy) {
+  io::Measurement sine, clamped;
+  sine.Ts = clamped.Ts = 1e-3;
+  for (int i = 0; i < 40000; ++i) {
+    const double phase = 2.0 * M_PI * 0.1 * i * 1e-3;
+    const double u = 3.0 * std::sin(phase), y = 17.0 + 15.0 * std::sin(phase - 0.2);
+    sine.t.push_back(i * 1e-3), clamped.t.push_back(i * 1e-3);
+    sine.u.push_back(u), clamped.u.push_back(u);
+    sine.y.push_back(y), clamped.y.push_back(std::max(y, 5.0));
+  }
+  const auto s = ident::recordRests(sine);
+  for (const auto& r : {s.low, s.high}) {
+    EXPECT_GT(r.share, 0.002);
+    EXPECT_LT(r.share, 0.05);
+    EXPECT_LT(r.input_moved, 0.035);
+    EXPECT_FALSE(r.on_stop);
+  }
+  const auto c = ident::recordRests(clamped);
+  EXPECT_GT(c.low.share, 0.15);  // below 5 mm while the sine is under -0.8: a fifth of the time
+  EXPECT_LT(c.low.share, 0.25);
+  EXPECT_GT(c.low.input_moved, 0.05);
+  EXPECT_LT(c.low.input_moved, 0.2);
+  EXPECT_TRUE(c.low.on_stop);
+  EXPECT_FALSE(c.high.on_stop);
+  const std::string line = ident::describeRests(c);
+  EXPECT_NE(line.find("at its lowest output it rests on a stop"), std::string::npos) << line;
+  EXPECT_NE(line.find("at its highest output it does not rest"), std::string::npos) << line;
+}
+
 // With hold_effects (a probe ranked on a model of many effects, docs/MODELING.md, "diagnose" step 7) the
 // effects the start model has keep its values to the last digit; the core and the effect it lacks are
 // fitted, and the fit ends below the start.
