@@ -1,13 +1,52 @@
 #include "app/command.hpp"
 
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "diagnose/diagnose.hpp"
 #include "io/measurement.hpp"
+#include "io/model_file.hpp"
 #include "model/effect.hpp"
 
 namespace pamc::app {
 namespace {
+
+// The ladder so far, kept while diagnose runs (DiagnoseSettings::checkpoint): with --out-dir DIR the
+// diagnosis so far (the schema of --json, with "partial") in DIR/diagnosis.partial.json and its last rung's
+// model in DIR/model.partial.json; with --json FILE the diagnosis so far in FILE.partial. Each written
+// whole or not at all; removed when the run ends and the final files are written.
+class PartialFiles {
+ public:
+  PartialFiles(const std::string& dir, const std::string& json) {
+    if (!dir.empty()) {
+      io::makeDirectory(dir, "report directory");
+      diagnosis_.push_back(dir + "/diagnosis.partial.json");
+      model_ = dir + "/model.partial.json";
+    }
+    if (!json.empty()) diagnosis_.push_back(json + ".partial");
+  }
+  void write(const diagnose::DiagnoseResult& so_far, const std::string& after) {
+    if (diagnosis_.empty()) return;
+    auto j = diagnose::toJson(so_far);
+    j["partial"] = {{"after", after}, {"seconds", so_far.seconds}};
+    for (const auto& p : diagnosis_) io::writeFileAtomic(p, j.dump(2) + "\n");
+    if (!model_.empty()) io::writeFileAtomic(model_, j["model"].dump(2) + "\n");
+    if (!said_)
+      progressLine("the ladder so far is kept in " + diagnosis_.front() +
+                   (model_.empty() ? "" : " (its last rung's model in " + model_ + ")") + " until the run ends");
+    said_ = true;
+  }
+  void remove() const {
+    for (const auto& p : diagnosis_) std::remove(p.c_str());
+    if (!model_.empty()) std::remove(model_.c_str());
+  }
+
+ private:
+  std::vector<std::string> diagnosis_;
+  std::string model_;
+  bool said_ = false;
+};
 
 // pamc diagnose: which physical effect is missing; add it, refit, repeat (docs/MODELING.md).
 class DiagnoseCommand final : public Command {
@@ -60,6 +99,10 @@ class DiagnoseCommand final : public Command {
     ds.log = progressLine;
     ds.probes = !dg_no_probes;
     ds.output_form = outputFormOf(dg_form);
+    PartialFiles partial(dg_report, dg_json);
+    ds.checkpoint = [&partial](const diagnose::DiagnoseResult& so_far, const std::string& after) {
+      partial.write(so_far, after);
+    };
     const auto r = diagnose::diagnose(d, dg_val.empty() ? nullptr : &v, ds);
     std::printf("\nFirst round (on top of the reference model), best first:\n");
     if (!r.rounds.empty())
@@ -99,6 +142,7 @@ class DiagnoseCommand final : public Command {
                   dg_report.c_str(), r.probes.empty() ? "" : ", probes.png", r.probe_rung ? ", probe_model.json" : "");
     }
     if (!dg_json.empty()) io::writeFileAtomic(dg_json, diagnose::toJson(r).dump(2) + "\n");
+    partial.remove();
     return 0;
   }
 

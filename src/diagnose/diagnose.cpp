@@ -92,11 +92,14 @@ Diagnosis::Diagnosis(const io::Measurement& data, const io::Measurement* val, co
 DiagnoseResult Diagnosis::run() {
   screen();
   baseline();
+  checkpoint("the reference model");
   candidates();
   prune();
+  checkpoint("the pruning");
   refinements();
   directions();
   polish();
+  checkpoint("the polish");
   probes();
   verdict();
   recordRange();
@@ -104,8 +107,23 @@ DiagnoseResult Diagnosis::run() {
   return std::move(res_);
 }
 
+// The result so far to DiagnoseSettings::checkpoint: a copy, its models with the training record's range, so
+// that the search goes on with nothing of it changed.
+void Diagnosis::checkpoint(const std::string& after) const {
+  if (!s_.checkpoint) return;
+  DiagnoseResult so_far = res_;
+  so_far.seconds = seconds(t0_);
+  const auto r = trainRange();
+  for (auto& rung : so_far.ladder) rung.model.setRange(r);
+  s_.checkpoint(so_far, after);
+}
+
+model::OperatingRange Diagnosis::trainRange() const {
+  return model::OperatingRange::of(train_.u.data(), train_.y.data(), train_.size(), train_.Ts);
+}
+
 void Diagnosis::recordRange() {
-  const auto r = model::OperatingRange::of(train_.u.data(), train_.y.data(), train_.size(), train_.Ts);
+  const auto r = trainRange();
   for (auto& rung : res_.ladder) rung.model.setRange(r);
   for (auto& p : res_.probes) p.model.setRange(r);
 }
@@ -259,6 +277,7 @@ void Diagnosis::candidates() {
     Rung next_rung{cur.effects, taken.rmse_train, taken.rmse_val, taken.model, {}, {}, {}, false};
     next_rung.effects.push_back(taken.effect);
     res_.ladder.push_back(next_rung);
+    checkpoint("round " + std::to_string(round));
     log("  -> added " + taken.effect + ": validated RMSE " + fmt("%.5g", cur.rmse_val) + " -> " +
         fmt("%.5g", next_rung.rmse_val) + " (" + fmt("%.1f", 100 * (1.0 - next_rung.rmse_val / cur.rmse_val)) +
         " % lower)");

@@ -17,6 +17,8 @@
 
 namespace pamc::diagnose {
 
+struct DiagnoseResult;
+
 struct DiagnoseSettings {
   double holdout = 0.3;                 // fraction held out at the end when no validation file is given
   int max_effects = 4;                  // rungs above the baseline
@@ -34,6 +36,10 @@ struct DiagnoseSettings {
   // The form every model is fitted in (model::OutputForm): the aligned output unless asked otherwise.
   model::OutputForm output_form = model::OutputForm::Aligned;
   std::function<void(const std::string&)> log;
+  // Called with the result so far after each step that can add a rung (the reference model, each round,
+  // the pruning, each refinement, the polish), `after` naming the step: a run cut short keeps
+  // what it reached (`pamc diagnose --out-dir` writes it). Its models carry the range they were fitted on.
+  std::function<void(const DiagnoseResult& so_far, const std::string& after)> checkpoint;
 };
 
 struct CandidateResult {

@@ -116,6 +116,7 @@ void Diagnosis::refinements() {
       if (std::find(tried.begin(), tried.end(), e) != tried.end()) continue;
       tried.push_back(e);
       refineOne(e);
+      checkpoint("the refinement of " + e);
     }
     if (res_.ladder.size() == rungs) return;
   }

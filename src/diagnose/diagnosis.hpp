@@ -131,6 +131,8 @@ class Diagnosis {
   void verdict();
   // Every model of the result holds where it was learnt: the training record's range.
   void recordRange();
+  model::OperatingRange trainRange() const;
+  void checkpoint(const std::string& after) const;
 
   // candidates(): the effects that can go on top of the current model; one round's search.
   std::vector<std::string> candidatesOnTop(const model::Model& m) const;

@@ -160,6 +160,7 @@ mkdir -p "$work/rep" && touch "$work/rep/probes.png" "$work/rep/probes.csv"
 check "diagnose --out-dir writes its files" test -s "$work/rep/diagnosis.json"
 check "diagnose --out-dir leaves no stale probe chart" test ! -e "$work/rep/probes.png"
 check "diagnose --out-dir leaves no stale probe table" test ! -e "$work/rep/probes.csv"
+check "diagnose removes the ladder kept while it ran" test ! -e "$work/rep/diagnosis.partial.json" -a ! -e "$work/rep/model.partial.json"
 
 # The convention (docs/CLI.md) over every command's --help, and the old spellings with their notice.
 python3 "$SRC/tests/cli/cli_convention.py" "$PAMC" > "$work/convention.txt"

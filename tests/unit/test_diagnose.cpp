@@ -114,6 +114,42 @@ TEST(Diagnose, TwoHiddenEffectsAreBothAdded) {
   EXPECT_GE(r.ladder.front().rmse_val / r.ladder.back().rmse_val, 5.0);
 }
 
+// A run cut short keeps what it reached: every rung is handed to the checkpoint as it is taken, with the
+// range its models were fitted on, the last one as the run ends it; and handing them over changes nothing.
+TEST(Diagnose, EveryRungIsHandedToTheCheckpointAsItIsReached) {
+  const auto pc = hidden(R"("pressure_lag":{"enabled":true,"tau":0.06,"slew":1000})");
+  const auto train = record(pc, 1, 24.0, false), val = record(pc, 2, 16.0, false);
+  diagnose::DiagnoseSettings s;
+  s.seed = 1;
+  s.probes = false;
+  const auto plain = diagnose::diagnose(train, &val, s);
+  const auto trained = model::OperatingRange::of(train.u.data(), train.y.data(), train.size(), train.Ts);
+  std::vector<std::string> after;
+  std::vector<diagnose::Rung> last;
+  std::vector<size_t> sizes;
+  s.checkpoint = [&](const diagnose::DiagnoseResult& so_far, const std::string& step) {
+    after.push_back(step);
+    sizes.push_back(so_far.ladder.size());
+    last = so_far.ladder;
+    for (const auto& rung : so_far.ladder) {  // the training record's, as the final model's
+      const auto& g = rung.model.range();
+      EXPECT_TRUE(g.known) << step;
+      EXPECT_EQ(g.rate.lo, trained.rate.lo) << step;
+      EXPECT_EQ(g.rate.hi, trained.rate.hi) << step;
+    }
+  };
+  const auto r = diagnose::diagnose(train, &val, s);
+  ASSERT_GE(after.size(), 3u);
+  EXPECT_EQ(after.front(), "the reference model");
+  EXPECT_EQ(sizes.front(), 1u);
+  EXPECT_NE(std::find(after.begin(), after.end(), "round 1"), after.end());
+  EXPECT_TRUE(std::is_sorted(sizes.begin(), sizes.end()));
+  ASSERT_EQ(last.size(), r.ladder.size());
+  EXPECT_DOUBLE_EQ(last.back().rmse_val, r.ladder.back().rmse_val);
+  ASSERT_EQ(plain.ladder.size(), r.ladder.size());
+  for (size_t i = 0; i < r.ladder.size(); ++i) EXPECT_DOUBLE_EQ(plain.ladder[i].rmse_val, r.ladder[i].rmse_val) << i;
+}
+
 // Two hidden effects at once, with other parameters and other excitations (seeds 5 and 6) than the
 // cases above: diagnose ends at the sensor noise (within 1.5x of the emulator's 0.004 mm rms plus its
 // 0.001 mm quantisation) with exactly the two effects the data hold, nothing spurious left in.
