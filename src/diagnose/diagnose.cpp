@@ -80,6 +80,12 @@ std::vector<double> simulate(const model::Model& m, const io::Measurement& d) {
   return y;
 }
 
+std::string ordinal(size_t n) {
+  const size_t tens = n % 100, ones = n % 10;
+  const char* suffix = tens >= 11 && tens <= 13 ? "th" : ones == 1 ? "st" : ones == 2 ? "nd" : ones == 3 ? "rd" : "th";
+  return std::to_string(n) + suffix;
+}
+
 std::string join(const std::vector<std::string>& v) {
   std::string s;
   for (const auto& x : v) s += (s.empty() ? "" : " + ") + x;
@@ -153,8 +159,9 @@ void Diagnosis::screen() {
   step_ = std::clamp<size_t>(train_.size() / kScreenSamples, 1, max_step);
   screen_ = step_ > 1 ? train_.decimate(step_) : train_;
   if (step_ > 1)
-    log("screening on every " + std::to_string(step_) + "th training sample (" + std::to_string(screen_.size()) +
+    log("screening on every " + ordinal(step_) + " training sample (" + std::to_string(screen_.size()) +
         " samples at " + fmt("%.4g", 1.0 / screen_.Ts) + " Hz)");
+  log("the training record's " + ident::describeRests(ident::recordRests(train_)));
 }
 
 // The reference model, searched on the screening record and refitted on all of it; the sensor noise of

@@ -96,8 +96,8 @@ bool Diagnosis::screenResolves(const Rung& fin) {
     sum += d * d;
   }
   const double moved = std::sqrt(sum / static_cast<double>(std::max<size_t>(screened.size(), 1)));
-  const std::string head = "The probes were not fitted: on the screening record they are searched on (every " +
-                           std::to_string(step_) + "th sample) ";
+  const std::string head =
+      "The probes were not fitted: on the screening record they are searched on (every " + ordinal(step_) + " sample) ";
   double null_val = 0.0;
   const auto null_probe = [&] { return null_val = nullProbe(fin); };
   switch (screenVerdict(moved, fin.rmse_train, fin.rmse_val, s_.min_gain, null_probe)) {

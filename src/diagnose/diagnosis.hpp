@@ -72,6 +72,8 @@ struct Validation {
 std::vector<double> simulate(const model::Model& m, const io::Measurement& d);
 // "a + b + c", or "(reference model)" for none.
 std::string join(const std::vector<std::string>& v);
+// "every 3rd sample": n with its English ordinal suffix.
+std::string ordinal(size_t n);
 // The rung's model with `effect` replaced by `by` (empty: taken out), the parameters they share by name at
 // its fit (diagnose_refine.cpp).
 model::Model withReplacement(const Rung& fin, const std::string& effect, const std::string& by);

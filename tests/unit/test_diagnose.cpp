@@ -7,6 +7,7 @@
 
 #include "diagnose/compare.hpp"
 #include "diagnose/diagnose.hpp"
+#include "diagnose/diagnosis.hpp"
 #include "emulator_data.hpp"
 #include "plant/plant.hpp"
 #include "sim/lockstep.hpp"
@@ -244,4 +245,12 @@ TEST(Compare, PerfectModelFitsAndDelayShowsInTheResidual) {
   EXPECT_NEAR(c.report.ind.at("best_shift_s"), 0.025, 0.003);
   EXPECT_LT(c.report.fit_pct, 99.0);
   EXPECT_GT(c.report.acf[1], c.report.conf);  // residual not white
+}
+
+// The screening's step in the log: "every 3rd training sample", not "3th".
+TEST(Diagnose, TheScreeningsStepIsAnOrdinal) {
+  const std::pair<size_t, const char*> cases[] = {{1, "1st"},   {2, "2nd"},   {3, "3rd"},    {4, "4th"},
+                                                  {11, "11th"}, {12, "12th"}, {13, "13th"},  {21, "21st"},
+                                                  {22, "22nd"}, {23, "23rd"}, {111, "111th"}};
+  for (const auto& [n, want] : cases) EXPECT_EQ(diagnose::detail::ordinal(n), want);
 }
