@@ -42,6 +42,100 @@ PL=$!
 timeout 10 "$PAMC" monitor --iface vcan0 --od "$OD" --duration 2 > "$W/monitor.txt" 2>&1
 kill "$PL" 2>/dev/null; wait "$PL" 2>/dev/null
 
+# The cases below judge tracking, not the fault table: their controller takes a missing-PDO limit (0x2021)
+# of 10 SYNCs (100 ms at the VM's 100 Hz) from a master DCF (docs/RIG.md, `--dcf`) instead of the 3 a rig
+# at 1 kHz has. Under software emulation a node stalls for up to 36-83 ms (the SYNC jitter these runs
+# print), and one such stall of the emulator between two encoders' PDOs put three of four channels in
+# the safe state mid-run (CI on 2026-12-01). The case under faults keeps the default.
+cat > "$W/vm_missing_limit.dcf" <<'DCF'
+; The e2e VM's missing-PDO limit: 10 SYNCs (tests/e2e/inside_vm.sh).
+[FileInfo]
+FileName=vm_missing_limit.dcf
+FileVersion=1
+FileRevision=0
+EDSVersion=4.0
+Description=pamc controller in the e2e VM
+CreatedBy=tests/e2e/inside_vm.sh
+
+[DeviceInfo]
+VendorName=pamc project
+VendorNumber=0x00000000
+ProductName=pamc controller
+ProductNumber=0x00000001
+RevisionNumber=0x00010000
+SimpleBootUpMaster=1
+SimpleBootUpSlave=1
+Granularity=8
+NrOfRXPDO=2
+NrOfTXPDO=1
+
+[DeviceComissioning]
+NodeID=1
+NodeName=pamc controller
+Baudrate=1000
+CANopenManager=1
+
+[MandatoryObjects]
+SupportedObjects=3
+1=0x1000
+2=0x1001
+3=0x1018
+
+[1000]
+ParameterName=Device type
+ObjectType=0x7
+DataType=0x0007
+AccessType=ro
+ParameterValue=0x00100194
+
+[1001]
+ParameterName=Error register
+ObjectType=0x7
+DataType=0x0005
+AccessType=ro
+
+[1018]
+ParameterName=Identity object
+ObjectType=0x9
+SubNumber=3
+
+[1018sub0]
+ParameterName=Highest sub-index supported
+ObjectType=0x7
+DataType=0x0005
+AccessType=ro
+
+[1018sub1]
+ParameterName=Vendor-ID
+ObjectType=0x7
+DataType=0x0007
+AccessType=ro
+ParameterValue=0x00000000
+
+[1018sub2]
+ParameterName=Product code
+ObjectType=0x7
+DataType=0x0007
+AccessType=ro
+ParameterValue=0x00000001
+
+
+[ManufacturerObjects]
+SupportedObjects=1
+1=0x2021
+
+[2021]
+ParameterName=Missing PDO cycle limit
+ObjectType=0x7
+DataType=0x0005
+AccessType=rw
+DefaultValue=3
+ParameterValue=10
+PDOMapping=0
+LowLimit=1
+HighLimit=255
+DCF
+
 # Slaves that another master started and left scrambled - SDO writes with can-utils' cansend, as any
 # tool could make them - and then the controller, which must check and configure them before anything
 # runs. Each run has its own candump log. Arguments: NAME "CONTROLLER ARGS" "EMULATOR ARGS" FRAME...
@@ -65,7 +159,7 @@ rig_run() {
   for f in "$@"; do cansend vcan0 "$f"; sleep 0.05; done
   sleep 0.5  # their heartbeats show the state they are in
   # shellcheck disable=SC2086
-  "$PAMC" controller $ctl_args --period-us "$P" --controller pi --ki 1.5 \
+  "$PAMC" controller $ctl_args --dcf "$W/vm_missing_limit.dcf" --period-us "$P" --controller pi --ki 1.5 \
     --trajectory sine:0.5:15:5 --preroll 1 --duration 4 --csv "$W/${name}_controller.csv" \
     > "$W/${name}_controller.txt" 2>&1
   echo $? > "$W/${name}_rc.txt"
