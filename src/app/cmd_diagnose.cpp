@@ -6,7 +6,6 @@
 
 #include "diagnose/diagnose.hpp"
 #include "io/measurement.hpp"
-#include "io/model_file.hpp"
 #include "model/effect.hpp"
 
 namespace pamc::app {

@@ -113,23 +113,16 @@ DiagnoseResult Diagnosis::run() {
   return std::move(res_);
 }
 
-// The result so far to DiagnoseSettings::checkpoint: a copy, its models with the training record's range, so
-// that the search goes on with nothing of it changed.
-void Diagnosis::checkpoint(const std::string& after) const {
+// The result so far to DiagnoseSettings::checkpoint. Its models carry the range of the record they were
+// fitted on (ident::fit records it); recordRange sets the training record's at the end.
+void Diagnosis::checkpoint(const std::string& after) {
   if (!s_.checkpoint) return;
-  DiagnoseResult so_far = res_;
-  so_far.seconds = seconds(t0_);
-  const auto r = trainRange();
-  for (auto& rung : so_far.ladder) rung.model.setRange(r);
-  s_.checkpoint(so_far, after);
-}
-
-model::OperatingRange Diagnosis::trainRange() const {
-  return model::OperatingRange::of(train_.u.data(), train_.y.data(), train_.size(), train_.Ts);
+  res_.seconds = seconds(t0_);
+  s_.checkpoint(res_, after);
 }
 
 void Diagnosis::recordRange() {
-  const auto r = trainRange();
+  const auto r = model::OperatingRange::of(train_.u.data(), train_.y.data(), train_.size(), train_.Ts);
   for (auto& rung : res_.ladder) rung.model.setRange(r);
   for (auto& p : res_.probes) p.model.setRange(r);
 }

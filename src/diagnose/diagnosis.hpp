@@ -133,8 +133,7 @@ class Diagnosis {
   void verdict();
   // Every model of the result holds where it was learnt: the training record's range.
   void recordRange();
-  model::OperatingRange trainRange() const;
-  void checkpoint(const std::string& after) const;
+  void checkpoint(const std::string& after);
 
   // candidates(): the effects that can go on top of the current model; one round's search.
   std::vector<std::string> candidatesOnTop(const model::Model& m) const;
