@@ -328,7 +328,7 @@ estimation::ActiveModelSettings papersForm(estimation::ActiveModelSettings s) {
 }
 
 // PI + active model compensation, eqs. (14)-(19).
-class PiAmc final : public Controller {
+class PiAmc final : public detail::PiBased {
  public:
   explicit PiAmc(const ControllerConfig& c) : cfg_(c) {
     pi_.configure(c);
@@ -416,11 +416,6 @@ class PiAmc final : public Controller {
     hist_.push(o.u);
     return o;
   }
-  void limited(double u_applied) noexcept override {
-    pi_.limited(u_applied);
-    hist_.replaceLatest(u_applied);
-  }
-  double integral() const noexcept override { return pi_.integral(); }
   const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
 
  private:
@@ -449,10 +444,8 @@ class PiAmc final : public Controller {
   }
 
   ControllerConfig cfg_;
-  PiCore pi_;
   LastGood y_;
   estimation::ActiveModel am_;
-  CommandHistory hist_;
   model::Model::State nom_;
   double un_eff_prev_ = 0.0;
   double un_prev_ = 0.0;
@@ -462,7 +455,7 @@ class PiAmc final : public Controller {
 };
 
 // PID + extended state observer, eqs. (22)-(25), on the plant model eso_order says.
-class PidEso final : public Controller {
+class PidEso final : public detail::PiBased {
  public:
   explicit PidEso(const ControllerConfig& c) : cfg_(c) { pi_.configure(c); }
   Kind kind() const override { return Kind::PidEso; }
@@ -531,17 +524,10 @@ class PidEso final : public Controller {
     hist_.push(o.u);
     return o;
   }
-  void limited(double u_applied) noexcept override {
-    pi_.limited(u_applied);
-    hist_.replaceLatest(u_applied);
-  }
-  double integral() const noexcept override { return pi_.integral(); }
   double disturbance() const noexcept override { return cfg_.eso.order == 1 ? x2_ : x3_; }
 
  private:
   ControllerConfig cfg_;
-  PiCore pi_;
-  CommandHistory hist_;
   LastGood y_;
   double x1_ = 0, x2_ = 0, x3_ = 0;
   int sat_dir_ = 0;  // the last command: +1 in the upper limit, -1 in the lower, 0 inside

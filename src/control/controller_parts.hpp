@@ -138,6 +138,22 @@ class PiCore {
   double before_ = 0, out_ = 0;  // the integral before this cycle's, the command finish() gave
 };
 
+// A controller whose command is the PI's plus a compensation, with the commands in flight (PI+AMC, PID+ESO,
+// MBC): the command that went out replaces the latest sent, and the PI's integration of the cycle is undone
+// where it pushed further past it.
+class PiBased : public Controller {
+ public:
+  void limited(double u_applied) noexcept override {
+    pi_.limited(u_applied);
+    hist_.replaceLatest(u_applied);
+  }
+  double integral() const noexcept override { return pi_.integral(); }
+
+ protected:
+  PiCore pi_;
+  CommandHistory hist_;
+};
+
 // Whether a model moves as the muscle does (the MBC's feedforward, docs/CONTROL.md "A model that moves
 // otherwise than the muscle"). Each cycle takes the model's output driven by the commands in effect and the
 // measured position; their changes over `span` cycles are regressed, the muscle's on the model's, with

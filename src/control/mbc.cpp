@@ -82,7 +82,7 @@ struct Bracket {
   double between() const noexcept { return u_b - miss_b * (u_b - u_a) / (miss_b - miss_a); }
 };
 
-class Mbc final : public Controller {
+class Mbc final : public detail::PiBased {
  public:
   explicit Mbc(const ControllerConfig& c)
       : cfg_(c),
@@ -152,12 +152,6 @@ class Mbc final : public Controller {
     hist_.push(o.u);
     return o;
   }
-  void limited(double u_applied) noexcept override {
-    pi_.limited(u_applied);
-    hist_.replaceLatest(u_applied);
-  }
-
-  double integral() const noexcept override { return pi_.integral(); }
   const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
 
  private:
@@ -255,9 +249,7 @@ class Mbc final : public Controller {
   int horizon_;
   double sign_;         // the sign of the model's settled response to a command step (modelGainSign)
   model::Interval ff_;  // the feedforward's bounds (mbcCommandRange)
-  detail::PiCore pi_;
   detail::LastGood y_;
-  detail::CommandHistory hist_;
   estimation::ActiveModel am_;
   detail::CommandHistory ff_hist_;  // the feedforwards sent, the reference model's input
   detail::SetpointGovernor governor_;

@@ -55,22 +55,23 @@ std::string describeRest(const char* which, const ExtremeRest& r) {
          percent(r.share) + " of the samples within " + percent(kRestBand) +
          " of the output's range, the input moving over " + percent(r.input_moved) + " of its range there)";
 }
+
+// recordRests with the record's output extremes and input range already at hand (dataBounds has them).
+RecordRests restsWithin(const io::Measurement& d, double ymin, double ymax, double ru) {
+  const double band = kRestBand * (ymax - ymin);
+  Rest low, high;
+  for (size_t i = 0; i < d.y.size(); ++i) {
+    if (d.y[i] <= ymin + band) low.add(d.u[i]);
+    if (d.y[i] >= ymax - band) high.add(d.u[i]);
+  }
+  return {low.judge(d.y.size(), ru), high.judge(d.y.size(), ru)};
+}
 }  // namespace
 
 RecordRests recordRests(const io::Measurement& d) {
-  RecordRests out;
-  if (d.y.empty() || d.u.empty()) return out;
+  if (d.y.empty() || d.u.empty()) return {};
   const auto [ymin, ymax] = std::minmax_element(d.y.begin(), d.y.end());
-  const double band = kRestBand * (*ymax - *ymin);
-  const double ru = std::max(range(d.u), 1e-12);
-  Rest low, high;
-  for (size_t i = 0; i < d.y.size(); ++i) {
-    if (d.y[i] <= *ymin + band) low.add(d.u[i]);
-    if (d.y[i] >= *ymax - band) high.add(d.u[i]);
-  }
-  out.low = low.judge(d.y.size(), ru);
-  out.high = high.judge(d.y.size(), ru);
-  return out;
+  return restsWithin(d, *ymin, *ymax, std::max(range(d.u), 1e-12));
 }
 
 std::string describeRests(const RecordRests& r) {
@@ -111,7 +112,7 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   // Effect parameters: the catalogue's bounds are written for a 40 mm / 10 V rig at 1 kHz; scale
   // them to this data by their unit so any units and sample rate work.
   const double duration = d.Ts * static_cast<double>(d.size());
-  const auto rests = recordRests(d);
+  const auto rests = restsWithin(d, *ymin, *ymax, ru);
   const auto [umin, umax_] = std::minmax_element(d.u.begin(), d.u.end());
   const auto* load = d.column("load");
   const double rl = load ? std::max(range(*load), 1e-12) : 1.0;
