@@ -2,6 +2,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 
@@ -43,6 +44,16 @@ std::string describeRangeShare(const RangeShare& s, const model::OperatingRange&
   return b;
 }
 
+namespace {
+// The fold over the input range the model was identified on, or the record's where it records none.
+model::InverseFold foldOver(const model::Model& m, const io::Measurement& d) {
+  if (m.range().known) return model::inverseFold(m, m.range().input.lo, m.range().input.hi);
+  if (d.u.empty()) return {};
+  const auto [lo, hi] = std::minmax_element(d.u.begin(), d.u.end());
+  return model::inverseFold(m, *lo, *hi);
+}
+}  // namespace
+
 Comparison compare(const model::Model& m, const io::Measurement& d) {
   if (m.needsLoad() && !d.has("load"))
     throw std::invalid_argument(d.source + ": the model has the 'load' effect but the data has no 'load' column");
@@ -53,6 +64,7 @@ Comparison compare(const model::Model& m, const io::Measurement& d) {
   c.report = analyze(d, c.y_model);
   c.outside = rangeShare(m.range(), d);
   c.rests = ident::recordRests(d);
+  c.fold = foldOver(m, d);
   std::vector<double> e(d.size());
   for (size_t i = 0; i < d.size(); ++i) e[i] = d.y[i] - c.y_model[i];
   c.spectrum = residualSpectrum(e, d.u, d.Ts, c.report.noise_floor);
@@ -88,7 +100,9 @@ nlohmann::json toJson(const Comparison& c) {
           {"lag_step_s", r.lag_step_s},
           {"spectrum", toJson(c.spectrum)},
           {"outside_range", rangeJson(c.outside)},
-          {"end_stops", {{"low", restJson(c.rests.low)}, {"high", restJson(c.rests.high)}}}};
+          {"end_stops", {{"low", restJson(c.rests.low)}, {"high", restJson(c.rests.high)}}},
+          {"inverse",
+           {{"folds", c.fold.folds}, {"least_slope", c.fold.least}, {"at_u", c.fold.at_u}, {"gain", c.fold.gain}}}};
 }
 
 void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir,

@@ -8,6 +8,7 @@
 #include "diagnose/residual.hpp"
 #include "diagnose/spectrum.hpp"
 #include "ident/identify.hpp"
+#include "model/inverse_fold.hpp"
 #include "io/measurement.hpp"
 #include "model/model.hpp"
 
@@ -26,6 +27,7 @@ struct Comparison {
   std::vector<double> y_model;
   RangeShare outside;
   ident::RecordRests rests;  // whether the record rests on its end stops, as a fit reads it
+  model::InverseFold fold;   // whether the model's inverse folds, over its input range (the record's without one)
   ResidualReport report;
   ResidualSpectrum spectrum;  // of the residual, with its coherence with the input
 };

@@ -9,10 +9,13 @@
 #include "canopen/eds_dictionary.hpp"
 #include <stdexcept>
 
+#include "model/inverse_fold.hpp"
+
 namespace pamc::nodes {
 
 namespace {
-// What the MBC's setpoint governor follows, said once at its start (docs/CONTROL.md, "The setpoint governor").
+// What the MBC's setpoint governor follows, and whether its model's inverse folds, said once at its start
+// (docs/CONTROL.md, "The setpoint governor", "A model whose inverse folds").
 std::string governorNote(control::ControllerConfig ctrl, const std::optional<model::Model>& own) {
   if (own) ctrl.model = *own;
   const control::GovernorLimits g = control::mbcGovernor(ctrl);
@@ -23,7 +26,16 @@ std::string governorNote(control::ControllerConfig ctrl, const std::optional<mod
   else
     std::snprintf(line, sizeof line, "mbc: the setpoint governor: %.4g mm/s, %.4g mm/s^2 (%s)", g.rate_mm_s,
                   g.accel_mm_s2, g.from_model ? "lowered to the model's pace" : "its fixed limits");
-  return line;
+  const model::Interval u = control::mbcCommandRange(ctrl);
+  const model::InverseFold f = model::inverseFold(ctrl.model, u.lo, u.hi);
+  return f.folds ? std::string(line) + "\nmbc: the model: " + model::describeInverseFold(f) : std::string(line);
+}
+// Each line of a note to the log.
+void logLines(const std::function<void(const std::string&)>& log, const std::string& note) {
+  std::size_t from = 0;
+  for (std::size_t nl; (nl = note.find('\n', from)) != std::string::npos; from = nl + 1)
+    log(note.substr(from, nl - from));
+  log(note.substr(from));
 }
 // Whole cycles of period_us in seconds s, at least one.
 int recoverCycles(double s, std::uint32_t period_us) {
@@ -255,7 +267,7 @@ void ControllerNode::configureFromOd() {
           "mbc: the model records no range it was identified on (model.json without 'range'): its feedforward is "
           "used everywhere, with no fallback to the PI");
     governor_said_.resize(channels_.size());
-    if (k == control::Kind::Mbc && log_ && governors[c] != governor_said_[c]) log_(governors[c]);
+    if (k == control::Kind::Mbc && log_ && governors[c] != governor_said_[c]) logLines(log_, governors[c]);
     governor_said_[c] = governors[c];
     const control::Trajectory own =
         (cc.trajectory ? *cc.trajectory : traj).mapped(cc.setpoint_scale, cc.setpoint_offset);

@@ -10,6 +10,7 @@
 #include "io/measurement.hpp"
 #include "io/model_file.hpp"
 #include "io/text.hpp"
+#include "model/inverse_fold.hpp"
 #include "report/figures.hpp"
 #include "sim/experiment_steps.hpp"
 #include "sim/paper_claims.hpp"
@@ -165,18 +166,23 @@ void buildController(Context& x) {
   x.inv.build(x.ref, x.cc.u_min, x.cc.u_max, x.cc.Ts);
   const char* start = x.s.sine_start == SineStart::Trough ? "trough" : "centre";
   const control::GovernorLimits gov = control::mbcGovernor(x.cc);
-  x.json["readings"] = {{"ki", x.cc.ki},
-                        {"kp", x.cc.kp},
-                        {"kc", x.cc.kc},
-                        {"eso_form", x.cc.eso.order == 2 ? "paper (eqs. 22-24)" : "first-order (pamc's own)"},
-                        {"sine_start", start},
-                        {"plant", plantText(x.s.plant)},
-                        {"calibrated_on", x.s.calibrated_on},
-                        {"mbc_governor",
-                         {{"rate_mm_s", gov.rate_mm_s},
-                          {"accel_mm_s2", gov.accel_mm_s2},
-                          {"lowered_to_the_models_pace", gov.from_model},
-                          {"models_pace", {{"speed_mm_s", gov.pace.speed}, {"accel_mm_s2", gov.pace.accel}}}}}};
+  const model::Interval ff = control::mbcCommandRange(x.cc);
+  const model::InverseFold fold = model::inverseFold(x.cc.model, ff.lo, ff.hi);
+  x.json["readings"] = {
+      {"ki", x.cc.ki},
+      {"kp", x.cc.kp},
+      {"kc", x.cc.kc},
+      {"eso_form", x.cc.eso.order == 2 ? "paper (eqs. 22-24)" : "first-order (pamc's own)"},
+      {"sine_start", start},
+      {"plant", plantText(x.s.plant)},
+      {"calibrated_on", x.s.calibrated_on},
+      {"mbc_governor",
+       {{"rate_mm_s", gov.rate_mm_s},
+        {"accel_mm_s2", gov.accel_mm_s2},
+        {"lowered_to_the_models_pace", gov.from_model},
+        {"models_pace", {{"speed_mm_s", gov.pace.speed}, {"accel_mm_s2", gov.pace.accel}}}}},
+      {"models_inverse",
+       {{"folds", fold.folds}, {"least_slope", fold.least}, {"at_u", fold.at_u}, {"gain", fold.gain}}}};
   x.readings_line = gainsText(x.cc) + "\nplant: " + plantText(x.s.plant) + "; sines start at the " + start;
   x.txt << "Readings: " << gainsText(x.cc) << "\n  plant: " << plantText(x.s.plant) << "\n  sines start at the "
         << start << "\n  calibrated on: " << x.s.calibrated_on << "\n  MBC's setpoint governor: "
@@ -185,7 +191,7 @@ void buildController(Context& x) {
                       (gov.from_model ? " (lowered to the model's pace)" : "") +
                       fmt("; the model's pace %.4g mm/s, ", gov.pace.speed) + fmt("%.4g mm/s^2", gov.pace.accel)
                 : std::string("off"))
-        << "\n\n";
+        << (fold.folds ? "\n  the model: " + model::describeInverseFold(fold) : std::string()) << "\n\n";
 }
 
 namespace {

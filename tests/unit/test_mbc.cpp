@@ -15,6 +15,7 @@
 #include "control/trajectory.hpp"
 #include "ident/identify.hpp"
 #include "io/model_file.hpp"
+#include "model/inverse_fold.hpp"
 #include "plant/plant.hpp"
 #include "sim/experiments.hpp"
 #include "sim/lockstep.hpp"
@@ -129,6 +130,32 @@ TEST(Mbc, AModelThatValidatesBetterTracksBetterAndThePlainOneCostsNothing) {
   EXPECT_LE(rungs.front().second, 1.05 * pi);
   std::sort(rungs.begin(), rungs.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   for (size_t i = 1; i < rungs.size(); ++i) EXPECT_LE(rungs[i].second, rungs[i - 1].second) << "rung " << i;
+}
+
+// A model whose inverse folds (docs/CONTROL.md, "A model whose inverse folds"): the plain Bouc-Wen core the
+// calibrated physics plant's whole-stroke record gave (tools/mbc_table.py's reference model: k rho 5.70
+// against k (1 - rho) -6.25) turns against its command where h crosses 0 - the fold where the MBC's
+// feedforward jumped by 0.4 V and the muscle ran 2.2 mm off; a paper-like core (k 5, rho 0.8: its h term
+// with the u term's sign) and a straight one do not fold.
+TEST(Mbc, ModelInverseFoldsWhereItsCoreTurnsAgainstItsCommand) {
+  model::Model folding;
+  folding.core() = {-0.5490247625371758, -10.387188504931045, 18.71960379664081, 1.0,
+                    1.0740840248218628,  0.09017424244531425};
+  const model::InverseFold f = model::inverseFold(folding, -3.39, 3.99);
+  EXPECT_TRUE(f.folds);
+  EXPECT_LT(f.least, -0.05);
+  EXPECT_GT(f.gain, 3.0);
+  EXPECT_GT(f.at_u, -3.39);
+  EXPECT_LT(f.at_u, 3.99);
+  model::Model paper;
+  paper.core() = {5.0, 0.8, 20.0, 1.0, 0.3, 0.3};
+  const model::InverseFold p = model::inverseFold(paper, -3.5, 4.0);
+  EXPECT_FALSE(p.folds);
+  EXPECT_GT(p.least, 0.5);
+  model::Model straight;
+  straight.core() = {5.0, 1.0, 20.0, 1.0, 0.3, 0.3};
+  EXPECT_NEAR(model::inverseFold(straight, -3.5, 4.0).least, 1.0, 1e-9);
+  EXPECT_FALSE(model::inverseFold(folding, 3.0, 3.0).folds);  // no range: nothing to judge
 }
 
 // Outside the model's output range the feedforward is off (u_c = 0) and the PI runs alone; at the
