@@ -86,23 +86,24 @@ nlohmann::json toJson(const Comparison& c) {
   nlohmann::json bins = nlohmann::json::array();
   for (const auto& b : r.bins)
     bins.push_back({{"group", b.group}, {"label", b.label}, {"n", b.n}, {"rmse", b.rmse}, {"mean", b.mean}});
-  return {{"samples", r.n},
-          {"rmse", r.rmse},
-          {"max_abs", r.max_abs},
-          {"fit_pct", r.fit_pct},
-          {"mean", r.mean},
-          {"noise_floor", r.noise_floor},
-          {"breakdown", bins},
-          {"indicators", r.ind},
-          {"acf", r.acf},
-          {"ccf_du", r.ccf_du},
-          {"conf", r.conf},
-          {"lag_step_s", r.lag_step_s},
-          {"spectrum", toJson(c.spectrum)},
-          {"outside_range", rangeJson(c.outside)},
-          {"end_stops", {{"low", restJson(c.rests.low)}, {"high", restJson(c.rests.high)}}},
-          {"inverse",
-           {{"folds", c.fold.folds}, {"least_slope", c.fold.least}, {"at_u", c.fold.at_u}, {"gain", c.fold.gain}}}};
+  return {
+      {"samples", r.n},
+      {"rmse", r.rmse},
+      {"max_abs", r.max_abs},
+      {"fit_pct", r.fit_pct},
+      {"mean", r.mean},
+      {"noise_floor", r.noise_floor},
+      {"breakdown", bins},
+      {"indicators", r.ind},
+      {"acf", r.acf},
+      {"ccf_du", r.ccf_du},
+      {"conf", r.conf},
+      {"lag_step_s", r.lag_step_s},
+      {"spectrum", toJson(c.spectrum)},
+      {"outside_range", rangeJson(c.outside)},
+      {"end_stops", {{"low", restJson(c.rests.low)}, {"high", restJson(c.rests.high)}}},
+      {"inverse",
+       {{"folds", c.fold.folds}, {"least_slope", c.fold.least}, {"at_input", c.fold.at_input}, {"gain", c.fold.gain}}}};
 }
 
 void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir,

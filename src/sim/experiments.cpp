@@ -182,7 +182,7 @@ void buildController(Context& x) {
         {"lowered_to_the_models_pace", gov.from_model},
         {"models_pace", {{"speed_mm_s", gov.pace.speed}, {"accel_mm_s2", gov.pace.accel}}}}},
       {"models_inverse",
-       {{"folds", fold.folds}, {"least_slope", fold.least}, {"at_u", fold.at_u}, {"gain", fold.gain}}}};
+       {{"folds", fold.folds}, {"least_slope", fold.least}, {"at_input", fold.at_input}, {"gain", fold.gain}}}};
   x.readings_line = gainsText(x.cc) + "\nplant: " + plantText(x.s.plant) + "; sines start at the " + start;
   x.txt << "Readings: " << gainsText(x.cc) << "\n  plant: " << plantText(x.s.plant) << "\n  sines start at the "
         << start << "\n  calibrated on: " << x.s.calibrated_on << "\n  MBC's setpoint governor: "

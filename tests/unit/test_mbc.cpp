@@ -136,7 +136,7 @@ TEST(Mbc, AModelThatValidatesBetterTracksBetterAndThePlainOneCostsNothing) {
 // calibrated physics plant's whole-stroke record gave (tools/mbc_table.py's reference model: k rho 5.70
 // against k (1 - rho) -6.25) turns against its command where h crosses 0 - the fold where the MBC's
 // feedforward jumped by 0.4 V and the muscle ran 2.2 mm off; a paper-like core (k 5, rho 0.8: its h term
-// with the u term's sign) and a straight one do not fold.
+// with the u term's sign) and a straight one do not fold, nor does the paper-like core behind a lag.
 TEST(Mbc, ModelInverseFoldsWhereItsCoreTurnsAgainstItsCommand) {
   model::Model folding;
   folding.core() = {-0.5490247625371758, -10.387188504931045, 18.71960379664081, 1.0,
@@ -145,8 +145,8 @@ TEST(Mbc, ModelInverseFoldsWhereItsCoreTurnsAgainstItsCommand) {
   EXPECT_TRUE(f.folds);
   EXPECT_LT(f.least, -0.05);
   EXPECT_GT(f.gain, 3.0);
-  EXPECT_GT(f.at_u, -3.39);
-  EXPECT_LT(f.at_u, 3.99);
+  EXPECT_GT(f.at_input, -3.39);
+  EXPECT_LT(f.at_input, 3.99);
   model::Model paper;
   paper.core() = {5.0, 0.8, 20.0, 1.0, 0.3, 0.3};
   const model::InverseFold p = model::inverseFold(paper, -3.5, 4.0);
@@ -156,6 +156,14 @@ TEST(Mbc, ModelInverseFoldsWhereItsCoreTurnsAgainstItsCommand) {
   straight.core() = {5.0, 1.0, 20.0, 1.0, 0.3, 0.3};
   EXPECT_NEAR(model::inverseFold(straight, -3.5, 4.0).least, 1.0, 1e-9);
   EXPECT_FALSE(model::inverseFold(folding, 3.0, 3.0).folds);  // no range: nothing to judge
+  // A lag before the core goes on past each reversal of a swept command; that is no fold (the second plant's
+  // pressure_lag rungs were taken for folding at their range's edges, least slope -1.06, while their cores
+  // swept alone do not fold).
+  model::Model lagged = paper;
+  lagged.addEffect("pressure_lag");
+  lagged.setEffectParam("pressure_lag", "tau", 0.2);
+  lagged.setEffectParam("pressure_lag", "slew", 5.0);
+  EXPECT_FALSE(model::inverseFold(lagged, -3.5, 4.0).folds);
 }
 
 // Outside the model's output range the feedforward is off (u_c = 0) and the PI runs alone; at the
