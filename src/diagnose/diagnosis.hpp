@@ -13,7 +13,6 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -110,6 +109,7 @@ class Diagnosis {
   CandidateResult alongStep(const model::Model& start, const std::string& effect) const;
   void directions();
   void polish();
+  void polishFrom(const model::Model& start, const std::string& what);
   void probes();
   // diagnose_probes.cpp: the probes on top of the final model and in the place of its effects.
   enum class Placement { OnTopAndInPlace, InPlaceOnly };

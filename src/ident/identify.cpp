@@ -172,6 +172,31 @@ Bounds dataBounds(const model::Model& m, const io::Measurement& d) {
   return b;
 }
 
+std::optional<model::Model> withWeakDefaults(const model::Model& m, const io::Measurement& d, std::string* names) {
+  std::vector<std::string> held;
+  std::string said;
+  for (int e = 0; e < m.numEffects(); ++e) {
+    const auto own = m.effect(e).weaklyHeld();
+    for (size_t k = 0; k < own.size(); ++k) {
+      held.push_back(std::string(m.effect(e).name()) + "." + own[k]);
+      said += (k > 0 ? ", " : std::string(said.empty() ? "" : "; ") + m.effect(e).name() + "'s ") + own[k];
+    }
+  }
+  if (held.empty()) return std::nullopt;
+  const auto specs = m.paramSpecs();
+  const Bounds box = dataBounds(m, d);
+  auto p = m.params();
+  for (size_t i = model::kBoucWenParams; i < specs.size(); ++i) {
+    if (std::find(held.begin(), held.end(), specs[i].name) == held.end()) continue;
+    const double scale = specs[i].hi != 0.0 ? box.hi[i] / specs[i].hi : 1.0;
+    p[i] = std::clamp(specs[i].def * scale, box.lo[i], box.hi[i]);
+  }
+  model::Model r = m;
+  r.setParams(p);
+  if (names) *names = said;
+  return r;
+}
+
 FitMethod fitMethodFromString(const std::string& s) {
   if (s == "ga") return FitMethod::Ga;
   if (s == "lm") return FitMethod::MultiStart;

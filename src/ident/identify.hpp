@@ -6,6 +6,7 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -107,6 +108,12 @@ struct Bounds {
 // volts/millimetres or newtons/metres). The search vector is the model's parameter vector with
 // (k, rho) replaced by (k rho, k (1 - rho)); alpha is fixed at 1 (see bouc_wen.hpp).
 Bounds dataBounds(const model::Model& structure, const io::Measurement& data);
+
+// `m` with its effects' weakly held parameters (Effect::weaklyHeld) at the catalogue's defaults, each scaled
+// to the record by the factor its box is (dataBounds) and kept within that box; `names`, if given, says
+// which ("pneumatic_balance's span, supply, b, n"). None where no effect of `m` has such parameters.
+std::optional<model::Model> withWeakDefaults(const model::Model& m, const io::Measurement& data,
+                                             std::string* names = nullptr);
 
 // Search vector -> model parameter vector.
 void searchToModel(const std::vector<double>& x, std::vector<double>& p);

@@ -95,6 +95,12 @@ class Effect {
   virtual bool seedRest(const std::vector<double>& /*xs*/, const std::vector<double>& /*ys*/, double* /*p*/) const {
     return false;
   }
+  // Parameters the output alone holds weakly - a fit's end lies anywhere along them, and where it lies
+  // decides its basin (pneumatic_balance: the gas's law, the atmosphere and the supply in the balance's
+  // units, the flow's critical ratio, the polytropic index). Each has a unit its box scales by a factor
+  // (dataBounds). Diagnose polishes the final model once more from them at their catalogue defaults
+  // (Diagnosis::polish).
+  virtual std::vector<std::string> weaklyHeld() const { return {}; }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }
   // Whether the effect has a direction-dependent version ("<name>_updown": separate parameters for a

@@ -47,7 +47,10 @@ kill "$PL" 2>/dev/null; wait "$PL" 2>/dev/null
 # at 1 kHz has. Under software emulation a node stalls for up to 36-83 ms (the SYNC jitter these runs
 # print), and one such stall of the emulator between two encoders' PDOs put three of four channels in
 # the safe state mid-run (CI on 2026-12-01). The case under faults keeps the default.
-cat > "$W/vm_missing_limit.dcf" <<'DCF'
+# The controller's device and mandatory objects are tests/dcf/moved_pdos.dcf's (the source tree is the
+# host's, over 9p as OD is); the file info and the limit are this run's.
+{
+  cat <<'DCF'
 ; The e2e VM's missing-PDO limit: 10 SYNCs (tests/e2e/inside_vm.sh).
 [FileInfo]
 FileName=vm_missing_limit.dcf
@@ -57,69 +60,10 @@ EDSVersion=4.0
 Description=pamc controller in the e2e VM
 CreatedBy=tests/e2e/inside_vm.sh
 
-[DeviceInfo]
-VendorName=pamc project
-VendorNumber=0x00000000
-ProductName=pamc controller
-ProductNumber=0x00000001
-RevisionNumber=0x00010000
-SimpleBootUpMaster=1
-SimpleBootUpSlave=1
-Granularity=8
-NrOfRXPDO=2
-NrOfTXPDO=1
-
-[DeviceComissioning]
-NodeID=1
-NodeName=pamc controller
-Baudrate=1000
-CANopenManager=1
-
-[MandatoryObjects]
-SupportedObjects=3
-1=0x1000
-2=0x1001
-3=0x1018
-
-[1000]
-ParameterName=Device type
-ObjectType=0x7
-DataType=0x0007
-AccessType=ro
-ParameterValue=0x00100194
-
-[1001]
-ParameterName=Error register
-ObjectType=0x7
-DataType=0x0005
-AccessType=ro
-
-[1018]
-ParameterName=Identity object
-ObjectType=0x9
-SubNumber=3
-
-[1018sub0]
-ParameterName=Highest sub-index supported
-ObjectType=0x7
-DataType=0x0005
-AccessType=ro
-
-[1018sub1]
-ParameterName=Vendor-ID
-ObjectType=0x7
-DataType=0x0007
-AccessType=ro
-ParameterValue=0x00000000
-
-[1018sub2]
-ParameterName=Product code
-ObjectType=0x7
-DataType=0x0007
-AccessType=ro
-ParameterValue=0x00000001
-
-
+DCF
+  awk '/^\[/ { keep = ($0 ~ /^\[(DeviceInfo|DeviceComissioning|MandatoryObjects|1000|1001|1018(sub[0-9]+)?)\]$/) }
+       keep && !/^;/' "$OD/../tests/dcf/moved_pdos.dcf"
+  cat <<'DCF'
 [ManufacturerObjects]
 SupportedObjects=1
 1=0x2021
@@ -135,6 +79,7 @@ PDOMapping=0
 LowLimit=1
 HighLimit=255
 DCF
+} > "$W/vm_missing_limit.dcf"
 
 # Slaves that another master started and left scrambled - SDO writes with can-utils' cansend, as any
 # tool could make them - and then the controller, which must check and configure them before anything

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "../common/effect_alone.hpp"
+#include "ident/identify.hpp"
 #include "model/model.hpp"
 
 using namespace pamc;
@@ -194,4 +195,40 @@ TEST(PneumaticBalance, AlongItsDirectionTheRestsStay) {
   const auto f = alone("pneumatic_balance", flat);
   std::vector<double> p(f.effectParams(0), f.effectParams(0) + f.effect(0).params().size());
   EXPECT_FALSE(f.effect(0).scaleAlong(2.0, 0.0, 30.0, p.data()));
+}
+
+// The gas's law is what the position holds weakly (Effect::weaklyHeld): diagnose polishes its final model
+// once more from it at the catalogue's defaults, scaled to the record as their boxes are (docs/MODELING.md,
+// "The gas's law from its defaults"). The rest of the model stays; a model without such an effect has none.
+TEST(PneumaticBalance, ItsGasLawStartsAgainFromTheDefaultsScaledToTheRecord) {
+  const auto m =
+      alone("pneumatic_balance",
+            {{"span", 300.0}, {"supply", 500.0}, {"b", 0.9}, {"n", 1.0}, {"w", 20.0}, {"fn", 7.0}, {"rate", 900.0}});
+  io::Measurement d;  // 80 mm over 7.5 V: twice the catalogue's 40 mm rig
+  d.Ts = kTs;
+  for (int i = 0; i < 1000; ++i) {
+    d.t.push_back(i * kTs);
+    d.u.push_back(-3.5 + 7.5 * i / 999.0);
+    d.y.push_back(80.0 * i / 999.0);
+  }
+  std::string names;
+  const auto r = ident::withWeakDefaults(m, d, &names);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(names, "pneumatic_balance's span, supply, b, n");
+  const auto value = [](const model::Model& x, const std::string& name) -> double {
+    const auto specs = x.paramSpecs();
+    const auto p = x.params();
+    for (size_t i = 0; i < specs.size(); ++i)
+      if (specs[i].name == "pneumatic_balance." + name) return p[i];
+    ADD_FAILURE() << name;
+    return std::nan("");
+  };
+  EXPECT_DOUBLE_EQ(value(*r, "span"), 25.0 * 2.0);  // the atmosphere and the supply in the record's units
+  EXPECT_DOUBLE_EQ(value(*r, "supply"), 200.0 * 2.0);
+  EXPECT_DOUBLE_EQ(value(*r, "b"), 0.3);
+  EXPECT_DOUBLE_EQ(value(*r, "n"), 1.2);
+  for (const char* kept : {"w", "fn", "rate", "band", "vent", "swell"})
+    EXPECT_EQ(value(*r, kept), value(m, kept)) << kept;
+  EXPECT_EQ(r->core().k, m.core().k);
+  EXPECT_FALSE(ident::withWeakDefaults(alone("muscle_balance", {}), d).has_value());
 }
