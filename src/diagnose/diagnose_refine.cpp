@@ -403,6 +403,7 @@ std::optional<Rung> Diagnosis::tryRefinement(const std::string& effect, const st
   }
   if (!searchAlong(c, richer) && !absorbing) searchByGa(c, base);
   refitIfBetter(c);
+  if (1.0 - c.rmse_val / cur.rmse_val < s_.min_gain) restartWeak(c);
   log("  " + effect + " as " + richer + ": validation " + fmt("%.5g", c.rmse_val) + " (was " +
       fmt("%.5g", cur.rmse_val) + ")");
   Rung r;
@@ -418,6 +419,15 @@ std::optional<Rung> Diagnosis::tryRefinement(const std::string& effect, const st
   r.replaced_by = richer;
   r.refined = true;
   return r;
+}
+
+// A pneumatic form that has not gained min_gain once more from its weakly held parameters at their defaults
+// (Effect::weaklyHeld, as the final model's second polish): the paper's u0 at seed 3 then reaches
+// pneumatic_balance (docs/MODELING.md, "The gas's law from its defaults").
+void Diagnosis::restartWeak(CandidateResult& c) const {
+  std::string which;
+  if (const auto start = ident::withWeakDefaults(c.model, train_, &which))
+    polishFrom(*start, "  " + c.effect + " with " + which + " from their defaults", c.model, c.rmse_train, c.rmse_val);
 }
 
 // The final model with `effect` in its direction-dependent version, both parameter sets at its fit.

@@ -65,23 +65,28 @@ ident::FitResult Diagnosis::refitOn(const model::Model& m, const io::Measurement
 void Diagnosis::polish() {
   Rung& fin = res_.ladder.back();
   if (noise_ > 0 && fin.rmse_val < kAtNoise * noise_) return;
-  polishFrom(fin.model, "");
+  const std::string name = "polish: " + join(fin.effects) + " past the damping";
+  polishFrom(model::Model(fin.model), name, fin.model, fin.rmse_train, fin.rmse_val);
   std::string which;
   if (const auto restarted = ident::withWeakDefaults(fin.model, train_, &which))
-    polishFrom(*restarted, ", " + which + " from their defaults");
+    polishFrom(*restarted, name + ", " + which + " from their defaults", fin.model, fin.rmse_train, fin.rmse_val);
 }
 
-// One polish of the final rung from `start`, kept where it validates better.
-void Diagnosis::polishFrom(const model::Model& start, const std::string& what) {
-  Rung& fin = res_.ladder.back();
+// One Levenberg-Marquardt run on all the training samples from `start`, past the grown damping, taken into
+// (m, rmse_train, rmse_val) where it validates better and trains no worse (a start away from m that the run
+// cannot leave is no fit: at seed 3 of u0 such a one, trained at 0.089 mm against 0.035, validated 3 %
+// better); logged as `what`.
+void Diagnosis::polishFrom(const model::Model& start, const std::string& what, model::Model& m, double& rmse_train,
+                           double& rmse_val) const {
   ident::FitSettings ps = singleRun(1e-7);
   ps.lm_undamped_check = true;
   const auto t = std::chrono::steady_clock::now();
   const auto f = ident::fit(start, train_, ps, {}, &start);
   const double rv = v_.rmse(f.model);
-  log("polish: " + join(fin.effects) + " past the damping" + what + ": train " + fmt("%.5g", f.rmse) + " validation " +
-      fmt("%.5g", rv) + " (was " + fmt("%.5g", fin.rmse_val) + ", " + fmt("%.1f", seconds(t)) + " s)");
-  if (rv < fin.rmse_val) fin.model = f.model, fin.rmse_train = f.rmse, fin.rmse_val = rv;
+  const double was_train = ident::rmseFrom(m, train_);  // the rung's own may be the screening record's
+  log(what + ": train " + fmt("%.5g", f.rmse) + " validation " + fmt("%.5g", rv) + " (was " + fmt("%.5g", rmse_val) +
+      ", " + fmt("%.1f", seconds(t)) + " s)");
+  if (rv < rmse_val && f.rmse <= was_train) m = f.model, rmse_train = f.rmse, rmse_val = rv;
 }
 
 // A fit taken into the ladder: refitted on all the training samples, the refit kept unless it

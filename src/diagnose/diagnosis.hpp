@@ -109,7 +109,9 @@ class Diagnosis {
   CandidateResult alongStep(const model::Model& start, const std::string& effect) const;
   void directions();
   void polish();
-  void polishFrom(const model::Model& start, const std::string& what);
+  void polishFrom(const model::Model& start, const std::string& what, model::Model& m, double& rmse_train,
+                  double& rmse_val) const;
+  void restartWeak(CandidateResult& c) const;
   void probes();
   // diagnose_probes.cpp: the probes on top of the final model and in the place of its effects.
   enum class Placement { OnTopAndInPlace, InPlaceOnly };

@@ -99,7 +99,7 @@ class Effect {
   // decides its basin (pneumatic_balance: the gas's law, the atmosphere and the supply in the balance's
   // units, the flow's critical ratio, the polytropic index). Each has a unit its box scales by a factor
   // (dataBounds). Diagnose polishes the final model once more from them at their catalogue defaults
-  // (Diagnosis::polish).
+  // (Diagnosis::polish), and so a refinement to the effect that does not gain (Diagnosis::restartWeak).
   virtual std::vector<std::string> weaklyHeld() const { return {}; }
   // Whether the effect reads StepContext::load (the data must then carry a load column).
   virtual bool needsLoad() const { return false; }

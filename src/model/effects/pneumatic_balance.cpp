@@ -114,8 +114,9 @@ class PneumaticBalance final : public MuscleBalance {
     }();
     return p;
   }
-  // The gas's law: what the position sees of it is how fast the pressure moves between the supply and the
-  // atmosphere, which many sets of these give alike (docs/MODELING.md, "The gas's law from its defaults").
+  // The gas's law: the position sees of it only how fast the pressure moves between the supply and the
+  // atmosphere, and fits on one record end far apart in it (docs/MODELING.md, "The gas's law from its
+  // defaults").
   std::vector<std::string> weaklyHeld() const override { return {"span", "supply", "b", "n"}; }
   // Along the direction muscle_balance's static map leaves open: with a2 small, the balance's rest
   // in + (in + w) a1 y = y keeps its shape for in scaled by s when 1 - a1 w scales by s as well; the
