@@ -61,7 +61,7 @@ ident::FitResult Diagnosis::refitOn(const model::Model& m, const io::Measurement
 // whole stroke ended worse at seeds 1 and 2. Then once more from the parameters the output holds weakly at
 // their defaults (Effect::weaklyHeld): the ladder's path leaves them wherever its basin did (the oracle's
 // guide case: 10.75x -> 5.61x the noise, docs/MODELING.md "The gas's law from its defaults"). Each kept
-// where it validates better; the rung keeps its structure.
+// where it validates better and trains no worse (polishFrom); the rung keeps its structure.
 void Diagnosis::polish() {
   Rung& fin = res_.ladder.back();
   if (noise_ > 0 && fin.rmse_val < kAtNoise * noise_) return;

@@ -13,9 +13,9 @@ InverseFold inverseFold(const Model& m, double u_lo, double u_hi) {
   InverseFold f;
   // The core's input range: the commands through the input effects at rest. Their dynamics (pressure_lag)
   // are left out: swept, a lag's input goes on past each reversal of the command, which is no fold.
-  double e_lo = 0.0, e_hi = 0.0, y_rest = 0.0;
-  e_lo = m.simulateInput(&u_lo, nullptr, 1, kTs, &y_rest);
-  e_hi = m.simulateInput(&u_hi, nullptr, 1, kTs, &y_rest);
+  double first = 0.0;  // simulateInput's one sample, not used: its return value is the input at rest
+  double e_lo = m.simulateInput(&u_lo, nullptr, 1, kTs, &first);
+  double e_hi = m.simulateInput(&u_hi, nullptr, 1, kTs, &first);
   if (e_lo > e_hi) std::swap(e_lo, e_hi);
   if (!(e_hi > e_lo)) return f;
   const std::size_t n = 4 * kBranch + 1;  // up, down, up, down
