@@ -456,10 +456,18 @@ std::string Diagnosis::offsetText(bool val_off) const {
     std::string t = train_err + at_noise + ", but the validated error is " + fmt("%.0f", fin.rmse_val / noise_) +
                     "x it: the model holds on the training record and not on the validation record.";
     const double share = res_.val_offset * res_.val_offset / std::max(fin.rmse_val * fin.rmse_val, 1e-300);
+    const std::string of_square = " (" + fmt("%.0f", 100 * share) + " % of its mean square)";
+    const OffsetCourse& c = res_.val_offset_course;
+    if (share >= kOffsetShare && c.buildsUp())
+      return t + " There it is off by " + fmt("%.3g", res_.val_offset) + " on average" + of_square +
+             ", but not from its start: " + fmt("%.3g", c.head) + " over its first tenth, " + fmt("%.3g", c.tail) +
+             " over its second half. The model comes to settle elsewhere than the muscle on that input - a level, "
+             "an amplitude or a loop of the hysteresis that the training record did not hold (a minor loop within "
+             "its range, say) - rather than the records starting in different states. Train on a record that holds "
+             "the validation record's kind of moves as well (docs/MODELING.md, \"Designing a record\").";
     if (share >= kOffsetShare)
-      return t + " There it is off by a nearly constant " + fmt("%.3g", res_.val_offset) + " (" +
-             fmt("%.0f", 100 * share) +
-             " % of its mean square): the records start in different states - a warm-up or a drift already under "
+      return t + " There it is off by a nearly constant " + fmt("%.3g", res_.val_offset) + of_square +
+             ": the records start in different states - a warm-up or a drift already under "
              "way at one of them, or a sensor zero that moved between them - which a fit on one record cannot tell "
              "from the model's own offset and gain. Record from a known start (a cold muscle, a zeroed sensor)" +
              std::string(val_ ? ", or validate on a later part of the same record (without --validate)." : ".");

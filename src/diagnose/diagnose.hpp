@@ -98,6 +98,7 @@ struct DiagnoseResult {
   ResidualReport baseline_residual, final_residual;  // on the training data
   ResidualSpectrum spectrum;                         // of the final model's residual on the training data
   double val_offset = 0;                             // mean of measured - final model on the validation data
+  OffsetCourse val_offset_course;                    // ... over its first tenth and its second half
   std::string verdict;
   double seconds = 0;
 };

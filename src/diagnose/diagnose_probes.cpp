@@ -58,9 +58,12 @@ void Diagnosis::probes() {
   }
   {
     const auto yv = simulate(fin.model, *v_.data);
+    std::vector<double> e;
+    for (size_t i = v_.from; i < yv.size(); ++i) e.push_back(v_.data->y[i] - yv[i]);
     double sum = 0.0;
-    for (size_t i = v_.from; i < yv.size(); ++i) sum += v_.data->y[i] - yv[i];
-    res_.val_offset = yv.size() > v_.from ? sum / static_cast<double>(yv.size() - v_.from) : 0.0;
+    for (double x : e) sum += x;
+    res_.val_offset = e.empty() ? 0.0 : sum / static_cast<double>(e.size());
+    res_.val_offset_course = offsetCourse(e.data(), e.size());
   }
   if (!s_.probes) return;
   if (fin.rmse_val < kAtNoise * noise_) return alternativesAtTheNoise(fin);

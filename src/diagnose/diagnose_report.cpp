@@ -24,6 +24,8 @@ nlohmann::json toJson(const DiagnoseResult& r) {
   j["validation"] = r.validation;
   j["baseline"] = {{"rmse_train", r.ladder.front().rmse_train}, {"rmse_val", r.ladder.front().rmse_val}};
   j["validation_offset"] = r.val_offset;  // mean of measured - final model there
+  j["validation_offset_course"] = {{"first_tenth", r.val_offset_course.head},
+                                   {"second_half", r.val_offset_course.tail}};
   nlohmann::json c = nlohmann::json::array();
   if (!r.rounds.empty())
     for (const auto& x : r.rounds.front())

@@ -370,4 +370,17 @@ std::string formatReport(const ResidualReport& r) {
   return o.str();
 }
 
+OffsetCourse offsetCourse(const double* e, size_t n) {
+  const auto mean = [e](size_t from, size_t to) {
+    double sum = 0.0;
+    for (size_t i = from; i < to; ++i) sum += e[i];
+    return to > from ? sum / static_cast<double>(to - from) : 0.0;
+  };
+  OffsetCourse c;
+  if (n < 20) return c;
+  c.head = mean(0, n / 10);
+  c.tail = mean(n / 2, n);
+  return c;
+}
+
 }  // namespace pamc::diagnose

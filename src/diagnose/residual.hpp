@@ -45,4 +45,16 @@ Evidence effectEvidence(const std::string& effect, const ResidualReport& r);
 // The breakdown as a text table.
 std::string formatReport(const ResidualReport& r);
 
+// How an offset between a model and a record runs over the record: its mean over the record's first tenth
+// and over its second half. Records that start in different states (a sensor zero moved, a warm-up already
+// under way) show the offset from the first samples on; a model that settles elsewhere than the muscle on
+// the record's input (a loop of the hysteresis the training record did not hold) comes to it over the
+// record.
+struct OffsetCourse {
+  double head = 0.0, tail = 0.0;  // mean of e over the first tenth, over the second half
+  // The offset builds up: its second half's mean at least twice its first tenth's (or of the other sign).
+  bool buildsUp() const noexcept { return tail != 0.0 && head * tail < 0.5 * tail * tail; }
+};
+OffsetCourse offsetCourse(const double* e, size_t n);
+
 }  // namespace pamc::diagnose

@@ -104,6 +104,36 @@ TEST(Diagnose, AnOffsetBetweenTheRecordsIsNamed) {
   EXPECT_NE(r.verdict.find("without --validate"), std::string::npos) << r.verdict;  // a validation file was given
   EXPECT_EQ(r.verdict.find("nothing systematic is left"), std::string::npos) << r.verdict;
   EXPECT_NEAR(diagnose::toJson(r)["validation_offset"].get<double>(), r.val_offset, 1e-12);
+  // There from the validation record's start on: not an offset that builds up.
+  EXPECT_FALSE(r.val_offset_course.buildsUp()) << r.val_offset_course.head << " " << r.val_offset_course.tail;
+  EXPECT_EQ(diagnose::toJson(r)["validation_offset_course"]["second_half"].get<double>(), r.val_offset_course.tail);
+}
+
+// An offset present from the record's first samples (records that start in different states) against one
+// the model comes to over the record (it settles elsewhere than the muscle on the record's input: the paper's
+// u0 -> u1 on the calibrated physics plant, docs/MODELING.md).
+TEST(Diagnose, AnOffsetThatBuildsUpOverTheRecordIsToldFromOneAtItsStart) {
+  const size_t n = 4000;
+  std::vector<double> constant(n), rising(n), fading(n), turning(n), none(n);
+  for (size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) / n, wiggle = 0.01 * std::sin(0.05 * static_cast<double>(i));
+    constant[i] = -0.2 + wiggle;
+    rising[i] = -0.04 * (1.0 - std::exp(-t / 0.15)) + wiggle;  // the model settling over the first third
+    fading[i] = -0.2 * std::exp(-t / 0.3) - 0.05 + wiggle;     // a warm-up under way at the start
+    turning[i] = t < 0.3 ? 0.03 : -0.04;                       // of the other sign at first
+    none[i] = wiggle;
+  }
+  const auto c = diagnose::offsetCourse(constant.data(), n);
+  EXPECT_NEAR(c.head, -0.2, 0.01);
+  EXPECT_NEAR(c.tail, -0.2, 0.01);
+  EXPECT_FALSE(c.buildsUp());
+  const auto r = diagnose::offsetCourse(rising.data(), n);
+  EXPECT_GT(r.head, 0.5 * r.tail);  // both negative: the first tenth's under half the second half's
+  EXPECT_TRUE(r.buildsUp());
+  EXPECT_FALSE(diagnose::offsetCourse(fading.data(), n).buildsUp());
+  EXPECT_TRUE(diagnose::offsetCourse(turning.data(), n).buildsUp());
+  EXPECT_FALSE(diagnose::offsetCourse(constant.data(), 10).buildsUp());  // too short to tell
+  EXPECT_NEAR(diagnose::offsetCourse(none.data(), n).tail, 0.0, 0.01);
 }
 
 TEST(Diagnose, TwoHiddenEffectsAreBothAdded) {
