@@ -118,7 +118,7 @@ TEST(Diagnose, AnOffsetThatBuildsUpOverTheRecordIsToldFromOneAtItsStart) {
   for (size_t i = 0; i < n; ++i) {
     const double t = static_cast<double>(i) / n, wiggle = 0.01 * std::sin(0.05 * static_cast<double>(i));
     constant[i] = -0.2 + wiggle;
-    rising[i] = -0.04 * (1.0 - std::exp(-t / 0.15)) + wiggle;  // the model settling over the first third
+    rising[i] = -0.04 * (1.0 - std::exp(-t / 0.15)) + wiggle;  // the model settling over the first half
     fading[i] = -0.2 * std::exp(-t / 0.3) - 0.05 + wiggle;     // a warm-up under way at the start
     turning[i] = t < 0.3 ? 0.03 : -0.04;                       // of the other sign at first
     none[i] = wiggle;
