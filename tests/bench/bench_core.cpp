@@ -167,4 +167,33 @@ BENCHMARK_CAPTURE(BM_SimulateBalance, force_loop, "force_loop")->Unit(benchmark:
 BENCHMARK_CAPTURE(BM_SimulateBalance, muscle_balance, "muscle_balance")->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_SimulateBalance, pneumatic_balance, "pneumatic_balance")->Unit(benchmark::kMicrosecond);
 
+// Two models of one structure (k apart by 1e-4, as a Jacobian's columns are) stepped in turn, sample by
+// sample, on one thread: what a fit would gain by simulating its columns in lockstep (docs/PERFORMANCE.md,
+// "diagnose on the whole stroke"). Against two runs of BM_SimulateBalance.
+static void BM_SimulateBalancePair(benchmark::State& state, const char* effect) {
+  model::Model m = paperLikeModel();
+  m.addEffect(effect);
+  model::Model m2 = m;
+  m2.core().k *= 1.0001;
+  const Excitation input(0.5, 2.5, 3, 0.8, 41);
+  std::vector<double> u(Excitation::kLength), y(u.size()), y2(u.size());
+  for (std::size_t k = 0; k < u.size(); ++k) u[k] = input[k];
+  for (auto _ : state) {
+    model::Model::State s1, s2;
+    model::StepContext c;
+    c.Ts = 1e-3;
+    m.init(s1, u[0], c);
+    m2.init(s2, u[0], c);
+    for (std::size_t i = 0; i < u.size(); ++i) {
+      y[i] = m.step(s1, u[i], c);
+      y2[i] = m2.step(s2, u[i], c);
+    }
+    benchmark::DoNotOptimize(y.data());
+    benchmark::DoNotOptimize(y2.data());
+  }
+}
+BENCHMARK_CAPTURE(BM_SimulateBalancePair, force_loop, "force_loop")->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_SimulateBalancePair, muscle_balance, "muscle_balance")->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_SimulateBalancePair, pneumatic_balance, "pneumatic_balance")->Unit(benchmark::kMicrosecond);
+
 BENCHMARK_MAIN();
