@@ -74,10 +74,9 @@ struct MbcSettings {
   // held no steps, and one too fast overshot a square wave by 44 % (docs/CONTROL.md). 0: the fixed limits.
   double pace_share = 0.25;
   // The fixed limits: the most the governor asks of any muscle. rate_mm_s 0: no governor, the setpoint as it
-  // is. Chosen on the square wave of two plants (docs/CONTROL.md, "The governor and the model's pace"): the
-  // rate bounds the overshoot of a model whose dynamics are wrong; the acceleration reaches it in 33 ms.
+  // is. Chosen on the square wave of two plants (docs/CONTROL.md).
   double rate_mm_s = 60.0;
-  double accel_mm_s2 = 1800.0;
+  double accel_mm_s2 = 600.0;
 };
 
 // The PID + ESO's observer: the plant it assumes (docs/CONTROL.md). order 2 (default): the paper's,
