@@ -100,6 +100,12 @@ void ControllerOptions::addStructure(CLI::App* a) {
                 "MBC: the setpoint governor's acceleration [mm/s^2] (a slower model's pace lowers it)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  a->add_option("--mbc-accel-carried", cc.mbc.accel_carried_mm_s2,
+                "MBC: the setpoint governor's acceleration [mm/s^2] while the model carries the loop (its feedforward "
+                "on and the PI's integral within 1 % of the command's span over the last 10 s; a slower model's "
+                "pace lowers it; at most --mbc-accel: off)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   a->add_option("--model", model_file, "identified model (JSON) for the AMC's and MBC's UKF and the open loop");
 }
 

@@ -188,16 +188,18 @@ model::Interval mbcCommandRange(const ControllerConfig& c) {
 }
 
 GovernorLimits mbcGovernor(const ControllerConfig& c) {
-  if (!(c.mbc.rate_mm_s > 0.0)) return {0.0, c.mbc.accel_mm_s2, false, {}};
+  const double carried = std::max(c.mbc.accel_carried_mm_s2, c.mbc.accel_mm_s2);
+  if (!(c.mbc.rate_mm_s > 0.0)) return {0.0, c.mbc.accel_mm_s2, carried, false, {}};
   if (c.mbc.pace_share > 0.0) {
     const model::Interval u = mbcCommandRange(c);
     const ModelPace p = modelPace(c.model, u.lo, u.hi);
     const double rate = c.mbc.pace_share * p.speed, accel = c.mbc.pace_share * p.accel;
-    if (p.speed > 0.0 && p.accel > 0.0 && (rate < c.mbc.rate_mm_s || accel < c.mbc.accel_mm_s2))
-      return {std::min(rate, c.mbc.rate_mm_s), std::min(accel, c.mbc.accel_mm_s2), true, p};
-    return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, false, p};
+    if (!(p.speed > 0.0 && p.accel > 0.0)) return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, carried, false, p};
+    const bool lowered = rate < c.mbc.rate_mm_s || accel < c.mbc.accel_mm_s2;
+    return {std::min(rate, c.mbc.rate_mm_s), std::min(accel, c.mbc.accel_mm_s2),
+            std::max(std::min(accel, carried), std::min(accel, c.mbc.accel_mm_s2)), lowered, p};
   }
-  return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, false, {}};
+  return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, carried, false, {}};
 }
 
 int amcHorizon(const ControllerConfig& c) {
@@ -224,6 +226,8 @@ void validate(const ControllerConfig& c) {
   if (!(c.mbc.error_tau_s > 0.0) || !std::isfinite(c.mbc.error_tau_s)) bad("mbc_error_tau_s must be positive");
   if (!(c.mbc.rate_mm_s >= 0.0) || !std::isfinite(c.mbc.rate_mm_s)) bad("mbc_rate_mm_s must be 0 (off) or positive");
   if (!(c.mbc.accel_mm_s2 > 0.0) || !std::isfinite(c.mbc.accel_mm_s2)) bad("mbc_accel_mm_s2 must be positive");
+  if (!(c.mbc.accel_carried_mm_s2 > 0.0) || !std::isfinite(c.mbc.accel_carried_mm_s2))
+    bad("mbc_accel_carried_mm_s2 must be positive");
   if (!(c.mbc.pace_share >= 0.0 && c.mbc.pace_share <= 1.0)) bad("mbc_pace_share must be in [0, 1]");
   if (c.mbc.horizon > 0 && c.mbc.horizon <= c.delay_cycles)
     bad("mbc_horizon must be above delay_cycles (the command must act within the horizon)");

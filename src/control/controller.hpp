@@ -77,6 +77,14 @@ struct MbcSettings {
   // is. Chosen on the square wave of two plants (docs/CONTROL.md).
   double rate_mm_s = 60.0;
   double accel_mm_s2 = 600.0;
+  // The acceleration while the model carries the loop - its feedforward on, and the PI's integral, the part of
+  // the command it did not predict, within carried_share of the command's span over the last carried_tau_s
+  // seconds (a peak that decays) - within the same share of the model's pace. A model that carries the loop
+  // is followed at its own pace; one the PI has to correct is not asked to brake a payload it mispredicts
+  // (docs/CONTROL.md, "The governor and the model's pace"). At most accel_mm_s2 - the same - turns it off.
+  double accel_carried_mm_s2 = 1800.0;
+  double carried_share = 0.01;
+  double carried_tau_s = 10.0;
 };
 
 // The PID + ESO's observer: the plant it assumes (docs/CONTROL.md). order 2 (default): the paper's,
@@ -149,6 +157,9 @@ struct ControlOutput {
   // move as the muscle does, by this ratio of the muscle's motion to the model's (NaN for the others).
   bool model_distrusted = false;
   double model_ratio = NAN;
+  // The MBC's setpoint governor's acceleration this cycle [mm/s^2]: the faster one while its model carries the
+  // loop (MbcSettings::accel_carried_mm_s2; NaN for the others).
+  double governor_accel = NAN;
 };
 
 class Controller {
@@ -198,6 +209,7 @@ ModelPace modelPace(const model::Model& m, double u_lo, double u_hi);
 // below it (from_model: one of them was).
 struct GovernorLimits {
   double rate_mm_s = 0.0, accel_mm_s2 = 1.0;
+  double accel_carried_mm_s2 = 1.0;  // while the model carries the loop (MbcSettings), at least accel_mm_s2
   bool from_model = false;
   ModelPace pace;  // the model's (0 and 0 where it has none or pace_share is 0)
 };

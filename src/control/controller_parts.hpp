@@ -49,6 +49,12 @@ class SetpointGovernor {
   void configure(double rate_mm_s, double accel_mm_s2, double Ts, double ramp_mm_s = 0.0) noexcept {
     rate_ = rate_mm_s, accel_ = accel_mm_s2, Ts_ = Ts, ramp_ = std::max(ramp_mm_s, rate_mm_s);
   }
+  // The acceleration of what follows: a higher one at once (braking only gets easier), a lower one once the
+  // follower is nearly at rest (mid-move it could no longer brake onto the target at the lower one).
+  void setAccel(double accel_mm_s2) noexcept {
+    if (accel_mm_s2 >= accel_ || std::fabs(v_) <= accel_mm_s2 * Ts_) accel_ = accel_mm_s2;
+  }
+  double accel() const noexcept { return accel_; }
   // At y at rest; a non-finite y starts it at the first target.
   void reset(double y) noexcept {
     r_ = prev_ = y;

@@ -91,8 +91,9 @@ class Mbc final : public detail::PiBased {
         ff_(mbcCommandRange(c)) {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
-    const GovernorLimits g = mbcGovernor(c);
-    governor_.configure(g.rate_mm_s, g.accel_mm_s2, c.Ts, c.mbc.rate_mm_s);  // lowered, it still passes ramps
+    limits_ = mbcGovernor(c);
+    governor_.configure(limits_.rate_mm_s, limits_.accel_mm_s2, c.Ts, c.mbc.rate_mm_s);  // lowered, it passes ramps
+    doubt_decay_ = std::exp(-c.Ts / c.mbc.carried_tau_s);
     monitor_.configure(c.Ts, kMonitorTau, kMonitorSpan);
   }
   Kind kind() const override { return Kind::Mbc; }
@@ -115,6 +116,8 @@ class Mbc final : public detail::PiBased {
     recover_ = 0;
     gain_ = sign_;
     governor_.reset(y0);
+    governor_.configure(limits_.rate_mm_s, limits_.accel_mm_s2, cfg_.Ts, cfg_.mbc.rate_mm_s);
+    doubt_ = 0.0;
     governed_.fill(std::isfinite(y0) ? y0 : NAN);
   }
 
@@ -130,6 +133,7 @@ class Mbc final : public detail::PiBased {
     ctx_.load = load;
     if (!lost) followMiss(est);
     watchResponse(y, o.measurement_rejected);
+    governor_.setAccel(carried() ? limits_.accel_carried_mm_s2 : limits_.accel_mm_s2);
     const double r = governor_.step(yd_ahead);
     governed_.push(r);
     const double ff = feedforward(r - miss_);
@@ -148,8 +152,10 @@ class Mbc final : public detail::PiBased {
     o.u_c = ff_on_ ? u_ff_ : 0.0;
     o.model_distrusted = !monitor_.trusted();
     o.model_ratio = monitor_.ratio();
+    o.governor_accel = governor_.accel();
     o.u = pi_.finish(un, o.u_c, o.saturated, o.u_n);
     hist_.push(o.u);
+    doubt_ = std::max(ff_on_ ? std::fabs(pi_.integral()) : cfg_.u_max - cfg_.u_min, doubt_ * doubt_decay_);
     return o;
   }
   const estimation::ActiveModel* activeModel() const noexcept override { return &am_; }
@@ -218,6 +224,12 @@ class Mbc final : public detail::PiBased {
       monitor_.step(y_act, y);
   }
 
+  // The model carries the loop: its feedforward on, the muscle moving as it says, and the PI's integral - the
+  // part of the command the model did not predict - within carried_share of the command's span lately.
+  bool carried() const noexcept {
+    return ff_on_ && monitor_.trusted() && doubt_ <= cfg_.mbc.carried_share * (cfg_.u_max - cfg_.u_min);
+  }
+
   // The reference model takes the feedforward that reaches its effect now (sent delay_cycles + 1 ago).
   void advanceReference(double ff) noexcept {
     ff_hist_.push(ff);
@@ -253,6 +265,9 @@ class Mbc final : public detail::PiBased {
   estimation::ActiveModel am_;
   detail::CommandHistory ff_hist_;  // the feedforwards sent, the reference model's input
   detail::SetpointGovernor governor_;
+  GovernorLimits limits_;
+  double doubt_ = 0.0;          // the PI integral's magnitude, a peak decaying by doubt_decay_ a cycle
+  double doubt_decay_ = 1.0;    // exp(-Ts / carried_tau_s)
   detail::DelayLine governed_;  // the governed setpoint ahead, r(k), of the last cycles
   model::Model::State ref_;     // the reference model: the model driven by the feedforward alone
   model::Model::State act_;     // the model driven by the commands in effect (the monitor's)

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -277,134 +278,230 @@ OptResult nelderMead(const CostFn& f, const std::vector<double>& x0, const std::
   return r;
 }
 
+namespace {
+
+// One bounded Levenberg-Marquardt run (levenbergMarquardt below). Its parameters live in the unit box
+// g in [0,1]^n of the free ones; `step()` is one iteration: the Jacobian, the normal equations and the
+// damping's ladder.
+class LmRun {
+ public:
+  LmRun(const ResidualFn& f, size_t m, const std::vector<double>& x0, const std::vector<double>& lo,
+        const std::vector<double>& hi, int threads, int worker, double rel_tol, bool undamped_check)
+      : f_(f), m_(m), x0_(x0), lo_(lo), hi_(hi), rel_tol_(rel_tol), undamped_check_(undamped_check) {
+    for (size_t i = 0; i < x0.size(); ++i)
+      if (hi[i] > lo[i]) free_.push_back(i);
+    n_ = static_cast<int>(free_.size());
+    g_.resize(n_);
+    for (int k = 0; k < n_; ++k) {
+      const size_t i = free_[static_cast<size_t>(k)];
+      g_(k) = std::clamp((x0[i] - lo[i]) / (hi[i] - lo[i]), 0.0, 1.0);
+    }
+    threads = std::max(1, threads);
+    main_worker_ = threads == 1 ? worker : 0;
+    threads_ = std::max(1, std::min(threads, n_));
+    r_.resize(m);
+    trial_r_.assign(2, std::vector<double>(m));
+    f_(toX(g_), r_, main_worker_);
+    ++evaluations_;
+    c_ = cost(r_);
+  }
+
+  int freeCount() const { return n_; }
+  int evaluations() const { return evaluations_; }
+  double bestCost() const { return c_; }
+  std::vector<double> bestX() const { return toX(g_); }
+
+  // One iteration. Returns false when the run is over: converged, or no rung of the ladder lowered the cost.
+  bool step() {
+    jacobian();
+    if (!normalEquations()) return false;
+    return descend();
+  }
+
+ private:
+  static constexpr double kLambda0 = 1e-3;  // the damping a run starts with: nearly Gauss-Newton's step
+  static constexpr double kDiff = 1e-6;     // the finite differences' step in the unit box
+
+  // A rung of the damping's ladder: its damping, and the point its step reaches (empty: not finite).
+  struct Rung {
+    double lam = 0;
+    bool undamped = false;
+    Eigen::VectorXd g;
+  };
+
+  std::vector<double> toX(const Eigen::VectorXd& g) const {
+    std::vector<double> x = x0_;
+    for (int k = 0; k < n_; ++k) {
+      const size_t i = free_[static_cast<size_t>(k)];
+      x[i] = lo_[i] + std::clamp(g(k), 0.0, 1.0) * (hi_[i] - lo_[i]);
+    }
+    return x;
+  }
+
+  double cost(const std::vector<double>& v) const {
+    double s = 0;
+    for (double e : v) s += e * e;
+    return std::isfinite(s) ? s / static_cast<double>(m_) : std::numeric_limits<double>::max();
+  }
+
+  // Jacobian columns by forward (or, at the upper bound, backward) differences, each column taken by the
+  // next free worker: a column reruns only the stages its parameter enters, so their costs differ.
+  void jacobian() {
+    cols_.resize(static_cast<size_t>(n_), std::vector<double>(m_));
+    steps_.resize(static_cast<size_t>(n_));
+    std::atomic<int> next{0};
+    auto work = [&](int w) {
+      for (int k = next++; k < n_; k = next++) {
+        Eigen::VectorXd gp = g_;
+        const double st = g_(k) + kDiff <= 1.0 ? kDiff : -kDiff;
+        gp(k) += st;
+        steps_[static_cast<size_t>(k)] = st;
+        f_(toX(gp), cols_[static_cast<size_t>(k)], w);
+      }
+    };
+    if (threads_ == 1) {
+      work(main_worker_);
+    } else {
+      std::vector<std::thread> ts;
+      for (int w = 1; w < threads_; ++w) ts.emplace_back(work, w);
+      work(0);
+      for (auto& t : ts) t.join();
+    }
+    evaluations_ += n_;
+  }
+
+  // The derivatives into one column-major matrix, then the normal equations by Eigen's blocked,
+  // vectorised products (a scalar loop per pair of columns cost as much as the simulations).
+  bool normalEquations() {
+    J_.resize(static_cast<Eigen::Index>(m_), n_);
+    for (int a = 0; a < n_; ++a) {
+      const auto& ca = cols_[static_cast<size_t>(a)];
+      const double sa = steps_[static_cast<size_t>(a)];
+      double* ja = J_.col(a).data();
+      for (size_t i = 0; i < m_; ++i) ja[i] = (ca[i] - r_[i]) / sa;
+    }
+    const Eigen::Map<const Eigen::VectorXd> rv(r_.data(), static_cast<Eigen::Index>(m_));
+    A_ = Eigen::MatrixXd::Zero(n_, n_);
+    A_.selfadjointView<Eigen::Lower>().rankUpdate(J_.transpose());
+    A_.triangularView<Eigen::StrictlyUpper>() = A_.transpose();
+    b_ = J_.transpose() * rv;
+    return A_.allFinite() && b_.allFinite();
+  }
+
+  // The damping's ladder: lambda, then lambda times 4, 16, ... (times 10 past a step that is not finite).
+  // With undamped_check, when lambda has grown past the start's, the start's own is tried second. A
+  // friction's or a stop's kinks make the cost rough at the scale of a short damped step but not of a
+  // Gauss-Newton one: a run whose damped steps gained ever less stalled at lambda 1e8 and stopped as
+  // converged, where from the same point a step at the start's lambda lowered the cost by 9 %
+  // (pneumatic_balance on the physics plant's whole stroke, docs/MODELING.md). Every rung is the one taken
+  // when all before it failed, so the ladder is known before any of its points is evaluated.
+  std::vector<Rung> ladder() const {
+    const bool rescue = undamped_check_ && lambda_ > kLambda0;
+    std::vector<Rung> rungs;
+    double damped = lambda_;
+    for (int tries = 0; tries < 12 + (rescue ? 1 : 0); ++tries) {
+      Rung rung;
+      rung.undamped = rescue && tries == 1;
+      rung.lam = rung.undamped ? kLambda0 : damped;
+      Eigen::MatrixXd M = A_;
+      for (int k = 0; k < n_; ++k) M(k, k) += rung.lam * std::max(A_(k, k), 1e-12);
+      const Eigen::VectorXd d = M.ldlt().solve(-b_);
+      if (d.allFinite()) rung.g = (g_ + d).cwiseMax(0.0).cwiseMin(1.0);
+      if (!rung.undamped) damped *= d.allFinite() ? 4.0 : 10.0;
+      if (d.allFinite()) rungs.push_back(std::move(rung));
+    }
+    return rungs;
+  }
+
+  // The ladder's points evaluated two at a time where two workers are given (the second on the core the
+  // Jacobian's columns had): the first that lowers the cost is taken, as one at a time would take it.
+  bool descend() {
+    const std::vector<Rung> rungs = ladder();
+    const bool pairs = threads_ > 1;
+    for (size_t k = 0; k < rungs.size(); k += pairs ? 2 : 1) {
+      const size_t count = pairs ? std::min<size_t>(2, rungs.size() - k) : 1;
+      double cn[2];
+      evaluate(rungs, k, count, cn);
+      for (size_t j = 0; j < count; ++j)
+        if (cn[j] < c_) return accept(rungs[k + j], cn[j], j);
+    }
+    return false;
+  }
+
+  void evaluate(const std::vector<Rung>& rungs, size_t k, size_t count, double* cn) {
+    auto one = [&](size_t j, int w) {
+      f_(toX(rungs[k + j].g), trial_r_[j], w);
+      cn[j] = cost(trial_r_[j]);
+    };
+    if (count == 2) {
+      std::thread second(one, 1, 1);
+      one(0, main_worker_);
+      second.join();
+    } else {
+      one(0, main_worker_);
+    }
+    evaluations_ += static_cast<int>(count);
+  }
+
+  bool accept(const Rung& rung, double cn, size_t j) {
+    const double rel = (c_ - cn) / std::max(c_, 1e-300);
+    g_ = rung.g;
+    r_.swap(trial_r_[j]);
+    c_ = cn;
+    lambda_ = std::max(rung.lam / 3.0, 1e-9);
+    if (rel >= rel_tol_) {
+      confirming_ = false;
+      return true;
+    }
+    // A small gain of a damped step: converged once the start's damping has gained little from here too.
+    if (undamped_check_ && rung.lam > kLambda0 && !confirming_) {
+      confirming_ = true;
+      lambda_ = kLambda0;
+      return true;
+    }
+    return false;
+  }
+
+  const ResidualFn& f_;
+  size_t m_;
+  const std::vector<double>& x0_;
+  const std::vector<double>& lo_;
+  const std::vector<double>& hi_;
+  double rel_tol_;
+  bool undamped_check_;
+  std::vector<size_t> free_;
+  int n_ = 0;
+  int main_worker_ = 0;
+  int threads_ = 1;
+  int evaluations_ = 0;
+  Eigen::VectorXd g_;
+  std::vector<double> r_;
+  std::vector<std::vector<double>> trial_r_;  // the points of the ladder being evaluated
+  double c_ = 0;
+  double lambda_ = kLambda0;
+  bool confirming_ = false;  // the last step's small gain is being checked at the start's damping
+  std::vector<std::vector<double>> cols_;
+  std::vector<double> steps_;
+  Eigen::MatrixXd J_;  // the Jacobian, column k = d r / d g_k
+  Eigen::MatrixXd A_;
+  Eigen::VectorXd b_;
+};
+
+}  // namespace
+
 OptResult levenbergMarquardt(const ResidualFn& f, size_t m, const std::vector<double>& x0,
                              const std::vector<double>& lo, const std::vector<double>& hi, int max_iterations,
                              int threads, int worker, double rel_tol, bool undamped_check) {
-  std::vector<size_t> freeIdx;
-  for (size_t i = 0; i < x0.size(); ++i)
-    if (hi[i] > lo[i]) freeIdx.push_back(i);
-  const int n = static_cast<int>(freeIdx.size());
+  LmRun run(f, m, x0, lo, hi, threads, worker, rel_tol, undamped_check);
   OptResult res;
-  auto toX = [&](const Eigen::VectorXd& g) {
-    std::vector<double> x = x0;
-    for (int k = 0; k < n; ++k) {
-      const size_t i = freeIdx[static_cast<size_t>(k)];
-      x[i] = lo[i] + std::clamp(g(k), 0.0, 1.0) * (hi[i] - lo[i]);
+  if (run.freeCount() > 0)
+    for (int it = 0; it < max_iterations; ++it) {
+      ++res.iterations;
+      if (!run.step()) break;
     }
-    return x;
-  };
-  Eigen::VectorXd g(n);
-  for (int k = 0; k < n; ++k) {
-    const size_t i = freeIdx[static_cast<size_t>(k)];
-    g(k) = std::clamp((x0[i] - lo[i]) / (hi[i] - lo[i]), 0.0, 1.0);
-  }
-  std::vector<double> r(m), rt(m);
-  auto cost = [&](const std::vector<double>& v) {
-    double s = 0;
-    for (double e : v) s += e * e;
-    return std::isfinite(s) ? s / static_cast<double>(m) : std::numeric_limits<double>::max();
-  };
-  threads = std::max(1, threads);
-  const int main_worker = threads == 1 ? worker : 0;
-  f(toX(g), r, main_worker);
-  ++res.evaluations;
-  double c = cost(r);
-  if (n == 0) {
-    res.x = toX(g);
-    res.cost = c;
-    return res;
-  }
-  threads = std::max(1, std::min(threads, n));
-  std::vector<std::vector<double>> cols(static_cast<size_t>(n), std::vector<double>(m));
-  Eigen::MatrixXd J(static_cast<Eigen::Index>(m), n);  // the Jacobian, column k = d r / d g_k
-  constexpr double kLambda0 = 1e-3;                    // the damping a run starts with: nearly Gauss-Newton's step
-  double lambda = kLambda0;
-  bool confirming = false;  // the last step's small gain is being checked at the start's damping
-  for (int it = 0; it < max_iterations; ++it) {
-    ++res.iterations;
-    // Jacobian columns by forward (or, at the upper bound, backward) differences.
-    const double h = 1e-6;
-    std::vector<double> steps(static_cast<size_t>(n));
-    auto column = [&](int k, int w) {
-      Eigen::VectorXd gp = g;
-      const double st = g(k) + h <= 1.0 ? h : -h;
-      gp(k) += st;
-      steps[static_cast<size_t>(k)] = st;
-      f(toX(gp), cols[static_cast<size_t>(k)], w);
-    };
-    if (threads == 1) {
-      for (int k = 0; k < n; ++k) column(k, main_worker);
-    } else {
-      std::vector<std::thread> ts;
-      for (int w = 0; w < threads; ++w)
-        ts.emplace_back([&, w] {
-          for (int k = w; k < n; k += threads) column(k, w);
-        });
-      for (auto& t : ts) t.join();
-    }
-    res.evaluations += n;
-    // The derivatives into one column-major matrix, then the normal equations by Eigen's blocked,
-    // vectorised products (a scalar loop per pair of columns cost as much as the simulations).
-    for (int a = 0; a < n; ++a) {
-      const auto& ca = cols[static_cast<size_t>(a)];
-      const double sa = steps[static_cast<size_t>(a)];
-      double* ja = J.col(a).data();
-      for (size_t i = 0; i < m; ++i) ja[i] = (ca[i] - r[i]) / sa;
-    }
-    const Eigen::Map<const Eigen::VectorXd> rv(r.data(), static_cast<Eigen::Index>(m));
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
-    A.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
-    A.triangularView<Eigen::StrictlyUpper>() = A.transpose();
-    const Eigen::VectorXd b = J.transpose() * rv;
-    if (!A.allFinite() || !b.allFinite()) break;
-    bool improved = false;
-    // The damping's ladder: lambda, then lambda times 4, 16, ... With undamped_check, when lambda has grown
-    // past the start's, the start's own is tried second. A friction's or a stop's kinks make the cost rough at
-    // the scale of a short damped step but not of a Gauss-Newton one: a run whose damped steps gained ever less
-    // stalled at lambda 1e8 and stopped as converged, where from the same point a step at the start's lambda
-    // lowered the cost by 9 % (pneumatic_balance on the physics plant's whole stroke, docs/MODELING.md).
-    const bool rescue = undamped_check && lambda > kLambda0;
-    double damped = lambda;  // the ladder's next rung
-    for (int tries = 0; tries < 12 + (rescue ? 1 : 0); ++tries) {
-      const bool undamped = rescue && tries == 1;
-      const double lam = undamped ? kLambda0 : damped;
-      Eigen::MatrixXd M = A;
-      for (int k = 0; k < n; ++k) M(k, k) += lam * std::max(A(k, k), 1e-12);
-      const Eigen::VectorXd d = M.ldlt().solve(-b);
-      if (!d.allFinite()) {
-        if (!undamped) damped *= 10;
-        continue;
-      }
-      Eigen::VectorXd gn = (g + d).cwiseMax(0.0).cwiseMin(1.0);
-      f(toX(gn), rt, main_worker);
-      ++res.evaluations;
-      const double cn = cost(rt);
-      if (cn < c) {
-        const double rel = (c - cn) / std::max(c, 1e-300);
-        g = gn;
-        r.swap(rt);
-        c = cn;
-        lambda = std::max(lam / 3.0, 1e-9);
-        improved = true;
-        if (rel < rel_tol) {
-          // A small gain of a damped step: converged once the start's damping has gained little from here too.
-          if (undamped_check && lam > kLambda0 && !confirming) {
-            confirming = true;
-            lambda = kLambda0;
-          } else {
-            it = max_iterations;  // converged
-          }
-        } else {
-          confirming = false;
-        }
-        break;
-      }
-      if (!undamped) damped *= 4.0;
-    }
-    if (!improved) break;
-  }
-  res.x = toX(g);
-  res.cost = c;
+  res.x = run.bestX();
+  res.cost = run.bestCost();
+  res.evaluations = run.evaluations();
   return res;
 }
 

@@ -24,8 +24,11 @@ std::string governorNote(control::ControllerConfig ctrl, const std::optional<mod
     std::snprintf(line, sizeof line,
                   "mbc: no setpoint governor (mbc_rate_mm_s 0): a step goes to the inverse as it is");
   else
-    std::snprintf(line, sizeof line, "mbc: the setpoint governor: %.4g mm/s, %.4g mm/s^2 (%s)", g.rate_mm_s,
-                  g.accel_mm_s2, g.from_model ? "lowered to the model's pace" : "its fixed limits");
+    std::snprintf(
+        line, sizeof line,
+        "mbc: the setpoint governor: %.4g mm/s, %.4g mm/s^2, %.4g mm/s^2 while the model carries the loop (%s)",
+        g.rate_mm_s, g.accel_mm_s2, g.accel_carried_mm_s2,
+        g.from_model ? "lowered to the model's pace" : "its fixed limits");
   const model::Interval u = control::mbcCommandRange(ctrl);
   const model::InverseFold f = model::inverseFold(ctrl.model, u.lo, u.hi);
   return f.folds ? std::string(line) + "\nmbc: the model: " + model::describeInverseFold(f) : std::string(line);

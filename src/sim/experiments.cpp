@@ -179,6 +179,7 @@ void buildController(Context& x) {
       {"mbc_governor",
        {{"rate_mm_s", gov.rate_mm_s},
         {"accel_mm_s2", gov.accel_mm_s2},
+        {"accel_carried_mm_s2", gov.accel_carried_mm_s2},
         {"lowered_to_the_models_pace", gov.from_model},
         {"models_pace", {{"speed_mm_s", gov.pace.speed}, {"accel_mm_s2", gov.pace.accel}}}}},
       {"models_inverse",
@@ -188,6 +189,7 @@ void buildController(Context& x) {
         << start << "\n  calibrated on: " << x.s.calibrated_on << "\n  MBC's setpoint governor: "
         << (gov.rate_mm_s > 0.0
                 ? fmt("%.4g mm/s, ", gov.rate_mm_s) + fmt("%.4g mm/s^2", gov.accel_mm_s2) +
+                      fmt(" (%.4g while the model carries the loop)", gov.accel_carried_mm_s2) +
                       (gov.from_model ? " (lowered to the model's pace)" : "") +
                       fmt("; the model's pace %.4g mm/s, ", gov.pace.speed) + fmt("%.4g mm/s^2", gov.pace.accel)
                 : std::string("off"))

@@ -33,6 +33,7 @@ struct Options {
   int mbc_horizon = 0;
   double mbc_rate = control::ControllerConfig{}.mbc.rate_mm_s;
   double mbc_accel = control::ControllerConfig{}.mbc.accel_mm_s2;
+  double mbc_accel_carried = control::ControllerConfig{}.mbc.accel_carried_mm_s2;
   double mbc_pace_share = control::ControllerConfig{}.mbc.pace_share;
 };
 
@@ -47,6 +48,7 @@ int run(const Options& o) {
   s.ctrl.mbc.horizon = o.mbc_horizon;
   s.ctrl.mbc.rate_mm_s = o.mbc_rate;
   s.ctrl.mbc.accel_mm_s2 = o.mbc_accel;
+  s.ctrl.mbc.accel_carried_mm_s2 = o.mbc_accel_carried;
   s.ctrl.mbc.pace_share = o.mbc_pace_share;
   s.only = o.only;
   s.log = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
@@ -85,6 +87,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   app.add_option("--mbc-accel", o.mbc_accel, "MBC: the setpoint governor's acceleration [mm/s^2] (as pamc's)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--mbc-accel-carried", o.mbc_accel_carried,
+                 "MBC: the governor's acceleration [mm/s^2] while the model carries the loop (as pamc's)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
