@@ -51,19 +51,25 @@ model::Model tenthOfTheGain(model::Model m) {
   return m;
 }
 
-sim::Record track(control::Kind kind, const model::Model& m, const sim::ClosedLoopRun& run,
-                  const estimation::ActiveModelSettings& ukf = {}) {
-  control::ControllerConfig cfg;
-  cfg.model = m;
-  cfg.ukf = ukf;
+// `run` on the calibrated physics plant through a controller of `kind` with `cfg` (its model set), the loop
+// starting at the model's static inverse of the trajectory's first point.
+sim::Record onPaperPlant(control::Kind kind, control::ControllerConfig cfg, const sim::ClosedLoopRun& run) {
   plant::PlantConfig pc = sim::paperPlant();
   cfg.u_min = pc.u_min;
   cfg.u_max = pc.u_max;
   auto c = control::makeController(kind, cfg);
   plant::Plant p(pc);
   control::InverseStatic inv;
-  inv.build(m, cfg.u_min, cfg.u_max, cfg.Ts);
+  inv.build(cfg.model, cfg.u_min, cfg.u_max, cfg.Ts);
   return sim::runClosedLoop(*c, p, run, inv(run.home()));
+}
+
+sim::Record track(control::Kind kind, const model::Model& m, const sim::ClosedLoopRun& run,
+                  const estimation::ActiveModelSettings& ukf = {}) {
+  control::ControllerConfig cfg;
+  cfg.model = m;
+  cfg.ukf = ukf;
+  return onPaperPlant(kind, cfg, run);
 }
 
 double rmseFrom(const sim::Record& r, double from) {
@@ -595,14 +601,7 @@ TEST(Mbc, TheGovernorTakesTheOvershootOutOfASquareWave) {
     control::ControllerConfig cfg;
     cfg.model = m;
     cfg.mbc.rate_mm_s = rate;
-    plant::PlantConfig pc = sim::paperPlant();
-    cfg.u_min = pc.u_min;
-    cfg.u_max = pc.u_max;
-    auto c = control::makeController(control::Kind::Mbc, cfg);
-    plant::Plant p(pc);
-    control::InverseStatic inv;
-    inv.build(m, cfg.u_min, cfg.u_max, cfg.Ts);
-    const auto r = sim::runClosedLoop(*c, p, run, inv(run.home()));
+    const auto r = onPaperPlant(control::Kind::Mbc, cfg, run);
     const auto up = sim::stepResponse(r, +1, 1.0, 0.02), down = sim::stepResponse(r, -1, 1.0, 0.02);
     return std::max(up.overshoot_pct, down.overshoot_pct);
   };
@@ -627,14 +626,7 @@ static sim::Record squareWave(const model::Model& m, double carried) {
   control::ControllerConfig cfg;
   cfg.model = m;
   cfg.mbc.accel_carried_mm_s2 = carried;
-  plant::PlantConfig pc = sim::paperPlant();
-  cfg.u_min = pc.u_min;
-  cfg.u_max = pc.u_max;
-  auto c = control::makeController(control::Kind::Mbc, cfg);
-  plant::Plant p(pc);
-  control::InverseStatic inv;
-  inv.build(m, cfg.u_min, cfg.u_max, cfg.Ts);
-  return sim::runClosedLoop(*c, p, run, inv(run.home()));
+  return onPaperPlant(control::Kind::Mbc, cfg, run);
 }
 
 // The governor's acceleration at each step of that square wave (from rest at 0 mm: the first at 0 s).
