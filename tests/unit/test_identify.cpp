@@ -146,6 +146,26 @@ TEST(Optimize, LevenbergMarquardtGoesOnPastAGrownDampingWithTheUndampedCheck) {
   EXPECT_GT(plain.cost, 1e-2);  // the case: without the check the run stops short of the bottom
 }
 
+// On two workers a run tries the damping's ladder two rungs at a time and hands the Jacobian's columns to
+// whichever worker is free; it takes the first rung that lowers the cost, as one worker does: the same run
+// to the bit, on the rough valley above (with and without the undamped check, where the ladder is climbed).
+TEST(Optimize, LevenbergMarquardtOnTwoWorkersIsTheRunOfOne) {
+  ident::ResidualFn f = [](const std::vector<double>& x, std::vector<double>& r, int) {
+    r[0] = 10.0 * (x[1] - x[0] * x[0]) + 0.01 * std::sin(x[0] / 0.01);
+    r[1] = 1.0 - x[0] + 0.01 * std::cos(x[1] / 0.01);
+    r[2] = 0.1 * (x[2] - x[0] * x[1]);
+  };
+  for (bool check : {false, true}) {
+    const std::vector<double> x0{-1.2, 1.0, 0.5}, lo{-2.0, -2.0, -2.0}, hi{2.0, 2.0, 2.0};
+    const auto one = ident::levenbergMarquardt(f, 3, x0, lo, hi, 200, 1, 0, 1e-7, check);
+    const auto two = ident::levenbergMarquardt(f, 3, x0, lo, hi, 200, 2, 0, 1e-7, check);
+    EXPECT_EQ(one.x, two.x) << "undamped check " << check;
+    EXPECT_EQ(one.cost, two.cost);
+    EXPECT_EQ(one.iterations, two.iterations);
+    EXPECT_GT(one.iterations, 5);
+  }
+}
+
 namespace {
 // The search's box of the parameter `name` of the model's effects on a record with output y.
 // The input: u, or a sine of its own period when empty.
