@@ -1,5 +1,7 @@
 #include "app/controller_options.hpp"
 
+#include <cstdio>
+
 #include "io/model_file.hpp"
 
 namespace pamc::app {
@@ -100,10 +102,13 @@ void ControllerOptions::addStructure(CLI::App* a) {
                 "MBC: the setpoint governor's acceleration [mm/s^2] (a slower model's pace lowers it)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  a->add_option("--mbc-accel-carried", cc.mbc.accel_carried_mm_s2,
+  char carried[256];
+  std::snprintf(carried, sizeof carried,
                 "MBC: the setpoint governor's acceleration [mm/s^2] while the model carries the loop (its feedforward "
-                "on and the PI's integral within 1 % of the command's span over the last 10 s; a slower model's "
-                "pace lowers it; at most --mbc-accel: off)")
+                "on and the PI's integral within %g %% of the command's span over the last %g s; a slower model's "
+                "pace lowers it; at most --mbc-accel: off)",
+                100.0 * cc.mbc.carried_share, cc.mbc.carried_tau_s);
+  a->add_option("--mbc-accel-carried", cc.mbc.accel_carried_mm_s2, carried)
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   a->add_option("--model", model_file, "identified model (JSON) for the AMC's and MBC's UKF and the open loop");
