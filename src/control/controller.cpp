@@ -196,8 +196,7 @@ GovernorLimits mbcGovernor(const ControllerConfig& c) {
     const double rate = c.mbc.pace_share * p.speed, accel = c.mbc.pace_share * p.accel;
     if (!(p.speed > 0.0 && p.accel > 0.0)) return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, carried, false, p};
     const bool lowered = rate < c.mbc.rate_mm_s || accel < c.mbc.accel_mm_s2;
-    return {std::min(rate, c.mbc.rate_mm_s), std::min(accel, c.mbc.accel_mm_s2),
-            std::max(std::min(accel, carried), std::min(accel, c.mbc.accel_mm_s2)), lowered, p};
+    return {std::min(rate, c.mbc.rate_mm_s), std::min(accel, c.mbc.accel_mm_s2), std::min(accel, carried), lowered, p};
   }
   return {c.mbc.rate_mm_s, c.mbc.accel_mm_s2, carried, false, {}};
 }

@@ -116,7 +116,7 @@ class Mbc final : public detail::PiBased {
     recover_ = 0;
     gain_ = sign_;
     governor_.reset(y0);
-    governor_.configure(limits_.rate_mm_s, limits_.accel_mm_s2, cfg_.Ts, cfg_.mbc.rate_mm_s);
+    governor_.setAccel(limits_.accel_mm_s2);  // at rest: back to the fixed one
     doubt_ = 0.0;
     governed_.fill(std::isfinite(y0) ? y0 : NAN);
   }
