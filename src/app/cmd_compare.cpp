@@ -34,6 +34,7 @@ class CompareCommand final : public Command {
     std::printf("%s.\n", diagnose::describeRangeShare(c.outside, m.range()).c_str());
     std::printf("The record's %s.\n", ident::describeRests(c.rests).c_str());
     std::printf("The model: %s.\n", model::describeInverseFold(c.fold).c_str());
+    std::printf("The model: %s.\n", model::describeHeldRest(c.rest).c_str());
     std::printf("The residual in frequency: %s.\n", diagnose::describeSpectrum(c.spectrum).c_str());
     std::string dir = cmp_report.empty() ? cmp_data + ".compare" : cmp_report;
     diagnose::writeCompareReport(c, d, dir, &warnings);

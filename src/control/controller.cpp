@@ -187,9 +187,14 @@ model::Interval mbcCommandRange(const ControllerConfig& c) {
   return r.known && b.lo <= b.hi ? b : model::Interval{c.u_min, c.u_max};
 }
 
+model::HeldRest mbcModelRest(const ControllerConfig& c) {
+  const model::Interval u = mbcCommandRange(c);
+  return model::heldRest(c.model, c.Ts, u.lo, u.hi);
+}
+
 GovernorLimits mbcGovernor(const ControllerConfig& c) {
   const double carried = std::max(c.mbc.accel_carried_mm_s2, c.mbc.accel_mm_s2);
-  if (!(c.mbc.rate_mm_s > 0.0)) return {0.0, c.mbc.accel_mm_s2, carried, false, {}};
+  if (!(c.mbc.rate_mm_s > 0.0) || !mbcModelRest(c).rests) return {0.0, c.mbc.accel_mm_s2, carried, false, {}};
   if (c.mbc.pace_share > 0.0) {
     const model::Interval u = mbcCommandRange(c);
     const ModelPace p = modelPace(c.model, u.lo, u.hi);

@@ -30,6 +30,7 @@
 
 #include "control/actuation.hpp"
 #include "estimation/active_model.hpp"
+#include "model/held_rest.hpp"
 #include "model/model.hpp"
 
 namespace pamc::control {
@@ -204,7 +205,8 @@ struct ModelPace {
 };
 ModelPace modelPace(const model::Model& m, double u_lo, double u_hi);
 
-// The MBC's setpoint governor in effect: rate 0 (off) where mbc.rate_mm_s is 0; else the fixed rate and
+// The MBC's setpoint governor in effect: rate 0 (off) where mbc.rate_mm_s is 0 or the model does not come to
+// rest (mbcModelRest); else the fixed rate and
 // acceleration, each lowered to pace_share of the model's pace over its feedforward's range where that is
 // below it (from_model: one of them was).
 struct GovernorLimits {
@@ -217,6 +219,11 @@ GovernorLimits mbcGovernor(const ControllerConfig& c);
 // The MBC's feedforward range: the valve's command range within the input range the model was
 // identified on (model.json's `range`; the valve's alone for a model without one).
 model::Interval mbcCommandRange(const ControllerConfig& c);
+// Whether the MBC's model comes to rest under a held command over that range at the loop's period
+// (model::heldRest). Where it does not, the MBC is its nominal PI alone, on the setpoint itself: an inverse of
+// a model that swings under a held command swings the valve (docs/CONTROL.md, "A model that does not come to
+// rest").
+model::HeldRest mbcModelRest(const ControllerConfig& c);
 
 // The automatic horizon of the predictive forms (AMC and MBC): the bus delay plus the samples the model
 // takes to make 10 % of its response to a command step, and at least one more than the bus delay.

@@ -31,6 +31,9 @@
 // driven by the commands in effect beside the measured position, over the last second. A model with a
 // tenth of the plant's gain tracked the triangle at 3x the PI's error before (docs/CONTROL.md, "A model
 // that moves otherwise than the muscle").
+// Nor at all, and no governor either, where the model does not come to rest under a held command at the loop's
+// period (mbcModelRest): the MBC is then its nominal PI on the setpoint (docs/CONTROL.md, "A model that does not
+// come to rest").
 // The estimator's own restarts are not faults here: the PI keeps the loop meanwhile.
 #include <algorithm>
 #include <cmath>
@@ -88,7 +91,8 @@ class Mbc final : public detail::PiBased {
       : cfg_(c),
         horizon_(mbcHorizon(c)),
         sign_(modelGainSign(c.model, c.Ts, c.u_min, c.u_max)),
-        ff_(mbcCommandRange(c)) {
+        ff_(mbcCommandRange(c)),
+        rests_(mbcModelRest(c).rests) {
     pi_.configure(c, true);
     am_.configure(c.model, c.ukf, c.Ts);
     limits_ = mbcGovernor(c);
@@ -137,7 +141,8 @@ class Mbc final : public detail::PiBased {
     const double r = governor_.step(yd_ahead);
     governed_.push(r);
     const double ff = feedforward(r - miss_);
-    const bool use = recover_ == 0 && std::isfinite(ff) && inRange(ff, r, yd_ahead, y_.get()) && monitor_.trusted();
+    const bool use =
+        rests_ && recover_ == 0 && std::isfinite(ff) && inRange(ff, r, yd_ahead, y_.get()) && monitor_.trusted();
     if (recover_ > 0) --recover_;
     if (std::isfinite(ff))
       u_solved_ = ff;
@@ -171,9 +176,9 @@ class Mbc final : public detail::PiBased {
     return y;
   }
 
-  // Where the PI starts: the command in effect, brought into the model's input range.
+  // Where the PI starts: the command in effect, brought into the input range of a model that is used.
   double startCommand(double u0) const noexcept {
-    return cfg_.model.range().known && std::isfinite(u0) ? std::clamp(u0, ff_.lo, ff_.hi) : u0;
+    return rests_ && cfg_.model.range().known && std::isfinite(u0) ? std::clamp(u0, ff_.lo, ff_.hi) : u0;
   }
 
   // The command that, held after the feedforwards in flight, brings the reference model to `target` at
@@ -261,6 +266,7 @@ class Mbc final : public detail::PiBased {
   int horizon_;
   double sign_;         // the sign of the model's settled response to a command step (modelGainSign)
   model::Interval ff_;  // the feedforward's bounds (mbcCommandRange)
+  bool rests_;          // the model comes to rest under a held command (mbcModelRest): else the PI alone
   detail::LastGood y_;
   estimation::ActiveModel am_;
   detail::CommandHistory ff_hist_;  // the feedforwards sent, the reference model's input

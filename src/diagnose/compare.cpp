@@ -45,12 +45,12 @@ std::string describeRangeShare(const RangeShare& s, const model::OperatingRange&
 }
 
 namespace {
-// The fold over the input range the model was identified on, or the record's where it records none.
-model::InverseFold foldOver(const model::Model& m, const io::Measurement& d) {
-  if (m.range().known) return model::inverseFold(m, m.range().input.lo, m.range().input.hi);
-  if (d.u.empty()) return {};
+// The input range the model was identified on, or the record's where it records none (empty: neither).
+model::Interval inputsOf(const model::Model& m, const io::Measurement& d) {
+  if (m.range().known) return m.range().input;
+  if (d.u.empty()) return {0.0, 0.0};
   const auto [lo, hi] = std::minmax_element(d.u.begin(), d.u.end());
-  return model::inverseFold(m, *lo, *hi);
+  return {*lo, *hi};
 }
 }  // namespace
 
@@ -64,7 +64,9 @@ Comparison compare(const model::Model& m, const io::Measurement& d) {
   c.report = analyze(d, c.y_model);
   c.outside = rangeShare(m.range(), d);
   c.rests = ident::recordRests(d);
-  c.fold = foldOver(m, d);
+  const model::Interval u = inputsOf(m, d);
+  c.fold = model::inverseFold(m, u.lo, u.hi);
+  c.rest = model::heldRest(m, d.Ts, u.lo, u.hi);
   std::vector<double> e(d.size());
   for (size_t i = 0; i < d.size(); ++i) e[i] = d.y[i] - c.y_model[i];
   c.spectrum = residualSpectrum(e, d.u, d.Ts, c.report.noise_floor);
@@ -103,7 +105,9 @@ nlohmann::json toJson(const Comparison& c) {
       {"outside_range", rangeJson(c.outside)},
       {"end_stops", {{"low", restJson(c.rests.low)}, {"high", restJson(c.rests.high)}}},
       {"inverse",
-       {{"folds", c.fold.folds}, {"least_slope", c.fold.least}, {"at_input", c.fold.at_input}, {"gain", c.fold.gain}}}};
+       {{"folds", c.fold.folds}, {"least_slope", c.fold.least}, {"at_input", c.fold.at_input}, {"gain", c.fold.gain}}},
+      {"held_rest",
+       {{"rests", c.rest.rests}, {"swing", c.rest.swing}, {"at_input", c.rest.at_command}, {"span", c.rest.span}}}};
 }
 
 void writeCompareReport(const Comparison& c, const io::Measurement& d, const std::string& dir,

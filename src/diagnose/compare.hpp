@@ -8,6 +8,7 @@
 #include "diagnose/residual.hpp"
 #include "diagnose/spectrum.hpp"
 #include "ident/identify.hpp"
+#include "model/held_rest.hpp"
 #include "model/inverse_fold.hpp"
 #include "io/measurement.hpp"
 #include "model/model.hpp"
@@ -28,6 +29,7 @@ struct Comparison {
   RangeShare outside;
   ident::RecordRests rests;  // whether the record rests on its end stops, as a fit reads it
   model::InverseFold fold;   // whether the model's inverse folds, over its input range (the record's without one)
+  model::HeldRest rest;      // whether it comes to rest under a held command over that range, at the record's period
   ResidualReport report;
   ResidualSpectrum spectrum;  // of the residual, with its coherence with the input
 };

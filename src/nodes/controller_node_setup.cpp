@@ -15,9 +15,12 @@ namespace pamc::nodes {
 
 namespace {
 // What the MBC's setpoint governor follows, and whether its model's inverse folds, said once at its start
-// (docs/CONTROL.md, "The setpoint governor", "A model whose inverse folds").
+// (docs/CONTROL.md, "The setpoint governor", "A model whose inverse folds"); or that its model does not come to
+// rest, and the MBC is its PI alone ("A model that does not come to rest").
 std::string governorNote(control::ControllerConfig ctrl, const std::optional<model::Model>& own) {
   if (own) ctrl.model = *own;
+  const model::HeldRest rest = control::mbcModelRest(ctrl);
+  if (!rest.rests) return "mbc: the model: " + model::describeHeldRest(rest) + ": the PI alone, on the setpoint";
   const control::GovernorLimits g = control::mbcGovernor(ctrl);
   char line[256];
   if (!(g.rate_mm_s > 0.0))

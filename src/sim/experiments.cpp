@@ -168,6 +168,7 @@ void buildController(Context& x) {
   const control::GovernorLimits gov = control::mbcGovernor(x.cc);
   const model::Interval ff = control::mbcCommandRange(x.cc);
   const model::InverseFold fold = model::inverseFold(x.cc.model, ff.lo, ff.hi);
+  const model::HeldRest rest = control::mbcModelRest(x.cc);
   x.json["readings"] = {
       {"ki", x.cc.ki},
       {"kp", x.cc.kp},
@@ -183,7 +184,8 @@ void buildController(Context& x) {
         {"lowered_to_the_models_pace", gov.from_model},
         {"models_pace", {{"speed_mm_s", gov.pace.speed}, {"accel_mm_s2", gov.pace.accel}}}}},
       {"models_inverse",
-       {{"folds", fold.folds}, {"least_slope", fold.least}, {"at_input", fold.at_input}, {"gain", fold.gain}}}};
+       {{"folds", fold.folds}, {"least_slope", fold.least}, {"at_input", fold.at_input}, {"gain", fold.gain}}},
+      {"models_held_rest", {{"rests", rest.rests}, {"swing", rest.swing}, {"at_input", rest.at_command}}}};
   x.readings_line = gainsText(x.cc) + "\nplant: " + plantText(x.s.plant) + "; sines start at the " + start;
   x.txt << "Readings: " << gainsText(x.cc) << "\n  plant: " << plantText(x.s.plant) << "\n  sines start at the "
         << start << "\n  calibrated on: " << x.s.calibrated_on << "\n  MBC's setpoint governor: "
@@ -193,7 +195,10 @@ void buildController(Context& x) {
                       (gov.from_model ? " (lowered to the model's pace)" : "") +
                       fmt("; the model's pace %.4g mm/s, ", gov.pace.speed) + fmt("%.4g mm/s^2", gov.pace.accel)
                 : std::string("off"))
-        << (fold.folds ? "\n  the model: " + model::describeInverseFold(fold) : std::string()) << "\n\n";
+        << (fold.folds ? "\n  the model: " + model::describeInverseFold(fold) : std::string())
+        << (rest.rests ? std::string()
+                       : "\n  the model: " + model::describeHeldRest(rest) + ": the MBC is its PI alone")
+        << "\n\n";
 }
 
 namespace {
