@@ -143,6 +143,10 @@ void Diagnosis::screen() {
     v_ = {&data_, n_train};
     res_.validation = "held out: the last " + fmt("%.0f", 100 * s_.holdout) + " % of " + data_.source;
   }
+  const auto [ulo, uhi] = std::minmax_element(train_.u.begin(), train_.u.end());
+  const auto [ylo, yhi] = std::minmax_element(train_.y.begin(), train_.y.end());
+  v_.inputs = {*ulo, *uhi};
+  v_.span = *yhi - *ylo;
   res_.samples = train_.size();
   res_.val_samples = v_.data->size() - v_.from;
   threads_ = s_.threads > 0 ? s_.threads : ident::defaultThreads();
@@ -155,6 +159,9 @@ void Diagnosis::screen() {
     log("screening on every " + ordinal(step_) + " training sample (" + std::to_string(screen_.size()) +
         " samples at " + fmt("%.4g", 1.0 / screen_.Ts) + " Hz)");
   log("the training record's " + ident::describeRests(ident::recordRests(train_)));
+  log("a model that does not come to rest under a held command (within " + fmt("%.4g", v_.inputs.lo) + " .. " +
+      fmt("%.4g", v_.inputs.hi) + ", at " + fmt("%.4g", 1e3 * v_.data->Ts) +
+      " ms) validates at inf: no muscle swings under a held valve");
 }
 
 // The reference model, searched on the screening record and refitted on all of it; the sensor noise of

@@ -19,6 +19,7 @@
 
 #include "diagnose/diagnose.hpp"
 #include "diagnose/search_rules.hpp"
+#include "model/held_rest.hpp"
 
 namespace pamc::diagnose::detail {
 
@@ -62,10 +63,19 @@ void onWorkers(size_t n, int threads, Fn&& fn) {
 }
 
 // Where the validation error is measured.
+// A model that does not come to rest under a held command over the training record's inputs, at the
+// records' period (model::heldRest, judged against the training record's output span), validates at infinity:
+// no muscle swings under a held valve, and a controller that inverts such a model swings the valve
+// (docs/MODELING.md, "A model that does not come to rest").
 struct Validation {
   const io::Measurement* data = nullptr;
   size_t from = 0;
-  double rmse(const model::Model& m) const { return ident::rmseFrom(m, *data, from); }
+  model::Interval inputs;  // the training record's
+  double span = 0.0;       // the training record's output span
+  double rmse(const model::Model& m) const {
+    if (!model::heldRest(m, data->Ts, inputs.lo, inputs.hi, span).rests) return INFINITY;
+    return ident::rmseFrom(m, *data, from);
+  }
 };
 
 std::vector<double> simulate(const model::Model& m, const io::Measurement& d);

@@ -8,9 +8,12 @@
 namespace pamc::model {
 
 namespace {
-constexpr int kLevels = 8;            // commands from u_lo to u_hi (and back down)
-constexpr double kHoldSeconds = 3.0;  // each held this long: a creep or a pressure's lag settles within it
-constexpr double kRestShare = 0.02;   // a swing within 2 % of the span is rest (a 2 % settling band)
+constexpr int kLevels = 8;  // commands from u_lo to u_hi (and back down)
+// Each held this long: a creep or a pressure's lag settles within it, and so does a payload's ringing that decays
+// at zeta wn >= 0.84 /s (its swing, about 2 exp(-3 zeta wn) of a level's step, an eighth of the span, within the
+// band over the hold's last second: at 2 Hz a damping ratio of 0.067 or more).
+constexpr double kHoldSeconds = 4.0;
+constexpr double kRestShare = 0.02;  // a swing within 2 % of the span is rest (a 2 % settling band)
 
 // The commands of the staircase: up from u_lo to u_hi, then down to u_lo.
 std::vector<double> levels(double u_lo, double u_hi) {
@@ -39,7 +42,7 @@ Hold hold(const Model& m, Model::State& st, const StepContext& c, double u, int 
 }
 }  // namespace
 
-HeldRest heldRest(const Model& m, double Ts, double u_lo, double u_hi) {
+HeldRest heldRest(const Model& m, double Ts, double u_lo, double u_hi, double span) {
   HeldRest r;
   r.Ts = Ts;
   if (!(Ts > 0.0) || !(u_hi > u_lo)) return r;
@@ -53,7 +56,7 @@ HeldRest heldRest(const Model& m, double Ts, double u_lo, double u_hi) {
   for (double v : u) holds.push_back(hold(m, st, c, v, samples));
   double end_lo = INFINITY, end_hi = -INFINITY;
   for (const Hold& h : holds) end_lo = std::min(end_lo, h.end), end_hi = std::max(end_hi, h.end);
-  r.span = m.range().known ? m.range().output.hi - m.range().output.lo : end_hi - end_lo;
+  r.span = span > 0.0 ? span : m.range().known ? m.range().output.hi - m.range().output.lo : end_hi - end_lo;
   for (size_t i = 0; i < holds.size(); ++i) {
     const bool worse = !holds[i].finite || holds[i].swing > r.swing;
     if (worse) r.swing = holds[i].finite ? holds[i].swing : INFINITY, r.at_command = u[i];

@@ -23,7 +23,8 @@ struct HeldRest {
 // The model from rest at u_lo through kLevels commands up to u_hi and back down, each held for kHoldSeconds at
 // the period Ts; it rests where no hold's output swings over more than kRestShare of the span over the hold's
 // last quarter, and stays finite. Allocates: not for a control cycle.
-HeldRest heldRest(const Model& m, double Ts, double u_lo, double u_hi);
+// span > 0 judges the swing against it instead (a fit's record's output span, before the model has a range).
+HeldRest heldRest(const Model& m, double Ts, double u_lo, double u_hi, double span = 0.0);
 
 // One line: "it comes to rest under a held command ..." or "it does not come to rest ...".
 std::string describeHeldRest(const HeldRest& h);
