@@ -102,7 +102,7 @@ void ControllerOptions::addStructure(CLI::App* a) {
                 "MBC: the setpoint governor's acceleration [mm/s^2] (a slower model's pace lowers it)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  char carried[256];
+  char carried[512];
   std::snprintf(carried, sizeof carried,
                 "MBC: the setpoint governor's acceleration [mm/s^2] while the model carries the loop (its feedforward "
                 "on and the PI's integral within %g %% of the command's span over the last %g s; a slower model's "

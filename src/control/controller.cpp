@@ -77,6 +77,13 @@ double InverseStatic::operator()(double y) const noexcept {
   return u_[i - 1] + t * (u_[i] - u_[i - 1]);
 }
 
+double InverseStatic::slope(double y) const noexcept {
+  if (u_.size() < 2) return 0.0;
+  const auto it = std::upper_bound(y_.begin() + 1, y_.end() - 1, y);
+  const size_t i = static_cast<size_t>(it - y_.begin());
+  return (y_[i] - y_[i - 1]) / (u_[i] - u_[i - 1]);
+}
+
 double InverseStatic::forward(double u) const noexcept {
   if (u <= u_.front()) return y_.front();
   if (u >= u_.back()) return y_.back();

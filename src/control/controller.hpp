@@ -247,6 +247,8 @@ class InverseStatic {
   void build(const model::Model& m, double u_min, double u_max, double Ts);
   double operator()(double y) const noexcept;
   double forward(double u) const noexcept;
+  // The characteristic's slope dy/du at the output y (its nearest end's beyond it); 0 before build().
+  double slope(double y) const noexcept;
 
  private:
   std::vector<double> u_, y_;  // y_ increasing with u_

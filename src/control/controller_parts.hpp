@@ -107,9 +107,11 @@ class PiCore {
   double nominal(double e, bool integrate = true) noexcept {
     if (!std::isfinite(e)) e = 0.0, integrate = false;
     e_ = e;
-    pending_ = integrate ? std::clamp(integ_ + ki_ts_ * e, i_lo_, i_hi_) : integ_;
-    return kp_ * e + pending_;
+    pending_ = integrate ? std::clamp(integ_ + scale_ * ki_ts_ * e, i_lo_, i_hi_) : integ_;
+    return scale_ * kp_ * e + pending_;
   }
+  // Both gains times s (1: as configured) from the next nominal() on; the integral stays where it is.
+  void scale(double s) noexcept { scale_ = std::isfinite(s) ? std::clamp(s, 0.0, 1.0) : 1.0; }
   // Saturates u_n + extra; keeps the integration only if it does not push further into the limit.
   double finish(double u_n, double extra, bool& saturated, double& u_n_out) noexcept {
     if (!std::isfinite(extra)) extra = 0.0;
@@ -139,6 +141,7 @@ class PiCore {
 
  private:
   double kp_ = 0, ki_ts_ = 0, u_min_ = kCommandMin, u_max_ = kCommandMax;
+  double scale_ = 1.0;                              // the gains' share in effect (scale)
   double i_lo_ = kCommandMin, i_hi_ = kCommandMax;  // the integral's limits (configure)
   double integ_ = 0, pending_ = 0, e_ = 0;
   double before_ = 0, out_ = 0;  // the integral before this cycle's, the command finish() gave

@@ -37,6 +37,7 @@
 // The estimator's own restarts are not faults here: the PI keeps the loop meanwhile.
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "control/controller.hpp"
 #include "control/controller_parts.hpp"
@@ -47,6 +48,10 @@ namespace {
 
 // Cycles the feedforward stays off after the estimator restarted or its rollout failed.
 constexpr int kRecoverCycles = 200;
+// The phase the bus's delay may take at the PI's integral crossover: the 45 degrees of the textbook's phase
+// margin, the other 45 left to the plant's own lag (chosen, not tuned: pi / 3 and pi / 2 were tried after,
+// docs/CONTROL.md).
+constexpr double kDelayPhase = 0.25 * M_PI;
 // Secant steps of the inverse per cycle (warm-started from the last cycle's solution).
 constexpr int kInverseSteps = 3;
 // The estimator has lost the plant when its posterior output misses the position by more than this
@@ -94,6 +99,7 @@ class Mbc final : public detail::PiBased {
         ff_(mbcCommandRange(c)),
         rests_(mbcModelRest(c).rests) {
     pi_.configure(c, true);
+    if (rests_) buildStatic();
     am_.configure(c.model, c.ukf, c.Ts);
     limits_ = mbcGovernor(c);
     governor_.configure(limits_.rate_mm_s, limits_.accel_mm_s2, c.Ts, c.mbc.rate_mm_s);  // lowered, it passes ramps
@@ -153,6 +159,7 @@ class Mbc final : public detail::PiBased {
     // The nominal PI on the governed setpoint's error (on the reference model's instead, a model that cannot
     // reach the setpoint held the loop short of it: docs/CONTROL.md).
     const double r_now = governed_.get(horizon_);
+    pi_.scale(gainShare(std::isfinite(r_now) ? r_now : yd));
     const double un = pi_.nominal((std::isfinite(r_now) ? r_now : yd) - y_.get(), !o.measurement_rejected);
     o.u_c = ff_on_ ? u_ff_ : 0.0;
     o.model_distrusted = !monitor_.trusted();
@@ -174,6 +181,26 @@ class Mbc final : public detail::PiBased {
     const int d = cfg_.delay_cycles;
     for (int i = 0; i < horizon_; ++i) y = cfg_.model.step(s, i < d ? ff_hist_.get(d - 1 - i) : u, ctx_);
     return y;
+  }
+
+  // The static characteristic, or none (every share 1) where the model has no usable one.
+  void buildStatic() {
+    try {
+      static_.build(cfg_.model, ff_.lo, ff_.hi, cfg_.Ts);
+    } catch (const std::invalid_argument&) {
+      static_ = InverseStatic();
+    }
+  }
+
+  // The PI's gains' share at the setpoint r: the loop's integral crossover ki g (g the model's static slope
+  // there) held where the commands in flight and the sample's hold, T = (delay_cycles + 1.5) Ts, take at most
+  // kDelayPhase of its phase (docs/CONTROL.md, "The PI's gains where the muscle is stiff"). At 1 kHz
+  // (T = 3.5 ms) it takes effect only beyond 75 mm/V.
+  double gainShare(double r) const noexcept {
+    const double g = static_.slope(r) * sign_;
+    const double T = (cfg_.delay_cycles + 1.5) * cfg_.Ts;
+    if (!rests_ || !(g > 0.0) || !(cfg_.ki > 0.0)) return 1.0;
+    return std::min(1.0, kDelayPhase / (cfg_.ki * g * T));
   }
 
   // Where the PI starts: the command in effect, brought into the input range of a model that is used.
@@ -264,9 +291,10 @@ class Mbc final : public detail::PiBased {
 
   ControllerConfig cfg_;
   int horizon_;
-  double sign_;         // the sign of the model's settled response to a command step (modelGainSign)
-  model::Interval ff_;  // the feedforward's bounds (mbcCommandRange)
-  bool rests_;          // the model comes to rest under a held command (mbcModelRest): else the PI alone
+  double sign_;           // the sign of the model's settled response to a command step (modelGainSign)
+  model::Interval ff_;    // the feedforward's bounds (mbcCommandRange)
+  bool rests_;            // the model comes to rest under a held command (mbcModelRest): else the PI alone
+  InverseStatic static_;  // the model's static characteristic over ff_ (its slope schedules the PI's gains)
   detail::LastGood y_;
   estimation::ActiveModel am_;
   detail::CommandHistory ff_hist_;  // the feedforwards sent, the reference model's input

@@ -795,6 +795,36 @@ TEST(Mbc, AtFiftyHertzDiagnoseGivesTheMbcAModelThatComesToRest) {
   EXPECT_LT(rmse[1], rmse[0]);
 }
 
+// The default physics plant at 50 Hz, whose static gain is about 12 mm/V in the muscle's first millimetres,
+// with the model diagnose learnt from its u0 over vcan: the commands in flight delay the loop by 70 ms, and
+// with the paper's 1 kHz gains the PI's integral swung the square wave's 10 mm level between 0 and 25 mm (MBC
+// and PI alike: 58-67 % overshoot). Scaled to the model's slope at the setpoint (Mbc::gainShare), the MBC's PI
+// holds it. Bound: issue 36's 2 % forward and backward, chosen before the run; the PI's beside it.
+TEST(Mbc, ThePisGainsFollowTheMusclesStiffnessAtFiftyHertz) {
+  constexpr double kTs = 0.02;
+  plant::PlantConfig pc = plant::PlantConfig::defaults();
+  pc.Ts = kTs;
+  control::ControllerConfig cfg;
+  cfg.Ts = kTs;
+  cfg.u_min = pc.u_min;
+  cfg.u_max = pc.u_max;
+  cfg.model = io::readModelFile(std::string(PAMC_SOURCE_DIR) + "/tests/data/models/default_u0_over_vcan.json");
+  sim::ClosedLoopRun run;
+  run.reference = control::Trajectory::square(0.1, 10.0, 25.0);
+  run.duration_s = 40.0;
+  run.preroll_s = 1.0;
+  double worst[2] = {0.0, 0.0};
+  for (int i = 0; i < 2; ++i) {
+    auto c = control::makeController(i == 0 ? control::Kind::PI : control::Kind::Mbc, cfg);
+    plant::Plant p(pc);
+    const auto r = sim::runClosedLoop(*c, p, run, -5.0);
+    const auto up = sim::stepResponse(r, +1, 1.0, 0.02), down = sim::stepResponse(r, -1, 1.0, 0.02);
+    worst[i] = std::max(up.overshoot_pct, down.overshoot_pct);
+  }
+  std::printf("default plant, 50 Hz, square wave: largest overshoot PI %.1f %%, MBC %.2f %%\n", worst[0], worst[1]);
+  EXPECT_LE(worst[1], 2.0);
+}
+
 // The check itself (model::heldRest): every committed model comes to rest at 1 kHz and at 50 Hz, its largest
 // swing far inside the 2 % band; the model diagnosed at 50 Hz swings over a third of its span there. A swing
 // measured over a hold's last quarter: a model held at a command settles within it, so none is seen.
