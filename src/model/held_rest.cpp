@@ -13,6 +13,9 @@ constexpr int kLevels = 8;  // commands from u_lo to u_hi (and back down)
 // at zeta wn >= 0.84 /s (its swing, about 2 exp(-3 zeta wn) of a level's step, an eighth of the span, within the
 // band over the hold's last second: at 2 Hz a damping ratio of 0.067 or more).
 constexpr double kHoldSeconds = 4.0;
+// ... but at most this many samples: a record sampled above 2 kHz holds for less (a check runs at every one of
+// diagnose's validations).
+constexpr int kHoldSamplesMax = 8000;
 constexpr double kRestShare = 0.02;  // a swing within 2 % of the span is rest (a 2 % settling band)
 
 // The commands of the staircase: up from u_lo to u_hi, then down to u_lo.
@@ -50,7 +53,7 @@ HeldRest heldRest(const Model& m, double Ts, double u_lo, double u_hi, double sp
   c.Ts = Ts;
   Model::State st;
   m.init(st, u_lo, c);
-  const int samples = std::max(4, static_cast<int>(std::ceil(kHoldSeconds / Ts)));
+  const int samples = std::clamp(static_cast<int>(std::ceil(kHoldSeconds / Ts)), 4, kHoldSamplesMax);
   std::vector<Hold> holds;
   const std::vector<double> u = levels(u_lo, u_hi);
   for (double v : u) holds.push_back(hold(m, st, c, v, samples));
