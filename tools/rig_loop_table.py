@@ -10,6 +10,7 @@ not come to rest"): on the calibrated physics plant (`pamc plant --calibrated`),
 Prints a Markdown table. Exits 0 (a measurement, not a test), 1 when a command fails, 2 on a usage error.
 
   tools/rig_loop_table.py [--pamc BIN] [--out-dir DIR] [--period-us US] [--model MODEL.json]
+                          [--plant-file PLANT.json]  (another plant than the calibrated one)
 """
 import argparse
 import csv
@@ -76,14 +77,16 @@ def main():
     p.add_argument("--out-dir", default=None, help="keep the records, runs and diagnosis here")
     p.add_argument("--period-us", type=int, default=20000, help="SYNC period [us] (default 20000: 50 Hz)")
     p.add_argument("--model", default=None, help="this model instead of the one diagnosed from u0")
+    p.add_argument("--plant-file", default=None, help="this plant (`pamc plant` JSON) instead of the calibrated one")
     a = p.parse_args()
     if not os.access(a.pamc, os.X_OK):
         p.error(f"{a.pamc}: not an executable (build first: tools/build.sh)")
     work = a.out_dir or tempfile.mkdtemp(prefix="rig_loop_")
     os.makedirs(work, exist_ok=True)
-    plant = os.path.join(work, "calibrated.json")
-    with open(plant, "w") as f:
-        subprocess.run([a.pamc, "plant", "--calibrated"], stdout=f, check=True)
+    plant = a.plant_file or os.path.join(work, "calibrated.json")
+    if not a.plant_file:
+        with open(plant, "w") as f:
+            subprocess.run([a.pamc, "plant", "--calibrated"], stdout=f, check=True)
     model = a.model
     if model is None:
         for name, spec in RECORDS.items():
@@ -96,7 +99,7 @@ def main():
         model = os.path.join(work, "diagnosed", "model.json")
         last = [l for l in out.splitlines() if l.startswith("Added") or l.startswith("Nothing")]
         print(f"diagnosed: {last[-1][:160] if last else '?'}", file=sys.stderr)
-    print(f"The calibrated physics plant at {a.period_us} us, model {model} (runs in {work}):\n")
+    print(f"{a.plant_file or 'The calibrated physics plant'} at {a.period_us} us, model {model} (runs in {work}):\n")
     print("| controller | triangle RMSE / max [mm] | square overshoot forward [%] | backward [%] | the MBC's model |")
     print("|---|---|---|---|---|")
     for name in ("pi", "mbc"):
