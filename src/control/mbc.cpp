@@ -41,6 +41,7 @@
 
 #include "control/controller.hpp"
 #include "control/controller_parts.hpp"
+#include "model/inverse_fold.hpp"
 
 namespace pamc::control {
 
@@ -52,6 +53,8 @@ constexpr int kRecoverCycles = 200;
 // margin, the other 45 left to the plant's own lag (chosen, not tuned: pi / 3 and pi / 2 were tried after,
 // docs/CONTROL.md).
 constexpr double kDelayPhase = 0.25 * M_PI;
+// The least change per cycle of the feedforward of a folding model that does not carry the loop [V].
+constexpr double kFoldFloor = 0.001;
 // Secant steps of the inverse per cycle (warm-started from the last cycle's solution).
 constexpr int kInverseSteps = 3;
 // The estimator has lost the plant when its posterior output misses the position by more than this
@@ -97,7 +100,8 @@ class Mbc final : public detail::PiBased {
         horizon_(mbcHorizon(c)),
         sign_(modelGainSign(c.model, c.Ts, c.u_min, c.u_max)),
         ff_(mbcCommandRange(c)),
-        rests_(mbcModelRest(c).rests) {
+        rests_(mbcModelRest(c).rests),
+        fold_(model::inverseFold(c.model, ff_.lo, ff_.hi)) {
     pi_.configure(c, true);
     if (rests_) buildStatic();
     am_.configure(c.model, c.ukf, c.Ts);
@@ -129,6 +133,7 @@ class Mbc final : public detail::PiBased {
     governor_.setAccel(limits_.accel_mm_s2);  // at rest: back to the fixed one
     doubt_ = 0.0;
     governed_.fill(std::isfinite(y0) ? y0 : NAN);
+    r_prev_ = NAN;
   }
 
   ControlOutput update(double yd, double yd_ahead, double y, double load) noexcept override {
@@ -154,7 +159,8 @@ class Mbc final : public detail::PiBased {
       u_solved_ = ff;
     else
       recover_ = kRecoverCycles;
-    switchFeedforward(use, ff);
+    switchFeedforward(use, use && ff_on_ ? heldAtFold(ff, r) : ff);
+    r_prev_ = r;
     advanceReference(u_solved_);
     // The nominal PI on the governed setpoint's error (on the reference model's instead, a model that cannot
     // reach the setpoint held the loop short of it: docs/CONTROL.md).
@@ -181,6 +187,15 @@ class Mbc final : public detail::PiBased {
     const int d = cfg_.delay_cycles;
     for (int i = 0; i < horizon_; ++i) y = cfg_.model.step(s, i < d ? ff_hist_.get(d - 1 - i) : u, ctx_);
     return y;
+  }
+
+  // A model whose inverse folds (model::inverseFold), while it does not carry the loop: the feedforward moves per
+  // cycle by at most twice the governed setpoint's change over the model's settled gain, and at least kFoldFloor
+  // - its jump across the fold goes at the setpoint's pace (docs/CONTROL.md, "A model whose inverse folds").
+  double heldAtFold(double ff, double r) const noexcept {
+    if (!fold_.folds || carried() || !(std::fabs(fold_.gain) > 0.0) || !std::isfinite(r_prev_)) return ff;
+    const double cap = std::max(2.0 * std::fabs(r - r_prev_) / std::fabs(fold_.gain), kFoldFloor);
+    return std::clamp(ff, u_ff_ - cap, u_ff_ + cap);
   }
 
   // The static characteristic, or none (every share 1) where the model has no usable one.
@@ -291,10 +306,11 @@ class Mbc final : public detail::PiBased {
 
   ControllerConfig cfg_;
   int horizon_;
-  double sign_;           // the sign of the model's settled response to a command step (modelGainSign)
-  model::Interval ff_;    // the feedforward's bounds (mbcCommandRange)
-  bool rests_;            // the model comes to rest under a held command (mbcModelRest): else the PI alone
-  InverseStatic static_;  // the model's static characteristic over ff_ (its slope schedules the PI's gains)
+  double sign_;              // the sign of the model's settled response to a command step (modelGainSign)
+  model::Interval ff_;       // the feedforward's bounds (mbcCommandRange)
+  bool rests_;               // the model comes to rest under a held command (mbcModelRest): else the PI alone
+  model::InverseFold fold_;  // whether its inverse folds over ff_ (heldAtFold)
+  InverseStatic static_;     // the model's static characteristic over ff_ (its slope schedules the PI's gains)
   detail::LastGood y_;
   estimation::ActiveModel am_;
   detail::CommandHistory ff_hist_;  // the feedforwards sent, the reference model's input
@@ -313,6 +329,7 @@ class Mbc final : public detail::PiBased {
   double gain_ = 1.0;      // the model's response at the horizon to a unit command change [mm/V]
   bool ff_on_ = false;     // the feedforward is in the command
   bool started_ = false;   // past the first cycle since activate()
+  double r_prev_ = NAN;    // the governed setpoint of the last cycle
   double miss_ = 0.0;      // the modelling error: the UKF's posterior output - the reference model's, low-passed
   int recover_ = 0;        // cycles left with the feedforward off after an estimator restart
 };
