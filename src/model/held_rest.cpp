@@ -73,8 +73,8 @@ std::string describeHeldRest(const HeldRest& h) {
   if (h.rests)
     std::snprintf(b, sizeof b,
                   "it comes to rest under a held command at %.4g ms (its largest swing %.3g over a hold's last "
-                  "quarter, at most 2 %% of its output's span %.4g)",
-                  1e3 * h.Ts, h.swing, h.span);
+                  "quarter, at most %g %% of its output's span %.4g)",
+                  1e3 * h.Ts, h.swing, 100.0 * kRestShare, h.span);
   else
     std::snprintf(b, sizeof b,
                   "it does not come to rest under a held command at %.4g ms: under %.4g it swings over %.4g (its "
